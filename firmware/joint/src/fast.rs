@@ -1,0 +1,172 @@
+//! The per-tick evaluation of T(θ) and dT/dθ in a few dozen FPU instructions.
+//!
+//! model-core's f32 path calls libm's `asinf`/`expf`, which on the Cortex-M4F go through
+//! software double-precision helpers (≈ 1,600 instructions per evaluation). The same
+//! formula is evaluated here with a polynomial arcsine (Abramowitz–Stegun 4.4.46), a
+//! range-reduced polynomial exponential and the FPU's `vsqrt`; the constants that depend
+//! only on the parameters (k = α/(ω(1 + r²)), r = β/ω) are prepared once when a set is
+//! installed. Error against the f64 model: see the tests (`fast_path_error_bound`).
+use core::f32::consts::{FRAC_PI_2, LN_2, LOG2_E, PI};
+use model_core::{Direction, Evaluation, Params, Real};
+
+/// Largest |r| = |β/ω| for which e^(−rφ), φ ∈ [−π/2, 3π/2], stays well inside f32;
+/// real gears have |r| ≈ 2 (paper: 1.87, seed fit: 2.30).
+pub const MAX_ABS_R: f32 = 16.0;
+
+/// Why a parameter set has no fast path (the direct path still works).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum FastPathError {
+    /// The parameters are not finite or ω = 0.
+    Invalid,
+    /// |β/ω| > [`MAX_ABS_R`].
+    DecayOutOfRange,
+    /// k = α/(ω(1 + r²)) does not fit in f32.
+    Overflow,
+}
+
+impl core::fmt::Display for FastPathError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            FastPathError::Invalid => f.write_str("parameters not finite or omega is zero"),
+            FastPathError::DecayOutOfRange => write!(f, "|beta/omega| exceeds {MAX_ABS_R}"),
+            FastPathError::Overflow => f.write_str("alpha/(omega(1 + r^2)) overflows f32"),
+        }
+    }
+}
+
+/// The constants of one parameter set, ready for [`FastModel::evaluate`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FastModel {
+    c1: f32,
+    c2: f32,
+    c3: f32,
+    /// 3·c2 and 5·c3 for dT/dθ.
+    c2x3: f32,
+    c3x5: f32,
+    r: f32,
+    /// k = α/(ω(1 + r²)), so that h = A·k.
+    k: f32,
+}
+
+impl FastModel {
+    pub fn new(params: &Params<f32>) -> Result<Self, FastPathError> {
+        params.validate().map_err(|_| FastPathError::Invalid)?;
+        // Prepared in f64: runs once per push, and keeps k exact to f32 rounding.
+        let r = f64::from(params.beta) / f64::from(params.omega);
+        if !(r.abs() <= f64::from(MAX_ABS_R)) {
+            return Err(FastPathError::DecayOutOfRange);
+        }
+        let k = f64::from(params.alpha) / (f64::from(params.omega) * (1.0 + r * r));
+        let k = k as f32;
+        let c2x3 = 3.0 * params.c2;
+        let c3x5 = 5.0 * params.c3;
+        if !(k.is_finite() && c2x3.is_finite() && c3x5.is_finite()) {
+            return Err(FastPathError::Overflow);
+        }
+        Ok(FastModel {
+            c1: params.c1,
+            c2: params.c2,
+            c3: params.c3,
+            c2x3,
+            c3x5,
+            r: r as f32,
+            k,
+        })
+    }
+
+    /// T(θ) and dT/dθ on a loop of amplitude `amplitude`, the same formula as
+    /// [`model_core::Loop::evaluate`] (including its cap of 1/|cos ωt| at the turning points).
+    /// Returns `None` when the inputs are not finite, A ≤ 0 or the result overflows.
+    #[inline]
+    pub fn evaluate(&self, theta: f32, direction: Direction, amplitude: f32) -> Option<Evaluation<f32>> {
+        if !(amplitude > 0.0 && theta.is_finite() && amplitude.is_finite()) {
+            return None;
+        }
+        let inv_amplitude = 1.0 / amplitude;
+        let x = (theta * inv_amplitude).clamp(-1.0, 1.0);
+        let abs_cos = sqrt((1.0 - x) * (1.0 + x));
+        let asin_x = asin(x);
+        let (phase, cos_phase, dphase_sign) = match direction {
+            Direction::Rising => (asin_x, abs_cos, 1.0),
+            Direction::Falling => (PI - asin_x, -abs_cos, -1.0),
+        };
+        let r = self.r;
+        let h = amplitude * self.k;
+        let h_exp = h * exp(-r * phase);
+        let hp = h_exp + h * (r * x - cos_phase);
+        let hdp = -r * h_exp + h * (r * cos_phase + x);
+        let z = hp * abs_cos;
+        let theta2 = theta * theta;
+        let poly = theta * (self.c1 + theta2 * (self.c2 + theta2 * self.c3));
+        let dpoly = self.c1 + theta2 * (self.c2x3 + self.c3x5 * theta2);
+        let dz = (dphase_sign * hdp - hp * x / abs_cos.max(<f32 as Real>::MIN_COS)) * inv_amplitude;
+        let torque = poly + z;
+        let stiffness = dpoly + dz;
+        (torque.is_finite() && stiffness.is_finite()).then_some(Evaluation { torque, stiffness })
+    }
+}
+
+/// √v with the FPU's `vsqrt.f32` on the Cortex-M4F; libm (also correctly rounded) elsewhere.
+#[inline(always)]
+pub fn sqrt(v: f32) -> f32 {
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    {
+        let root: f32;
+        // SAFETY: one FPU instruction on registers; no memory, stack or flags touched.
+        #[allow(unsafe_code)]
+        unsafe {
+            core::arch::asm!(
+                "vsqrt.f32 {root}, {v}",
+                root = lateout(sreg) root,
+                v = in(sreg) v,
+                options(pure, nomem, nostack, preserves_flags)
+            );
+        }
+        root
+    }
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+    {
+        libm::sqrtf(v)
+    }
+}
+
+/// asin x for x ∈ [−1, 1]: π/2 − √(1 − |x|)·P7(|x|), |error| ≤ 2·10⁻⁸ before f32 rounding
+/// (Abramowitz & Stegun 4.4.46).
+#[inline(always)]
+pub fn asin(x: f32) -> f32 {
+    let a = x.abs();
+    let p = 1.570_796_3
+        + a * (-0.214_598_8
+            + a * (0.088_978_99
+                + a * (-0.050_174_3
+                    + a * (0.030_891_88 + a * (-0.017_088_126 + a * (0.006_670_09 - a * 0.001_262_491))))));
+    let angle = FRAC_PI_2 - sqrt(1.0 - a) * p;
+    if x < 0.0 {
+        -angle
+    } else {
+        angle
+    }
+}
+
+/// e^y for |y| ≤ 87: y = n·ln 2 + f with |f| ≤ ln 2 / 2, e^f by its Taylor polynomial of
+/// degree 6 (relative error ≤ 1.3·10⁻⁷), 2^n put into the exponent bits.
+#[inline(always)]
+pub fn exp(y: f32) -> f32 {
+    let y = y.clamp(-87.0, 87.0);
+    let half = if y < 0.0 { -0.5 } else { 0.5 };
+    let n = (y * LOG2_E + half) as i32;
+    // ln 2 split in a part exact in f32 times n and a correction (Cody–Waite).
+    const LN_2_HIGH: f32 = 0.693_359_4;
+    const LN_2_LOW: f32 = LN_2 - LN_2_HIGH;
+    let f = (y - n as f32 * LN_2_HIGH) - n as f32 * LN_2_LOW;
+    let poly = 1.0
+        + f * (1.0
+            + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0))))));
+    let scale = f32::from_bits(((n + 127) as u32) << 23);
+    poly * scale
+}
+
+#[cfg(test)]
+mod tests;

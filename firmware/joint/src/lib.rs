@@ -1,0 +1,93 @@
+//! Everything of the joint firmware that does not touch a register, so that it runs and is
+//! tested on the host: the boards only move bytes and encoder readings in and out.
+//!
+//! Per control tick ([`Compensator::tick`]): deflection θ = θ_in/N − θ_out, the direction of
+//! θ with a band against encoder noise and the loop amplitude from the turning points
+//! ([`DirectionTracker`]), then T_ff and K from model-core — directly, or by the fast path
+//! prepared when the parameters arrive ([`FastModel`]) — clamped to the torque limit.
+#![no_std]
+#![deny(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)
+)]
+
+pub mod as5047p;
+mod compensator;
+pub mod fast;
+pub mod flash;
+mod server;
+pub mod storage;
+mod tracker;
+
+pub use compensator::Compensator;
+pub use fast::FastModel;
+pub use server::Server;
+pub use tracker::DirectionTracker;
+
+use swg_protocol::Version;
+
+/// This firmware's version, reported in [`swg_protocol::DeviceInfo`].
+pub const FIRMWARE_VERSION: Version = Version { major: 0, minor: 1, patch: 0 };
+
+/// An absolute angle sensor on a shaft.
+pub trait AngleSensor {
+    type Error;
+    /// The shaft angle in [0, 2π) rad.
+    fn read_angle(&mut self) -> Result<f32, Self::Error>;
+}
+
+/// Makes a single-turn angle multi-turn by counting the wraps between readings; valid while
+/// the shaft turns less than half a revolution per reading.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TurnCounter {
+    last: Option<f32>,
+    total: f32,
+}
+
+impl TurnCounter {
+    /// Feeds a reading in [0, 2π) rad; returns the accumulated angle, rad.
+    pub fn update(&mut self, angle: f32) -> f32 {
+        use core::f32::consts::{PI, TAU};
+        match self.last {
+            None => self.total = angle,
+            Some(last) => {
+                let mut step = angle - last;
+                if step > PI {
+                    step -= TAU;
+                } else if step < -PI {
+                    step += TAU;
+                }
+                self.total += step;
+            }
+        }
+        self.last = Some(angle);
+        self.total
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+
+    #[test]
+    fn firmware_version_is_the_crate_version() {
+        let text = std::format!("{FIRMWARE_VERSION}");
+        assert_eq!(text, env!("CARGO_PKG_VERSION"));
+    }
+
+    #[test]
+    fn turn_counter_follows_wraps_both_ways() {
+        let mut counter = TurnCounter::default();
+        let tau = core::f32::consts::TAU;
+        let mut expected = 6.0;
+        assert_eq!(counter.update(6.0), 6.0);
+        // Forward across 2π three times, then back across 0 five times.
+        for step in [0.5f32; 40].into_iter().chain([-0.5f32; 100]) {
+            expected += step;
+            let got = counter.update(expected.rem_euclid(tau));
+            assert!((got - expected).abs() < 1e-3, "{got} vs {expected}");
+        }
+    }
+}

@@ -1,0 +1,37 @@
+//! Command-line interface: one module per subcommand, shared options flattened.
+mod fit;
+mod simulate;
+
+use clap::{Args, Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "swg-host", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Fit the hysteresis stiffness model to a loop table or a bench recording.
+    Fit(fit::FitArgs),
+    /// Write a bench recording (format v1) from the model.
+    Simulate(simulate::SimulateArgs),
+}
+
+impl Cli {
+    pub fn run(self) -> anyhow::Result<()> {
+        match self.command {
+            Command::Fit(args) => fit::run(args),
+            Command::Simulate(args) => simulate::run(args),
+        }
+    }
+}
+
+/// How to read a recording; shared by every subcommand that takes one.
+#[derive(Args, Clone, Debug, Default)]
+pub struct InputOptions {
+    /// Gear reduction ratio N; overrides the recording's `# ratio:` line.
+    #[arg(long, value_name = "N")]
+    pub ratio: Option<f64>,
+}

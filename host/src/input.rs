@@ -1,0 +1,313 @@
+//! The two input formats: the paper's loop table and the bench recording (format v1).
+use crate::table::{read_text, InputError, Table};
+use model_core::Direction;
+use std::fmt;
+use std::path::Path;
+
+/// The four branches of a loading cycle, as named in loop tables.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Branch {
+    ForwardLoading,
+    ForwardUnloading,
+    ReverseLoading,
+    ReverseUnloading,
+}
+
+impl Branch {
+    pub const ALL: [Branch; 4] = [
+        Branch::ForwardLoading,
+        Branch::ForwardUnloading,
+        Branch::ReverseLoading,
+        Branch::ReverseUnloading,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Branch::ForwardLoading => "forward_loading",
+            Branch::ForwardUnloading => "forward_unloading",
+            Branch::ReverseLoading => "reverse_loading",
+            Branch::ReverseUnloading => "reverse_unloading",
+        }
+    }
+
+    /// Forward loading and reverse unloading raise the deflection; the others lower it.
+    pub fn direction(self) -> Direction {
+        match self {
+            Branch::ForwardLoading | Branch::ReverseUnloading => Direction::Rising,
+            Branch::ForwardUnloading | Branch::ReverseLoading => Direction::Falling,
+        }
+    }
+
+    /// The branch a sample of a recording lies on, from its direction and side of zero.
+    pub fn of(direction: Direction, deflection: f64) -> Branch {
+        match (direction, deflection >= 0.0) {
+            (Direction::Rising, true) => Branch::ForwardLoading,
+            (Direction::Falling, true) => Branch::ForwardUnloading,
+            (Direction::Falling, false) => Branch::ReverseLoading,
+            (Direction::Rising, false) => Branch::ReverseUnloading,
+        }
+    }
+}
+
+impl fmt::Display for Branch {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A loop table: `branch,torque_nm,deflection_rad`, one measured point a row.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoopTable {
+    pub branch: Vec<Branch>,
+    pub torque: Vec<f64>,
+    pub deflection: Vec<f64>,
+}
+
+/// A bench recording, format v1.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Recording {
+    /// Gear reduction ratio N.
+    pub ratio: f64,
+    /// `# key: value` lines before the header, in order.
+    pub metadata: Vec<(String, String)>,
+    pub time: Vec<f64>,
+    /// Input (wave generator) and output angles, rad, when the recording has them.
+    pub angles: Option<Angles>,
+    /// θ = θ_in/N − θ_out, rad.
+    pub deflection: Vec<f64>,
+    pub torque: Vec<f64>,
+    pub temperature: Option<Vec<f64>>,
+}
+
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Angles {
+    pub input: Vec<f64>,
+    pub output: Vec<f64>,
+}
+
+/// What `read` found in a file.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Dataset {
+    LoopTable(LoopTable),
+    Recording(Recording),
+}
+
+/// First line of a recording.
+pub const RECORDING_MAGIC: &str = "swg-recording v1";
+
+/// Reads a loop table or a recording, telling them apart by the recording's first line.
+/// `ratio` overrides a recording's `# ratio:` line.
+pub fn read(path: &Path, ratio: Option<f64>) -> Result<Dataset, InputError> {
+    let text = read_text(path)?;
+    let table = Table::parse(path, &text)?;
+    let first_comment = table.preamble.first().filter(|(line, _)| *line == 1);
+    match first_comment {
+        Some((_, comment)) if comment.starts_with("swg-recording") => {
+            Ok(Dataset::Recording(recording_from_table(&table, ratio)?))
+        }
+        _ if table.column("branch").is_some() => Ok(Dataset::LoopTable(loop_table_from_table(&table)?)),
+        _ if table.column("time_s").is_some() => Err(InputError::at_line(
+            path,
+            1,
+            format!("a recording must start with the line `# {RECORDING_MAGIC}`"),
+        )),
+        _ => Err(InputError::at_line(
+            path,
+            table.header_line,
+            format!(
+                "expected a loop table header (branch,torque_nm,deflection_rad) or a recording \
+                 starting with `# {RECORDING_MAGIC}`; found header: {}",
+                table.header.join(",")
+            ),
+        )),
+    }
+}
+
+/// Reads a recording; anything else is an error.
+pub fn read_recording(path: &Path, ratio: Option<f64>) -> Result<Recording, InputError> {
+    match read(path, ratio)? {
+        Dataset::Recording(recording) => Ok(recording),
+        Dataset::LoopTable(_) => Err(InputError::file(
+            path,
+            format!("expected a recording (`# {RECORDING_MAGIC}`), found a loop table"),
+        )),
+    }
+}
+
+fn loop_table_from_table(table: &Table) -> Result<LoopTable, InputError> {
+    let branch_col = table.required_column("branch", "forward_loading, forward_unloading, …")?;
+    let torque_col = table.required_column("torque_nm", "torque, N·m")?;
+    let deflection_col = table.required_column("deflection_rad", "torsional deflection, rad")?;
+    let mut out = LoopTable { branch: Vec::new(), torque: Vec::new(), deflection: Vec::new() };
+    for row in &table.rows {
+        let name = row.fields.get(branch_col).unwrap_or("");
+        let branch = Branch::ALL.into_iter().find(|b| b.name() == name).ok_or_else(|| {
+            let names: Vec<_> = Branch::ALL.iter().map(|b| b.name()).collect();
+            table.cell_error(row, branch_col, format!("unknown branch {name:?}; expected one of {}", names.join(", ")))
+        })?;
+        out.branch.push(branch);
+        out.torque.push(table.number(row, torque_col)?);
+        out.deflection.push(table.number(row, deflection_col)?);
+    }
+    Ok(out)
+}
+
+fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Recording, InputError> {
+    let path = &table.path;
+    let mut preamble = table.preamble.iter();
+    if let Some((line, magic)) = preamble.next() {
+        if magic != RECORDING_MAGIC {
+            return Err(InputError::at_line(
+                path,
+                *line,
+                format!("unsupported recording version `# {magic}`; this tool reads `# {RECORDING_MAGIC}`"),
+            ));
+        }
+    }
+    let mut metadata = Vec::new();
+    let mut ratio_line = None;
+    for (line, comment) in preamble {
+        if let Some((key, value)) = comment.split_once(':') {
+            let (key, value) = (key.trim().to_owned(), value.trim().to_owned());
+            if key == "ratio" {
+                ratio_line = Some((*line, value.clone()));
+            }
+            metadata.push((key, value));
+        }
+    }
+    let ratio = match (ratio_override, ratio_line) {
+        (Some(ratio), _) => check_ratio(ratio).map_err(|m| InputError::file(path, format!("--ratio {m}")))?,
+        (None, Some((line, text))) => {
+            let value = text.parse::<f64>().map_err(|_| {
+                InputError::at_line(path, line, format!("ratio: expected a number, found {text:?}"))
+            })?;
+            check_ratio(value).map_err(|m| InputError::at_line(path, line, format!("ratio {m}")))?
+        }
+        (None, None) => {
+            return Err(InputError::file(
+                path,
+                "no gear ratio: add a `# ratio: N` line before the header or pass --ratio N",
+            ))
+        }
+    };
+
+    let time_col = table.required_column("time_s", "sample time, s")?;
+    let torque_col = table.required_column("torque_nm", "output torque, N·m")?;
+    let temperature_col = table.column("temperature_c");
+    let deflection_col = table.column("deflection_rad");
+    let angle_cols = match (table.column("theta_in_rad"), table.column("theta_out_rad")) {
+        (Some(input), Some(output)) => Some((input, output)),
+        (None, None) => None,
+        (Some(_), None) => {
+            table.required_column("theta_out_rad", "output angle, rad")?;
+            None
+        }
+        (None, Some(_)) => {
+            table.required_column("theta_in_rad", "input angle, rad")?;
+            None
+        }
+    };
+    if angle_cols.is_none() && deflection_col.is_none() {
+        return Err(InputError::at_line(
+            path,
+            table.header_line,
+            format!(
+                "missing columns: either theta_in_rad and theta_out_rad, or deflection_rad; the header has: {}",
+                table.header.join(",")
+            ),
+        ));
+    }
+
+    let n = table.rows.len();
+    let mut rec = Recording {
+        ratio,
+        metadata,
+        time: Vec::with_capacity(n),
+        angles: angle_cols.map(|_| Angles { input: Vec::with_capacity(n), output: Vec::with_capacity(n) }),
+        deflection: Vec::with_capacity(n),
+        torque: Vec::with_capacity(n),
+        temperature: temperature_col.map(|_| Vec::with_capacity(n)),
+    };
+    for row in &table.rows {
+        let time = table.number(row, time_col)?;
+        if let Some(&previous) = rec.time.last() {
+            if time <= previous {
+                return Err(table.cell_error(
+                    row,
+                    time_col,
+                    format!("time must increase strictly: {time} s follows {previous} s"),
+                ));
+            }
+        }
+        rec.time.push(time);
+        rec.torque.push(table.number(row, torque_col)?);
+        let deflection = match (angle_cols, rec.angles.as_mut()) {
+            (Some((input_col, output_col)), Some(angles)) => {
+                let input = table.number(row, input_col)?;
+                let output = table.number(row, output_col)?;
+                angles.input.push(input);
+                angles.output.push(output);
+                deflection(input, output, ratio)
+            }
+            _ => 0.0,
+        };
+        // An explicit deflection column wins over the angles.
+        let deflection = match deflection_col {
+            Some(col) => table.number(row, col)?,
+            None => deflection,
+        };
+        rec.deflection.push(deflection);
+        if let (Some(col), Some(temps)) = (temperature_col, rec.temperature.as_mut()) {
+            temps.push(table.number(row, col)?);
+        }
+    }
+    Ok(rec)
+}
+
+fn check_ratio(ratio: f64) -> Result<f64, String> {
+    if ratio.is_finite() && ratio > 0.0 {
+        Ok(ratio)
+    } else {
+        Err(format!("must be a finite gear ratio > 0, found {ratio}"))
+    }
+}
+
+/// Torsional deflection θ = θ_in/N − θ_out, rad.
+pub fn deflection(theta_in: f64, theta_out: f64, ratio: f64) -> f64 {
+    theta_in / ratio - theta_out
+}
+
+impl Recording {
+    /// Writes the recording in format v1 (what `read` reads back exactly).
+    pub fn write(&self, mut out: impl std::io::Write) -> std::io::Result<()> {
+        writeln!(out, "# {RECORDING_MAGIC}")?;
+        writeln!(out, "# ratio: {}", self.ratio)?;
+        for (key, value) in self.metadata.iter().filter(|(key, _)| key != "ratio") {
+            writeln!(out, "# {key}: {value}")?;
+        }
+        let mut header = vec!["time_s"];
+        if self.angles.is_some() {
+            header.extend(["theta_in_rad", "theta_out_rad"]);
+        } else {
+            header.push("deflection_rad");
+        }
+        header.push("torque_nm");
+        if self.temperature.is_some() {
+            header.push("temperature_c");
+        }
+        writeln!(out, "{}", header.join(","))?;
+        for i in 0..self.time.len() {
+            write!(out, "{}", self.time[i])?;
+            match &self.angles {
+                Some(angles) => write!(out, ",{},{}", angles.input[i], angles.output[i])?,
+                None => write!(out, ",{}", self.deflection[i])?,
+            }
+            write!(out, ",{}", self.torque[i])?;
+            if let Some(temps) = &self.temperature {
+                write!(out, ",{}", temps[i])?;
+            }
+            writeln!(out)?;
+        }
+        Ok(())
+    }
+}

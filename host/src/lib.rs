@@ -1,0 +1,15 @@
+//! The host side of the strain wave gear tool chain: readers for bench data, the model fit,
+//! its baselines, simulation and plots. The `swg-host` binary is a thin layer over this.
+pub mod baselines;
+pub mod fit;
+pub mod input;
+pub mod linalg;
+pub mod optimize;
+pub mod output;
+pub mod paramsfile;
+pub mod plot;
+pub mod prepare;
+pub mod report;
+pub mod segment;
+pub mod simulate;
+pub mod table;

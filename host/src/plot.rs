@@ -1,0 +1,149 @@
+//! SVG pictures of a fit: the torque–deflection loop with the data, the fitted model and the
+//! baselines, and the model's residuals below it.
+use crate::baselines::{BranchLine, ThreeSegment};
+use crate::fit::FitData;
+use crate::input::Branch;
+use model_core::{Direction, Model};
+use plotters::prelude::*;
+
+pub struct LoopPlot<'a> {
+    pub title: &'a str,
+    pub data: &'a FitData,
+    pub branch: &'a [Branch],
+    pub model: &'a Model<f64>,
+    /// Amplitude at which the model's loop is drawn, rad.
+    pub amplitude: f64,
+    pub lines: &'a [BranchLine],
+    pub three_segment: Option<&'a ThreeSegment>,
+}
+
+/// Most points drawn per series; longer recordings are thinned evenly.
+const MAX_POINTS: usize = 4000;
+const MRAD: f64 = 1e3;
+
+fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    let pad = 0.05 * (hi - lo).max(1e-12);
+    (lo - pad, hi + pad)
+}
+
+/// Renders the picture as an SVG document.
+pub fn loop_svg(plot: &LoopPlot) -> Result<String, String> {
+    let mut svg = String::new();
+    draw(plot, &mut svg).map_err(|e| format!("drawing the plot failed: {e}"))?;
+    Ok(svg)
+}
+
+fn draw(plot: &LoopPlot, svg: &mut String) -> Result<(), Box<dyn std::error::Error>> {
+    let data = plot.data;
+    let n = data.theta.len();
+    let stride = n.div_ceil(MAX_POINTS).max(1);
+    let residuals = crate::fit::residuals(plot.model, data)?;
+
+    let root = SVGBackend::with_string(svg, (960, 820)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (upper, lower) = root.split_vertically(560);
+
+    let (x_lo, x_hi) = range(data.theta.iter().map(|t| t * MRAD));
+    let (y_lo, y_hi) = range(data.torque.iter().copied());
+    let mut chart = ChartBuilder::on(&upper)
+        .caption(plot.title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
+    chart.configure_mesh().x_desc("deflection θ (mrad)").y_desc("torque T (N·m)").draw()?;
+
+    let grey = RGBColor(90, 90, 90);
+    chart
+        .draw_series((0..n).step_by(stride).map(|i| Circle::new((data.theta[i] * MRAD, data.torque[i]), 2, grey.mix(0.6).filled())))?
+        .label("measured")
+        .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
+
+    for (direction, color, name) in [
+        (Direction::Rising, RGBColor(0, 90, 200), "model, θ rising"),
+        (Direction::Falling, RGBColor(210, 60, 0), "model, θ falling"),
+    ] {
+        let thetas: Vec<f64> = (0..n).filter(|&i| data.direction[i] == direction).map(|i| data.theta[i]).collect();
+        if thetas.is_empty() {
+            continue;
+        }
+        let (lo, hi) = thetas.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
+        let (lo, hi) = (lo.max(-plot.amplitude), hi.min(plot.amplitude));
+        let curve: Vec<(f64, f64)> = (0..=400)
+            .filter_map(|k| {
+                let theta = lo + (hi - lo) * k as f64 / 400.0;
+                plot.model.torque(theta, direction, plot.amplitude).ok().map(|t| (theta * MRAD, t))
+            })
+            .collect();
+        chart
+            .draw_series(LineSeries::new(curve, color.stroke_width(2)))?
+            .label(name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    }
+
+    let line_color = RGBColor(0, 150, 80);
+    for (k, line) in plot.lines.iter().enumerate() {
+        let thetas: Vec<f64> =
+            (0..n).filter(|&i| plot.branch[i].name() == line.branch).map(|i| data.theta[i]).collect();
+        let (lo, hi) = thetas.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
+        let at = |t: f64| (t * MRAD, line.intercept_nm + line.stiffness_nm_per_rad * t);
+        let series = chart.draw_series(LineSeries::new([at(lo), at(hi)], line_color.stroke_width(1)))?;
+        if k == 0 {
+            series
+                .label("one line per branch")
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], line_color));
+        }
+    }
+
+    if let Some(curve) = plot.three_segment {
+        let purple = RGBColor(140, 60, 170);
+        let b1 = curve.t1_nm / curve.k1_nm_per_rad;
+        let b2 = b1 + (curve.t2_nm - curve.t1_nm) / curve.k2_nm_per_rad;
+        let torque = |t: f64| {
+            let a = t.abs();
+            let v = if a <= b1 {
+                curve.k1_nm_per_rad * a
+            } else if a <= b2 {
+                curve.t1_nm + curve.k2_nm_per_rad * (a - b1)
+            } else {
+                curve.t2_nm + curve.k3_nm_per_rad * (a - b2)
+            };
+            v.copysign(t)
+        };
+        let (lo, hi) = (x_lo / MRAD, x_hi / MRAD);
+        let points: Vec<(f64, f64)> =
+            (0..=400).map(|k| lo + (hi - lo) * k as f64 / 400.0).map(|t| (t * MRAD, torque(t))).collect();
+        chart
+            .draw_series(DashedLineSeries::new(points, 6, 4, purple.stroke_width(1)))?
+            .label("catalogue three-segment curve")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], purple));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+
+    let (r_lo, r_hi) = range(residuals.iter().copied().chain([0.0]));
+    let r_max = r_lo.abs().max(r_hi.abs());
+    let rms = (residuals.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
+    let mut below = ChartBuilder::on(&lower)
+        .caption(format!("residual, measured − model (RMS {rms:.3} N·m)"), ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d(x_lo..x_hi, -r_max..r_max)?;
+    below.configure_mesh().x_desc("deflection θ (mrad)").y_desc("residual (N·m)").draw()?;
+    below.draw_series(LineSeries::new([(x_lo, 0.0), (x_hi, 0.0)], BLACK.stroke_width(1)))?;
+    below.draw_series((0..n).step_by(stride).map(|i| {
+        let color = match data.direction[i] {
+            Direction::Rising => RGBColor(0, 90, 200),
+            Direction::Falling => RGBColor(210, 60, 0),
+        };
+        Circle::new((data.theta[i] * MRAD, residuals[i]), 2, color.filled())
+    }))?;
+    root.present()?;
+    Ok(())
+}

@@ -1,0 +1,64 @@
+//! From what was read to what the fit needs: direction, amplitude and noise per sample.
+use crate::fit::{FitData, NoiseModel};
+use crate::input::{Branch, Dataset, LoopTable, Recording};
+use crate::segment::{noise_from_second_differences, segment, SegmentError, Segmentation};
+
+/// A dataset ready to fit.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    pub data: FitData,
+    /// The loading branch of every sample (given by a loop table, derived for a recording).
+    pub branch: Vec<Branch>,
+    /// Measurement noise, estimated from a recording; `None` for a loop table.
+    pub noise: Option<NoiseModel>,
+    /// Direction analysis of a recording.
+    pub segmentation: Option<Segmentation>,
+}
+
+pub fn prepare(dataset: &Dataset) -> Result<Prepared, SegmentError> {
+    match dataset {
+        Dataset::LoopTable(table) => Ok(from_loop_table(table)),
+        Dataset::Recording(recording) => from_recording(recording),
+    }
+}
+
+/// A loop table is one loop: A is its largest |θ|, the direction its branch's.
+pub fn from_loop_table(table: &LoopTable) -> Prepared {
+    let amplitude = table.deflection.iter().map(|t| t.abs()).fold(0.0, f64::max);
+    Prepared {
+        data: FitData {
+            theta: table.deflection.clone(),
+            torque: table.torque.clone(),
+            direction: table.branch.iter().map(|b| b.direction()).collect(),
+            amplitude: vec![amplitude; table.deflection.len()],
+        },
+        branch: table.branch.clone(),
+        noise: None,
+        segmentation: None,
+    }
+}
+
+pub fn from_recording(recording: &Recording) -> Result<Prepared, SegmentError> {
+    let segmentation = segment(&recording.time, &recording.deflection)?;
+    let branch = recording
+        .deflection
+        .iter()
+        .zip(&segmentation.direction)
+        .map(|(&theta, &direction)| Branch::of(direction, theta))
+        .collect();
+    let noise = NoiseModel {
+        torque_nm: noise_from_second_differences(&recording.torque),
+        deflection_rad: segmentation.noise,
+    };
+    Ok(Prepared {
+        data: FitData {
+            theta: recording.deflection.clone(),
+            torque: recording.torque.clone(),
+            direction: segmentation.direction.clone(),
+            amplitude: segmentation.amplitude.clone(),
+        },
+        branch,
+        noise: Some(noise),
+        segmentation: Some(segmentation),
+    })
+}

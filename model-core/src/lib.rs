@@ -1,0 +1,387 @@
+//! The genetic hysteresis stiffness model of a strain wave gear (harmonic drive),
+//! as in "Hysteresis Stiffness Modeling in Strain Wave Gearing: A Genetic Characteristic
+//! Approach" (`shared/seed/`):
+//!
+//! ```text
+//! T(θ) = c1·θ + c2·θ³ + c3·θ⁵ + z(θ)
+//! z    = A·α·(ω·e^(−β·t) + β·sin ωt − ω·cos ωt) / (β² + ω²) · |cos ωt|
+//! ωt   = asin(θ/A)          while θ rises  (forward loading, reverse unloading)
+//! ωt   = π − asin(θ/A)      while θ falls  (forward unloading, reverse loading)
+//! ```
+//!
+//! θ is the torsional deflection in rad, T the torque in N·m and A the amplitude of the
+//! current loop in rad. θ/A is clamped to [−1, 1].
+//!
+//! # Identifiability
+//! z depends on (α, β, ω) only through `r = β/ω` and `h = A·α / (ω·(1 + r²))` (N·m):
+//! `z = h·(e^(−r·ωt) + r·sin ωt − cos ωt)·|cos ωt|`. Every (s·α, s·β, s·ω), s ≠ 0, gives the
+//! same torque, so a fit can only determine (c1, c2, c3, h, r). [`Params::from_identifiable`]
+//! picks the canonical point ω = 1 of that line.
+//!
+//! # Never panics
+//! Every entry point returns a [`Result`]: non-finite inputs, A ≤ 0, ω = 0 and results that
+//! would overflow are reported as [`Error`] values. Evaluation works in the log domain
+//! (`A·k·e^(−rφ)` as `exp(ln|A·k| − rφ)`), so a large `r` with a small `α` stays finite.
+#![no_std]
+#![forbid(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)
+)]
+
+use core::fmt;
+use num_traits::{Float, FloatConst};
+
+/// Name of the model in files and on the wire.
+pub const MODEL_NAME: &str = "genetic-hysteresis";
+/// Version of the model's equations; bumped when T(θ) changes meaning.
+pub const MODEL_VERSION: u16 = 1;
+
+/// The float types the model runs on: `f32` on the microcontroller, `f64` on the host.
+pub trait Real: Float + FloatConst + fmt::Debug + private::Sealed {
+    /// Cap on the singular factor 1/|cos ωt| in the stiffness, see [`Loop::stiffness`].
+    const MIN_COS: Self;
+    /// 3, used by dT/dθ of the polynomial.
+    const THREE: Self;
+    /// 5, used by dT/dθ of the polynomial.
+    const FIVE: Self;
+}
+
+impl Real for f32 {
+    const MIN_COS: Self = 0.01;
+    const THREE: Self = 3.0;
+    const FIVE: Self = 5.0;
+}
+
+impl Real for f64 {
+    const MIN_COS: Self = 0.01;
+    const THREE: Self = 3.0;
+    const FIVE: Self = 5.0;
+}
+
+mod private {
+    pub trait Sealed {}
+    impl Sealed for f32 {}
+    impl Sealed for f64 {}
+}
+
+/// Which way the deflection θ is moving, i.e. which inverse branch of θ = A·sin ωt applies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Direction {
+    /// θ increasing: forward loading or reverse unloading; ωt = asin(θ/A).
+    Rising,
+    /// θ decreasing: forward unloading or reverse loading; ωt = π − asin(θ/A).
+    Falling,
+}
+
+/// One of the six model parameters, named in errors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ParamName {
+    C1,
+    C2,
+    C3,
+    Alpha,
+    Beta,
+    Omega,
+}
+
+impl ParamName {
+    /// The parameter's name as written in files.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            ParamName::C1 => "c1",
+            ParamName::C2 => "c2",
+            ParamName::C3 => "c3",
+            ParamName::Alpha => "alpha",
+            ParamName::Beta => "beta",
+            ParamName::Omega => "omega",
+        }
+    }
+}
+
+/// Why a parameter set or an evaluation was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Error {
+    /// A parameter is NaN or infinite.
+    NonFiniteParameter(ParamName),
+    /// ω = 0: the hysteresis term divides by ω.
+    ZeroOmega,
+    /// The loop amplitude A is not a finite number > 0.
+    InvalidAmplitude,
+    /// The deflection θ is NaN or infinite.
+    NonFiniteDeflection,
+    /// The result does not fit in the float type (parameters far outside any real gear).
+    Overflow,
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::NonFiniteParameter(name) => {
+                write!(f, "parameter {} is not a finite number", name.as_str())
+            }
+            Error::ZeroOmega => f.write_str("parameter omega is zero; the model divides by it"),
+            Error::InvalidAmplitude => {
+                f.write_str("loop amplitude A must be a finite deflection > 0 rad")
+            }
+            Error::NonFiniteDeflection => f.write_str("deflection is not a finite number"),
+            Error::Overflow => f.write_str("model result overflows the float type"),
+        }
+    }
+}
+
+impl core::error::Error for Error {}
+
+/// The six parameters of the paper. Units: c1 N·m/rad, c2 N·m/rad³, c3 N·m/rad⁵,
+/// α N·m/rad (per unit of ω), β and ω 1/s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Params<F> {
+    pub c1: F,
+    pub c2: F,
+    pub c3: F,
+    pub alpha: F,
+    pub beta: F,
+    pub omega: F,
+}
+
+/// The identifiable part of (α, β, ω) at a loop amplitude A.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Identifiable<F> {
+    /// Hysteresis torque scale h = A·α/(ω·(1 + r²)), N·m.
+    pub h: F,
+    /// Decay ratio r = β/ω, dimensionless.
+    pub r: F,
+}
+
+impl<F: Real> Params<F> {
+    /// Checks that the set can be evaluated: all finite, ω ≠ 0.
+    pub fn validate(&self) -> Result<(), Error> {
+        let named = [
+            (self.c1, ParamName::C1),
+            (self.c2, ParamName::C2),
+            (self.c3, ParamName::C3),
+            (self.alpha, ParamName::Alpha),
+            (self.beta, ParamName::Beta),
+            (self.omega, ParamName::Omega),
+        ];
+        for (value, name) in named {
+            if !value.is_finite() {
+                return Err(Error::NonFiniteParameter(name));
+            }
+        }
+        if self.omega == F::zero() {
+            return Err(Error::ZeroOmega);
+        }
+        Ok(())
+    }
+
+    /// The identifiable pair (h, r) at loop amplitude `amplitude`.
+    pub fn identifiable(&self, amplitude: F) -> Result<Identifiable<F>, Error> {
+        let model = Model::new(*self)?;
+        check_amplitude(amplitude)?;
+        let h = model.sign_k * (model.ln_abs_k + amplitude.ln()).exp();
+        if !h.is_finite() {
+            return Err(Error::Overflow);
+        }
+        Ok(Identifiable { h, r: model.r })
+    }
+
+    /// The canonical parameters for an identifiable pair: ω = 1, β = r, α = h·(1 + r²)/A.
+    pub fn from_identifiable(
+        c1: F,
+        c2: F,
+        c3: F,
+        hysteresis: Identifiable<F>,
+        amplitude: F,
+    ) -> Result<Self, Error> {
+        check_amplitude(amplitude)?;
+        let Identifiable { h, r } = hysteresis;
+        let params = Params {
+            c1,
+            c2,
+            c3,
+            alpha: h * (F::one() + r * r) / amplitude,
+            beta: r,
+            omega: F::one(),
+        };
+        params.validate()?;
+        Ok(params)
+    }
+}
+
+/// A validated parameter set, with the amplitude-independent constants precomputed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Model<F> {
+    c1: F,
+    c2: F,
+    c3: F,
+    r: F,
+    /// ln|k| with k = α/(ω(1 + r²)), so that h = A·k.
+    ln_abs_k: F,
+    /// sign of k, or 0 when α = 0 (no hysteresis).
+    sign_k: F,
+}
+
+impl<F: Real> Model<F> {
+    /// Validates `params` and precomputes what every evaluation needs.
+    pub fn new(params: Params<F>) -> Result<Self, Error> {
+        params.validate()?;
+        let r = params.beta / params.omega;
+        if !r.is_finite() {
+            return Err(Error::Overflow);
+        }
+        // ln(1 + r²) without forming r², which overflows first.
+        let abs_r = r.abs();
+        let ln_one_plus_r2 = if abs_r > F::one() {
+            let two = F::one() + F::one();
+            two * abs_r.ln() + (abs_r * abs_r).recip().ln_1p()
+        } else {
+            (abs_r * abs_r).ln_1p()
+        };
+        let ln_abs_k = params.alpha.abs().ln() - params.omega.abs().ln() - ln_one_plus_r2;
+        let sign = |v: F| if v > F::zero() { F::one() } else { -F::one() };
+        let sign_k = if params.alpha == F::zero() {
+            F::zero()
+        } else {
+            sign(params.alpha) * sign(params.omega)
+        };
+        Ok(Model { c1: params.c1, c2: params.c2, c3: params.c3, r, ln_abs_k, sign_k })
+    }
+
+    /// r = β/ω.
+    pub fn r(&self) -> F {
+        self.r
+    }
+
+    /// The model on a loop of amplitude `amplitude` (rad), ready for per-sample evaluation.
+    pub fn at_amplitude(&self, amplitude: F) -> Result<Loop<F>, Error> {
+        check_amplitude(amplitude)?;
+        let ln_abs_h = self.ln_abs_k + amplitude.ln();
+        let h = self.sign_k * ln_abs_h.exp();
+        if !h.is_finite() {
+            return Err(Error::Overflow);
+        }
+        Ok(Loop { model: *self, amplitude, inv_amplitude: amplitude.recip(), ln_abs_h, h })
+    }
+
+    /// Torque T(θ) in N·m at deflection `theta` (rad) moving in `direction` on a loop of
+    /// amplitude `amplitude` (rad).
+    pub fn torque(&self, theta: F, direction: Direction, amplitude: F) -> Result<F, Error> {
+        self.at_amplitude(amplitude)?.torque(theta, direction)
+    }
+
+    /// Stiffness dT/dθ in N·m/rad; see [`Loop::stiffness`] for the turning points.
+    pub fn stiffness(&self, theta: F, direction: Direction, amplitude: F) -> Result<F, Error> {
+        self.at_amplitude(amplitude)?.stiffness(theta, direction)
+    }
+}
+
+fn check_amplitude<F: Real>(amplitude: F) -> Result<(), Error> {
+    if amplitude.is_finite() && amplitude > F::zero() {
+        Ok(())
+    } else {
+        Err(Error::InvalidAmplitude)
+    }
+}
+
+/// Torque and stiffness at one deflection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Evaluation<F> {
+    /// T(θ), N·m.
+    pub torque: F,
+    /// dT/dθ, N·m/rad.
+    pub stiffness: F,
+}
+
+/// The model on one loop amplitude A: what a controller evaluates every tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Loop<F> {
+    model: Model<F>,
+    amplitude: F,
+    inv_amplitude: F,
+    /// ln|h|, h = A·k: the exponential term is evaluated as exp(ln|h| − rφ).
+    ln_abs_h: F,
+    h: F,
+}
+
+impl<F: Real> Loop<F> {
+    /// The loop amplitude A, rad.
+    pub fn amplitude(&self) -> F {
+        self.amplitude
+    }
+
+    /// h = A·α/(ω(1 + r²)), N·m.
+    pub fn h(&self) -> F {
+        self.h
+    }
+
+    /// Torque T(θ), N·m.
+    pub fn torque(&self, theta: F, direction: Direction) -> Result<F, Error> {
+        self.evaluate(theta, direction).map(|e| e.torque)
+    }
+
+    /// Stiffness dT/dθ, N·m/rad, computed analytically.
+    ///
+    /// At the turning points |θ| = A the slope of asin, and with it dz/dθ, is infinite. The
+    /// singular factor 1/|cos ωt| is therefore capped at 1/[`Real::MIN_COS`] = 100: the
+    /// value is exact for |θ| ≤ A·√(1 − 0.01²) ≈ 0.99995·A, and at and beyond ±A it is the
+    /// finite, steep slope of that edge (the stiff start of the return branch), never ±∞.
+    pub fn stiffness(&self, theta: F, direction: Direction) -> Result<F, Error> {
+        self.evaluate(theta, direction).map(|e| e.stiffness)
+    }
+
+    /// Torque and stiffness together, sharing the transcendental functions.
+    pub fn evaluate(&self, theta: F, direction: Direction) -> Result<Evaluation<F>, Error> {
+        if !theta.is_finite() {
+            return Err(Error::NonFiniteDeflection);
+        }
+        let m = &self.model;
+        let one = F::one();
+        let x = (theta * self.inv_amplitude).max(-one).min(one);
+        // |cos ωt| on both branches; (1 − x)(1 + x) keeps precision near |x| = 1.
+        let abs_cos = ((one - x) * (one + x)).sqrt();
+        let asin_x = x.asin();
+        // (ωt, cos ωt, dωt/dθ·A·|cos ωt|) for each branch.
+        let (phase, cos_phase, dphase_sign) = match direction {
+            Direction::Rising => (asin_x, abs_cos, one),
+            Direction::Falling => (F::PI() - asin_x, -abs_cos, -one),
+        };
+        let r = m.r;
+        // h·e^(−rφ), in the log domain so that huge r with tiny α stays finite.
+        let h_exp = if m.sign_k == F::zero() {
+            F::zero()
+        } else {
+            m.sign_k * (self.ln_abs_h - r * phase).exp()
+        };
+        // h·p(φ) and h·p'(φ) with p = e^(−rφ) + r sin φ − cos φ, sin φ = x.
+        let hp = h_exp + self.h * (r * x - cos_phase);
+        let hdp = -r * h_exp + self.h * (r * cos_phase + x);
+        let z = hp * abs_cos;
+
+        let theta2 = theta * theta;
+        let poly = theta * (m.c1 + theta2 * (m.c2 + theta2 * m.c3));
+        let dpoly = m.c1 + theta2 * (F::THREE * m.c2 + F::FIVE * m.c3 * theta2);
+        // dz/dθ = (±h·p' − h·p·x/|cos φ|)/A, the last factor capped at the turning points.
+        let dz = (dphase_sign * hdp - hp * x / abs_cos.max(F::MIN_COS)) * self.inv_amplitude;
+
+        let torque = poly + z;
+        let stiffness = dpoly + dz;
+        if torque.is_finite() && stiffness.is_finite() {
+            Ok(Evaluation { torque, stiffness })
+        } else {
+            Err(Error::Overflow)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,442 @@
+//! The link between `swg-host` and the joint firmware, shared by both ends.
+//!
+//! Every frame, in either direction, is
+//!
+//! ```text
+//! COBS( postcard(protocol_version: u16, message) ++ CRC-32/ISO-HDLC(LE) ) 0x00
+//! ```
+//!
+//! The host sends one [`Request`] and waits for one [`Response`]. The protocol version
+//! leads the payload so that a peer speaking another version gets a clear
+//! [`ErrorReply::UnsupportedProtocol`] instead of a garbled message.
+#![no_std]
+#![forbid(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)
+)]
+
+#[cfg(feature = "use-std")]
+extern crate std;
+
+use core::fmt;
+pub use model_core::{Direction, Params, MODEL_VERSION};
+use serde::{Deserialize, Serialize};
+
+/// Version of this message set; bumped on any change to the encoding.
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// Largest encoded frame, delimiter included. Every message fits with room to spare.
+pub const MAX_FRAME_LEN: usize = 128;
+
+/// Largest payload (version, message and CRC) before COBS encoding.
+const MAX_PAYLOAD_LEN: usize = MAX_FRAME_LEN - 2;
+
+const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+const CRC_LEN: usize = 4;
+
+/// A `major.minor.patch` version.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Version {
+    pub major: u16,
+    pub minor: u16,
+    pub patch: u16,
+}
+
+impl fmt::Display for Version {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}.{}.{}", self.major, self.minor, self.patch)
+    }
+}
+
+/// What the device runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DeviceInfo {
+    pub firmware_version: Version,
+    pub protocol_version: u16,
+    /// [`MODEL_VERSION`] of the model-core the firmware was built with.
+    pub model_version: u16,
+}
+
+/// Everything the joint needs for feed-forward: the model and how to apply it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct JointParams {
+    /// [`MODEL_VERSION`] the parameters were fitted for.
+    pub model_version: u16,
+    pub model: Params<f32>,
+    /// Reduction ratio N of the gear: deflection θ = θ_in/N − θ_out.
+    pub gear_ratio: f32,
+    /// |T_ff| is clamped to this, N·m.
+    pub torque_limit: f32,
+    /// θ must move back this far from its extreme before the direction flips, rad; keeps
+    /// encoder noise from chattering the branch at the turning points.
+    pub direction_band: f32,
+}
+
+/// Gear ratios a strain wave gear can have; 1 allows a direct-drive test rig.
+pub const GEAR_RATIO_RANGE: core::ops::RangeInclusive<f32> = 1.0..=10_000.0;
+/// Direction bands that make sense for an absolute encoder, rad (≤ 0.1 rad ≈ 5.7°).
+pub const DIRECTION_BAND_RANGE: core::ops::RangeInclusive<f32> = 0.0..=0.1;
+
+impl JointParams {
+    /// The checks the firmware applies before it uses a set; the host may run them first.
+    pub fn validate(&self) -> Result<(), ErrorReply> {
+        if self.model_version != MODEL_VERSION {
+            return Err(ErrorReply::ModelVersion {
+                got: self.model_version,
+                supported: MODEL_VERSION,
+            });
+        }
+        let model = &self.model;
+        let values = [
+            (ParamField::C1, model.c1),
+            (ParamField::C2, model.c2),
+            (ParamField::C3, model.c3),
+            (ParamField::Alpha, model.alpha),
+            (ParamField::Beta, model.beta),
+            (ParamField::Omega, model.omega),
+            (ParamField::GearRatio, self.gear_ratio),
+            (ParamField::TorqueLimit, self.torque_limit),
+            (ParamField::DirectionBand, self.direction_band),
+        ];
+        for (field, value) in values {
+            if !value.is_finite() {
+                return Err(ErrorReply::InvalidParam { field, fault: ParamFault::NotFinite });
+            }
+        }
+        let out_of_range = |field| ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange };
+        if model.omega == 0.0 {
+            return Err(out_of_range(ParamField::Omega));
+        }
+        if !GEAR_RATIO_RANGE.contains(&self.gear_ratio) {
+            return Err(out_of_range(ParamField::GearRatio));
+        }
+        if self.torque_limit <= 0.0 {
+            return Err(out_of_range(ParamField::TorqueLimit));
+        }
+        if !DIRECTION_BAND_RANGE.contains(&self.direction_band) {
+            return Err(out_of_range(ParamField::DirectionBand));
+        }
+        Ok(())
+    }
+}
+
+/// Which evaluation the firmware runs for a replayed sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EvalPath {
+    /// model-core's f32 evaluation (libm transcendental functions).
+    Direct,
+    /// The per-tick path: polynomial approximations prepared when the parameters arrive.
+    Fast,
+}
+
+/// One reading of both encoders, as the control tick would take it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EncoderSample {
+    /// Input (wave generator, motor) side, rad, multi-turn.
+    pub input_angle: f32,
+    /// Output (flexspline) side, rad.
+    pub output_angle: f32,
+    pub path: EvalPath,
+}
+
+/// Whether the feed-forward was applied.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Compensation {
+    /// T_ff and K are the model's values.
+    Active,
+    /// The model's torque exceeded the limit; T_ff is the limit with the model's sign.
+    Clamped,
+    /// No valid parameters (or the model could not be evaluated): T_ff = K = 0.
+    Off,
+}
+
+/// The firmware's feed-forward for one sample, with the inputs it used, so that the host
+/// can evaluate its f64 model at exactly the same point.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Feedforward {
+    /// θ = θ_in/N − θ_out, rad.
+    pub deflection: f32,
+    pub direction: Direction,
+    /// Loop amplitude A from the turning points, rad.
+    pub amplitude: f32,
+    /// T_ff, N·m.
+    pub torque: f32,
+    /// K = dT/dθ, N·m/rad.
+    pub stiffness: f32,
+    pub compensation: Compensation,
+}
+
+/// Host → device.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Request {
+    GetDeviceInfo,
+    /// Validate and activate (between two ticks); not yet stored.
+    WriteParams(JointParams),
+    /// The active set, exactly as the firmware holds it.
+    ReadParams,
+    /// Store the active set in flash.
+    Commit,
+    /// Run one control tick on a recorded sample (replay mode).
+    Replay(EncoderSample),
+}
+
+/// Device → host, one per request.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Response {
+    DeviceInfo(DeviceInfo),
+    ParamsAccepted,
+    /// `None` when the device has no valid parameters.
+    Params(Option<JointParams>),
+    /// Stored with this sequence number.
+    Committed { sequence: u32 },
+    Feedforward(Feedforward),
+    Error(ErrorReply),
+}
+
+/// A parameter named in an error reply.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ParamField {
+    C1,
+    C2,
+    C3,
+    Alpha,
+    Beta,
+    Omega,
+    GearRatio,
+    TorqueLimit,
+    DirectionBand,
+}
+
+impl ParamField {
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            ParamField::C1 => "c1",
+            ParamField::C2 => "c2",
+            ParamField::C3 => "c3",
+            ParamField::Alpha => "alpha",
+            ParamField::Beta => "beta",
+            ParamField::Omega => "omega",
+            ParamField::GearRatio => "gear_ratio",
+            ParamField::TorqueLimit => "torque_limit",
+            ParamField::DirectionBand => "direction_band",
+        }
+    }
+}
+
+/// What is wrong with a parameter.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ParamFault {
+    NotFinite,
+    OutOfRange,
+}
+
+/// Why the device refused a request. The previous parameters stay active in every case.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ErrorReply {
+    /// The frame was not valid COBS or too short to hold a CRC.
+    BadFrame,
+    /// The frame's CRC did not match: bytes were corrupted on the way.
+    BadCrc,
+    /// The frame did not fit the device's receive buffer.
+    FrameTooLong,
+    UnsupportedProtocol { got: u16, supported: u16 },
+    /// Right version and CRC, but not a request of this protocol.
+    UndecodableRequest,
+    ModelVersion { got: u16, supported: u16 },
+    InvalidParam { field: ParamField, fault: ParamFault },
+    /// The parameters are valid numbers but the model overflows f32 with them.
+    ModelOverflow,
+    /// Commit without a valid active parameter set.
+    NoParams,
+    /// Writing flash failed.
+    Storage,
+    /// A replayed sample held NaN or infinity.
+    NonFiniteSample,
+}
+
+impl fmt::Display for ErrorReply {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ErrorReply::BadFrame => f.write_str("frame is not valid COBS or too short"),
+            ErrorReply::BadCrc => f.write_str("frame CRC mismatch (corrupted bytes)"),
+            ErrorReply::FrameTooLong => f.write_str("frame longer than the receive buffer"),
+            ErrorReply::UnsupportedProtocol { got, supported } => {
+                write!(f, "protocol version {got} not supported (device speaks {supported})")
+            }
+            ErrorReply::UndecodableRequest => f.write_str("request not understood"),
+            ErrorReply::ModelVersion { got, supported } => {
+                write!(f, "model version {got} not supported (device runs {supported})")
+            }
+            ErrorReply::InvalidParam { field, fault } => match fault {
+                ParamFault::NotFinite => write!(f, "parameter {} is not finite", field.as_str()),
+                ParamFault::OutOfRange => write!(f, "parameter {} is out of range", field.as_str()),
+            },
+            ErrorReply::ModelOverflow => f.write_str("model overflows f32 with these parameters"),
+            ErrorReply::NoParams => f.write_str("no valid parameters on the device"),
+            ErrorReply::Storage => f.write_str("flash write failed"),
+            ErrorReply::NonFiniteSample => f.write_str("encoder sample is not finite"),
+        }
+    }
+}
+
+impl core::error::Error for ErrorReply {}
+
+/// Why a frame could not be built or read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum FrameError {
+    /// Not valid COBS, or shorter than a CRC.
+    Malformed,
+    Crc,
+    TooLong,
+    /// Intact frame of another protocol version.
+    Version(u16),
+    /// Intact frame whose message does not decode.
+    Message,
+    /// The message does not fit [`MAX_FRAME_LEN`] or the output buffer.
+    BufferTooSmall,
+}
+
+impl fmt::Display for FrameError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FrameError::Malformed => f.write_str("malformed frame"),
+            FrameError::Crc => f.write_str("frame CRC mismatch"),
+            FrameError::TooLong => f.write_str("frame too long"),
+            FrameError::Version(got) => {
+                write!(f, "peer speaks protocol version {got}, this end {PROTOCOL_VERSION}")
+            }
+            FrameError::Message => f.write_str("frame holds no message of this protocol"),
+            FrameError::BufferTooSmall => f.write_str("message does not fit the frame buffer"),
+        }
+    }
+}
+
+impl core::error::Error for FrameError {}
+
+impl From<FrameError> for ErrorReply {
+    fn from(error: FrameError) -> Self {
+        match error {
+            FrameError::Malformed | FrameError::BufferTooSmall => ErrorReply::BadFrame,
+            FrameError::Crc => ErrorReply::BadCrc,
+            FrameError::TooLong => ErrorReply::FrameTooLong,
+            FrameError::Version(got) => {
+                ErrorReply::UnsupportedProtocol { got, supported: PROTOCOL_VERSION }
+            }
+            FrameError::Message => ErrorReply::UndecodableRequest,
+        }
+    }
+}
+
+/// Encodes `message` as one frame into `out`, delimiter included; returns its length.
+pub fn encode<T: Serialize>(message: &T, out: &mut [u8]) -> Result<usize, FrameError> {
+    encode_with_version(PROTOCOL_VERSION, message, out)
+}
+
+/// [`encode`] with an explicit protocol version, for tests of version handling.
+pub fn encode_with_version<T: Serialize>(
+    version: u16,
+    message: &T,
+    out: &mut [u8],
+) -> Result<usize, FrameError> {
+    let mut payload = [0u8; MAX_PAYLOAD_LEN];
+    let body_len = postcard::to_slice(&(version, message), &mut payload)
+        .map_err(|_| FrameError::BufferTooSmall)?
+        .len();
+    let crc = CRC.checksum(payload.get(..body_len).ok_or(FrameError::BufferTooSmall)?);
+    let with_crc = body_len + CRC_LEN;
+    payload
+        .get_mut(body_len..with_crc)
+        .ok_or(FrameError::BufferTooSmall)?
+        .copy_from_slice(&crc.to_le_bytes());
+    let source = payload.get(..with_crc).ok_or(FrameError::BufferTooSmall)?;
+    let encoded = cobs::try_encode(source, out).map_err(|_| FrameError::BufferTooSmall)?;
+    *out.get_mut(encoded).ok_or(FrameError::BufferTooSmall)? = 0;
+    Ok(encoded + 1)
+}
+
+/// Encodes `message` as one frame into a new vector, delimiter included.
+#[cfg(feature = "use-std")]
+pub fn encode_to_vec<T: Serialize>(message: &T) -> Result<std::vec::Vec<u8>, FrameError> {
+    let mut out = [0u8; MAX_FRAME_LEN];
+    let len = encode(message, &mut out)?;
+    Ok(out.get(..len).ok_or(FrameError::BufferTooSmall)?.to_vec())
+}
+
+/// Decodes one frame (the bytes between two delimiters) in place.
+pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<T, FrameError> {
+    let len = cobs::decode_in_place(frame).map_err(|_| FrameError::Malformed)?;
+    let payload = frame.get(..len).ok_or(FrameError::Malformed)?;
+    let body_len = len.checked_sub(CRC_LEN).filter(|&n| n > 0).ok_or(FrameError::Malformed)?;
+    let (body, crc) = payload.split_at(body_len);
+    if crc != CRC.checksum(body).to_le_bytes() {
+        return Err(FrameError::Crc);
+    }
+    let (version, message) =
+        postcard::take_from_bytes::<u16>(body).map_err(|_| FrameError::Message)?;
+    if version != PROTOCOL_VERSION {
+        return Err(FrameError::Version(version));
+    }
+    postcard::from_bytes(message).map_err(|_| FrameError::Message)
+}
+
+/// Splits a byte stream into frames at the 0x00 delimiters.
+pub struct FrameReader<const N: usize> {
+    buffer: [u8; N],
+    len: usize,
+    overflowed: bool,
+}
+
+impl<const N: usize> Default for FrameReader<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> FrameReader<N> {
+    pub const fn new() -> Self {
+        FrameReader { buffer: [0; N], len: 0, overflowed: false }
+    }
+
+    /// Feeds one received byte. At a delimiter, returns the frame collected since the last
+    /// one (ready for [`decode`]), or [`FrameError::TooLong`] if it did not fit.
+    /// Empty frames (repeated delimiters, used to resynchronise) are skipped.
+    pub fn push(&mut self, byte: u8) -> Option<Result<&mut [u8], FrameError>> {
+        if byte != 0 {
+            match self.buffer.get_mut(self.len) {
+                Some(slot) => {
+                    *slot = byte;
+                    self.len += 1;
+                }
+                None => self.overflowed = true,
+            }
+            return None;
+        }
+        let len = core::mem::take(&mut self.len);
+        if core::mem::take(&mut self.overflowed) {
+            return Some(Err(FrameError::TooLong));
+        }
+        if len == 0 {
+            return None;
+        }
+        self.buffer.get_mut(..len).map(Ok)
+    }
+}
+
+#[cfg(test)]
+mod tests;
