@@ -55,8 +55,12 @@ fn draw(plot: &LoopPlot, svg: &mut String) -> Result<(), Box<dyn std::error::Err
     chart.configure_mesh().x_desc("deflection θ (mrad)").y_desc("torque T (N·m)").draw()?;
 
     let grey = RGBColor(90, 90, 90);
+    // A loop table's few points must stand out; a recording's thousands must not hide the model.
+    let (radius, opacity) = if n <= 200 { (4, 0.9) } else { (2, 0.6) };
     chart
-        .draw_series((0..n).step_by(stride).map(|i| Circle::new((data.theta[i] * MRAD, data.torque[i]), 2, grey.mix(0.6).filled())))?
+        .draw_series(
+            (0..n).step_by(stride).map(|i| Circle::new((data.theta[i] * MRAD, data.torque[i]), radius, grey.mix(opacity).filled())),
+        )?
         .label("measured")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
 
@@ -142,7 +146,7 @@ fn draw(plot: &LoopPlot, svg: &mut String) -> Result<(), Box<dyn std::error::Err
             Direction::Rising => RGBColor(0, 90, 200),
             Direction::Falling => RGBColor(210, 60, 0),
         };
-        Circle::new((data.theta[i] * MRAD, residuals[i]), 2, color.filled())
+        Circle::new((data.theta[i] * MRAD, residuals[i]), radius, color.filled())
     }))?;
     root.present()?;
     Ok(())

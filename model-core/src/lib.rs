@@ -383,5 +383,9 @@ impl<F: Real> Loop<F> {
     }
 }
 
+#[cfg(any(test, feature = "checks"))]
+pub mod checks;
+pub mod tolerance;
+
 #[cfg(test)]
 mod tests;

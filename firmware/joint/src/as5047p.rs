@@ -155,7 +155,7 @@ mod tests {
         // EF set (bit 14) with even parity; ERRFL answers 0x0004 = parity error on MOSI.
         let mut sensor = As5047p::new(expect(&[
             (0xFFFF, 0x0000),
-            (0xC000, 0x4000 | 0x8000 | 0x0001),
+            (0xC000, 0x4001),
             (0x4001, 0x0000),
             (0xC000, 0x8004),
         ]));

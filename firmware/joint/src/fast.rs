@@ -113,24 +113,42 @@ impl FastModel {
 pub fn sqrt(v: f32) -> f32 {
     #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
     {
-        let root: f32;
-        // SAFETY: one FPU instruction on registers; no memory, stack or flags touched.
+        // SAFETY: `swg_vsqrtf` below follows the AAPCS-VFP calling convention of `extern "C"`
+        // on this target (argument and result in s0) and touches nothing else.
         #[allow(unsafe_code)]
         unsafe {
-            core::arch::asm!(
-                "vsqrt.f32 {root}, {v}",
-                root = lateout(sreg) root,
-                v = in(sreg) v,
-                options(pure, nomem, nostack, preserves_flags)
-            );
+            swg_vsqrtf(v)
         }
-        root
     }
     #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
     {
         libm::sqrtf(v)
     }
 }
+
+// Rust has no stable `f32::sqrt` without std, and inline `asm!` cannot name single-precision
+// registers on this target (its `sreg` class demands the double-precision `vfp2`), so the
+// one instruction lives in a two-instruction function.
+#[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+#[allow(unsafe_code)]
+mod vsqrt {
+    core::arch::global_asm!(
+        ".section .text.swg_vsqrtf,\"ax\",%progbits",
+        ".global swg_vsqrtf",
+        ".type swg_vsqrtf,%function",
+        ".fpu fpv4-sp-d16",
+        ".thumb_func",
+        "swg_vsqrtf:",
+        "vsqrt.f32 s0, s0",
+        "bx lr",
+    );
+
+    extern "C" {
+        pub fn swg_vsqrtf(v: f32) -> f32;
+    }
+}
+#[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+use vsqrt::swg_vsqrtf;
 
 /// asin x for x ∈ [−1, 1]: π/2 − √(1 − |x|)·P7(|x|), |error| ≤ 2·10⁻⁸ before f32 rounding
 /// (Abramowitz & Stegun 4.4.46).
@@ -167,6 +185,8 @@ pub fn exp(y: f32) -> f32 {
     let scale = f32::from_bits(((n + 127) as u32) << 23);
     poly * scale
 }
+
+pub mod verify;
 
 #[cfg(test)]
 mod tests;

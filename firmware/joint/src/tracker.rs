@@ -110,8 +110,8 @@ mod tests {
     fn noise_inside_the_band_flips_exactly_at_each_turning_point() {
         let thetas = noisy_sine(1.0e-3, 2.0e-6, 2000, 5);
         let mut tracker = DirectionTracker::new(5.0e-6);
-        // Rising first, then one flip at each of the 2·5 − 1 turning points after the start.
-        assert_eq!(flips(&mut tracker, &thetas), 9);
+        // Five periods from θ = 0 rising: five peaks and five valleys, one flip at each.
+        assert_eq!(flips(&mut tracker, &thetas), 10);
     }
 
     #[test]

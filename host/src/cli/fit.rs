@@ -45,11 +45,14 @@ pub fn run(args: FitArgs) -> Result<()> {
         }
     }
     let dataset = input::read(&args.input, args.input_options.ratio)?;
-    let prepared = prepare(&dataset).with_context(|| args.input.display().to_string())?;
-    let n = prepared.data.theta.len();
+    let n = match &dataset {
+        Dataset::LoopTable(table) => table.torque.len(),
+        Dataset::Recording(recording) => recording.time.len(),
+    };
     if n < MIN_POINTS {
         bail!("{}: {n} points, fewer than the {MIN_POINTS} needed to fit the model", args.input.display());
     }
+    let prepared = prepare(&dataset).with_context(|| args.input.display().to_string())?;
     let compared_params = args
         .compare
         .iter()

@@ -1,5 +1,8 @@
 //! Command-line interface: one module per subcommand, shared options flattened.
 mod fit;
+mod flash;
+mod push;
+mod replay;
 mod simulate;
 
 use clap::{Args, Parser, Subcommand};
@@ -17,6 +20,12 @@ enum Command {
     Fit(fit::FitArgs),
     /// Write a bench recording (format v1) from the model.
     Simulate(simulate::SimulateArgs),
+    /// Send parameters to a joint: check versions, write, read back, store in flash.
+    Push(push::PushArgs),
+    /// Stream a recording through the joint firmware; compare its T_ff and K with the host model.
+    Replay(replay::ReplayArgs),
+    /// Write a firmware ELF to a joint board through a debug probe (probe-rs).
+    Flash(flash::FlashArgs),
 }
 
 impl Cli {
@@ -24,6 +33,9 @@ impl Cli {
         match self.command {
             Command::Fit(args) => fit::run(args),
             Command::Simulate(args) => simulate::run(args),
+            Command::Push(args) => push::run(args),
+            Command::Replay(args) => replay::run(args),
+            Command::Flash(args) => flash::run(args),
         }
     }
 }

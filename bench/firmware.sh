@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# Figures of the joint firmware on the emulated Cortex-M4F (QEMU mps2-an386); not a test.
+#   1. instructions per T_ff + K evaluation, direct path (model-core f32) and fast path:
+#      QEMU -icount shift=0 makes one instruction 1 ns of virtual time and SysTick run at
+#      25 MHz, so SysTick ticks × 40 = instructions, exactly repeatable (shared/TOOLCHAIN.md).
+#      Instruction counts depend on the compiler version: the toolchain is printed below.
+#   2. flash and RAM of the QEMU build (arm-none-eabi-size): flash = text + data, RAM = data + bss
+#      (the stack comes on top; cortex-m-rt puts it at the end of RAM).
+#   3. time for `swg-host push` (version check, write, read back, commit) over QEMU's TCP link.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+
+source scripts/thumb-toolchain.sh
+thumb_apt_install qemu-system-arm gcc-arm-none-eabi
+if [ "$THUMB_ROUTE" = debian ]; then
+    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_LINKER=arm-none-eabi-ld
+    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C link-arg=-Tlink.x -C link-arg=-Tdefmt.x -C linker-flavor=ld"
+    elf_dir="$root/firmware/target/debian-rust/thumbv7em-none-eabihf/release"
+else
+    elf_dir="$root/firmware/target/thumbv7em-none-eabihf/release"
+fi
+(cd firmware && thumb_cargo build --locked --release --bins)
+echo "toolchain: $(rustc --version) ($THUMB_ROUTE route)"
+
+echo "== 1. instructions per evaluation (QEMU -icount shift=0, SysTick)"
+timeout 120 qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -nographic -icount shift=0 \
+    -semihosting-config enable=on,target=native -kernel "$elf_dir/bench"
+
+echo "== 2. flash and RAM of the QEMU build (goal: ≤ 48 KiB flash, ≤ 8 KiB RAM)"
+arm-none-eabi-size "$elf_dir/joint-qemu" | awk 'NR == 2 {
+    printf "joint-qemu: flash %d B (%.1f KiB), RAM %d B (%.1f KiB) + stack\n",
+        $1 + $2, ($1 + $2) / 1024, $2 + $3, ($2 + $3) / 1024 }'
+
+echo "== 3. swg-host push over the link"
+cargo build --locked --release -p swg-host
+swg="${CARGO_TARGET_DIR:-target}/release/swg-host"
+port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -display none -monitor none \
+    -semihosting-config enable=on,target=native \
+    -serial "tcp:127.0.0.1:$port,server=on,wait=off,nodelay=on" \
+    -kernel "$elf_dir/joint-qemu" >/dev/null &
+qemu=$!
+trap 'kill "$qemu" 2>/dev/null || true' EXIT
+for _ in $(seq 100); do
+    (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null && break
+    sleep 0.05
+done
+for run in 1 2 3 4 5; do
+    "$swg" push data/seed/lht-20-50-fit.json --port "tcp://127.0.0.1:$port" --ratio 50 | grep committed
+done

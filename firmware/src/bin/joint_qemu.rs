@@ -1,0 +1,38 @@
+//! The joint firmware on the QEMU mps2-an386 board, in replay mode: the link on UART0
+//! carries both the parameter traffic and the encoder samples, one tick per sample.
+#![no_std]
+#![no_main]
+
+use cortex_m_rt::entry;
+use embedded_io::{Read, Write};
+use swg_firmware::uart::Uart0;
+use swg_joint::{flash::RamFlash, storage::ParamStore, Server};
+use swg_protocol::MAX_FRAME_LEN;
+
+/// Two 1 KiB slots; QEMU's machine has no flash controller, so "flash" is RAM here and
+/// lasts until QEMU exits. The storage logic is the same as on a real board.
+type BoardFlash = RamFlash<2048>;
+
+#[entry]
+fn main() -> ! {
+    let Some(mut uart) = Uart0::take() else { swg_firmware::exit(false) };
+    let Ok(store) = ParamStore::new(BoardFlash::new()) else { swg_firmware::exit(false) };
+    // In a static, so that `size` accounts for it.
+    let Some(server) = cortex_m::singleton!(: Server<BoardFlash> = Server::new(store)) else {
+        swg_firmware::exit(false)
+    };
+    defmt::info!(
+        "joint firmware {} on mps2-an386: protocol {}, model {}",
+        defmt::Display2Format(&swg_joint::FIRMWARE_VERSION),
+        swg_protocol::PROTOCOL_VERSION,
+        model_core::MODEL_VERSION
+    );
+    let mut response = [0u8; MAX_FRAME_LEN];
+    let mut byte = [0u8; 1];
+    loop {
+        let Ok(1) = uart.read(&mut byte) else { continue };
+        if let Some(len) = server.receive(byte[0], &mut response) {
+            let _ = uart.write_all(response.get(..len).unwrap_or_default());
+        }
+    }
+}

@@ -1,0 +1,51 @@
+//! `swg-host flash`: write a firmware ELF to a joint board through a debug probe (probe-rs),
+//! then optionally push parameters, as the joint-board workflow needs.
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct FlashArgs {
+    /// Firmware ELF, e.g. firmware/target/thumbv7em-none-eabihf/release/joint-stm32f405.
+    #[arg(value_name = "ELF")]
+    elf: PathBuf,
+    /// Target chip as probe-rs names it, e.g. STM32F405RGTx.
+    #[arg(long, value_name = "CHIP")]
+    chip: String,
+}
+
+#[cfg(feature = "probe")]
+pub fn run(args: FlashArgs) -> Result<()> {
+    use probe_rs::flashing::{download_file, ElfLoader, ElfOptions};
+    use probe_rs::probe::list::Lister;
+    use probe_rs::Permissions;
+
+    if !args.elf.is_file() {
+        bail!("{}: no such firmware file", args.elf.display());
+    }
+    let probes = Lister::new().list_all();
+    let Some(probe) = probes.first() else {
+        bail!("no debug probe found: connect an ST-Link, J-Link or CMSIS-DAP probe to the board (and check USB permissions)");
+    };
+    if probes.len() > 1 {
+        eprintln!("{} probes found; using the first: {}", probes.len(), probe.identifier);
+    }
+    let probe = probe.open().with_context(|| format!("cannot open probe {}", probe.identifier))?;
+    let mut session = probe
+        .attach(args.chip.as_str(), Permissions::default())
+        .with_context(|| format!("cannot attach to {}", args.chip))?;
+    download_file(&mut session, &args.elf, ElfLoader(ElfOptions::default()))
+        .with_context(|| format!("flashing {} failed", args.elf.display()))?;
+    session.core(0)?.reset().context("reset after flashing failed")?;
+    println!("flashed {} to {}; restore its parameters with `swg-host push`", args.elf.display(), args.chip);
+    Ok(())
+}
+
+#[cfg(not(feature = "probe"))]
+pub fn run(args: FlashArgs) -> Result<()> {
+    bail!(
+        "cannot flash {} to {}: swg-host was built without the `probe` feature (probe-rs)",
+        args.elf.display(),
+        args.chip
+    )
+}

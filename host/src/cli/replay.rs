@@ -1,0 +1,55 @@
+//! `swg-host replay`: stream a recording's encoder samples through the joint firmware and
+//! compare its T_ff and K with the host's f64 model.
+use super::push::PortOptions;
+use anyhow::{bail, Result};
+use clap::{Args, ValueEnum};
+use std::path::PathBuf;
+use swg_host::input::read_recording;
+use swg_host::link::replay::{device_params, replay, samples, widen};
+use swg_host::paramsfile::read_params;
+use swg_protocol::EvalPath;
+
+#[derive(Args)]
+pub struct ReplayArgs {
+    /// Bench recording (format v1).
+    #[arg(value_name = "RECORDING")]
+    recording: PathBuf,
+    #[command(flatten)]
+    port: PortOptions,
+    /// Compare with this parameter file instead of the device's own set.
+    #[arg(long, value_name = "PARAMS.json")]
+    params: Option<PathBuf>,
+    /// The firmware's evaluation to exercise.
+    #[arg(long, value_enum, default_value_t = Path::Fast)]
+    path: Path,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Path {
+    /// model-core's f32 evaluation.
+    Direct,
+    /// The per-tick fast path.
+    Fast,
+}
+
+pub fn run(args: ReplayArgs) -> Result<()> {
+    let recording = read_recording(&args.recording, None)?;
+    let mut link = args.port.open()?;
+    let joint = device_params(&mut link)?;
+    let params = match &args.params {
+        Some(path) => read_params(path)?,
+        None => widen(&joint.model),
+    };
+    let samples = samples(&recording, joint.gear_ratio)?;
+    let path = match args.path {
+        Path::Direct => EvalPath::Direct,
+        Path::Fast => EvalPath::Fast,
+    };
+    let report = replay(&mut link, &joint, &params, &samples, path)?;
+    println!("replayed {} through the firmware's {:?} path on {}", args.recording.display(), path, args.port.port);
+    println!("{report}");
+    if !report.passed() {
+        bail!("the firmware's feed-forward differs from the host model beyond the f32 tolerance");
+    }
+    Ok(())
+}

@@ -1,0 +1,224 @@
+//! End to end against the joint firmware on the emulated Cortex-M4F (QEMU mps2-an386):
+//! push, read back, replay, bad traffic. Needs `qemu-system-arm` and the firmware ELF, so the
+//! tests are ignored by a plain `cargo test`; `scripts/test-firmware.sh` builds the firmware
+//! and runs them with `SWG_FIRMWARE_ELF=… cargo test --test firmware_e2e -- --ignored`.
+use model_core::{Params, MODEL_VERSION};
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+use swg_host::link::push::{joint_params, push, JointSettings};
+use swg_host::link::replay::{replay, samples, widen};
+use swg_host::link::{Link, LinkError};
+use swg_host::simulate::{simulate, Simulation};
+use swg_protocol::{
+    encode_to_vec, encode_with_version, ErrorReply, EvalPath, JointParams, ParamFault, ParamField, Request,
+    Response, MAX_FRAME_LEN, PROTOCOL_VERSION,
+};
+
+/// The seed table's fit (canonical form, ω = 1).
+const SEED: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
+const RATIO: f64 = 50.0;
+/// A limit above the loop's torque, so that every sample is compared with the model.
+const SETTINGS: JointSettings = JointSettings { gear_ratio: RATIO, torque_limit: 100.0, direction_band: 2.0e-6 };
+
+/// One QEMU running the firmware, its UART0 on a free local TCP port; killed on drop.
+struct Firmware {
+    qemu: Child,
+    port: u16,
+}
+
+impl Firmware {
+    fn boot() -> Firmware {
+        let elf = std::env::var_os("SWG_FIRMWARE_ELF")
+            .map(PathBuf::from)
+            .expect("SWG_FIRMWARE_ELF must name the joint-qemu ELF (see scripts/test-firmware.sh)");
+        // A port that was free a moment ago; tests running in parallel each get their own.
+        let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+        let qemu = Command::new("qemu-system-arm")
+            .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-display", "none", "-monitor", "none"])
+            .args(["-semihosting-config", "enable=on,target=native"])
+            .arg("-serial")
+            .arg(format!("tcp:127.0.0.1:{port},server=on,wait=off,nodelay=on"))
+            .arg("-kernel")
+            .arg(&elf)
+            // defmt frames (binary) on stdout: not needed here.
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("qemu-system-arm starts");
+        Firmware { qemu, port }
+    }
+
+    fn address(&self) -> String {
+        format!("tcp://127.0.0.1:{}", self.port)
+    }
+
+    /// Connects, retrying while QEMU opens its port.
+    fn link(&self) -> Link {
+        let start = Instant::now();
+        loop {
+            match Link::open(&self.address(), Duration::from_secs(2)) {
+                Ok(link) => return link,
+                Err(_) if start.elapsed() < Duration::from_secs(10) => std::thread::sleep(Duration::from_millis(50)),
+                Err(error) => panic!("cannot reach the firmware: {error}"),
+            }
+        }
+    }
+}
+
+impl Drop for Firmware {
+    fn drop(&mut self) {
+        let _ = self.qemu.kill();
+        let _ = self.qemu.wait();
+    }
+}
+
+fn swg_host(args: &[&str]) -> Output {
+    let output = Command::new(env!("CARGO_BIN_EXE_swg-host")).args(args).output().unwrap();
+    println!("$ swg-host {}\n{}{}", args.join(" "), String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    output
+}
+
+fn write_params_file(dir: &Path, params: &Params<f64>) -> PathBuf {
+    let path = dir.join("params.json");
+    let json = serde_json::json!({ "model": model_core::MODEL_NAME, "params": params });
+    std::fs::write(&path, json.to_string()).unwrap();
+    path
+}
+
+/// Two loops at 1 Hz of the seed model through 20-bit encoders, 1 kHz.
+fn recording() -> swg_host::input::Recording {
+    simulate(&Simulation {
+        params: SEED,
+        amplitude_rad: 1.168e-3,
+        frequencies_hz: vec![1.0],
+        cycles: 2,
+        sample_rate_hz: 1000.0,
+        ratio: RATIO,
+        input_speed_rad_s: 0.0,
+        input_bits: Some(20),
+        output_bits: Some(20),
+        torque_noise_nm: 0.0,
+        temperature: None,
+        seed: 7,
+    })
+    .unwrap()
+}
+
+#[test]
+#[ignore = "needs QEMU and the firmware ELF: run by scripts/test-firmware.sh"]
+fn push_read_back_and_replay_match_the_host_model() {
+    let firmware = Firmware::boot();
+    let dir = tempfile::tempdir().unwrap();
+    let params_file = write_params_file(dir.path(), &SEED);
+    let recording_file = dir.path().join("loops.csv");
+    recording().write(std::fs::File::create(&recording_file).unwrap()).unwrap();
+    // Let QEMU open its port before the CLI's single attempt.
+    drop(firmware.link());
+
+    let port = firmware.address();
+    let pushed = swg_host(&[
+        "push", params_file.to_str().unwrap(), "--port", &port, "--ratio", "50", "--torque-limit", "100",
+        "--direction-band", "2e-6",
+    ]);
+    assert!(pushed.status.success());
+    let stdout = String::from_utf8_lossy(&pushed.stdout);
+    assert!(stdout.contains(&format!("protocol {PROTOCOL_VERSION}, model {MODEL_VERSION}")), "{stdout}");
+    assert!(stdout.contains("committed to flash as record 1"), "{stdout}");
+
+    // Read back what the device holds: exactly the f32 set the host computed.
+    let mut link = firmware.link();
+    let expected = joint_params(&SEED, &SETTINGS).unwrap();
+    assert_eq!(link.read_params().unwrap(), Some(expected));
+    drop(link);
+
+    for path in ["fast", "direct"] {
+        let replayed = swg_host(&["replay", recording_file.to_str().unwrap(), "--port", &port, "--path", path]);
+        assert!(replayed.status.success(), "{path}");
+        let stdout = String::from_utf8_lossy(&replayed.stdout);
+        assert!(stdout.contains("(0 samples outside"), "{stdout}");
+    }
+
+    // The same through the library, with the details asserted: whole loops, turning points
+    // included, every sample within the f32 tolerance, on both paths.
+    let mut link = firmware.link();
+    let samples = samples(&recording(), expected.gear_ratio).unwrap();
+    for path in [EvalPath::Fast, EvalPath::Direct] {
+        let report = replay(&mut link, &expected, &widen(&expected.model), &samples, path).unwrap();
+        assert!(report.passed(), "{path:?}: {report}");
+        assert_eq!(report.active, samples.len(), "{report}");
+        assert!(report.near_turning_points >= 8, "{report}");
+        // Against the f64 model of the file (not rounded to f32): still within tolerance.
+        let report = replay(&mut link, &expected, &SEED, &samples, path).unwrap();
+        assert!(report.passed(), "{path:?} against the file's f64 parameters: {report}");
+    }
+}
+
+fn refused(response: Result<Response, LinkError>) -> ErrorReply {
+    match response.unwrap() {
+        Response::Error(reason) => reason,
+        other => panic!("expected an error reply, got {other:?}"),
+    }
+}
+
+#[test]
+#[ignore = "needs QEMU and the firmware ELF: run by scripts/test-firmware.sh"]
+fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
+    let firmware = Firmware::boot();
+    let mut link = firmware.link();
+    let good = joint_params(&SEED, &SETTINGS).unwrap();
+    push(&mut link, &good).unwrap();
+
+    let frame = encode_to_vec(&Request::WriteParams(JointParams { torque_limit: 5.0, ..good })).unwrap();
+    let mut corrupted = frame.clone();
+    corrupted[12] ^= 0x10;
+    let truncated = [&frame[..frame.len() / 2], &[0u8]].concat();
+    let mut other_version = [0u8; MAX_FRAME_LEN];
+    let len = encode_with_version(PROTOCOL_VERSION + 1, &Request::ReadParams, &mut other_version).unwrap();
+    let nan = JointParams { model: Params { beta: f32::NAN, ..good.model }, ..good };
+    let out_of_range = JointParams { gear_ratio: 0.0, ..good };
+    let infinite = JointParams { model: Params { c1: f32::INFINITY, ..good.model }, ..good };
+    let garbage = [0x13u8; 400];
+
+    let cases: Vec<(&str, Vec<u8>, ErrorReply)> = vec![
+        ("corrupted byte", corrupted, ErrorReply::BadCrc),
+        ("truncated frame", truncated, ErrorReply::BadFrame),
+        ("wrong protocol version", other_version[..len].to_vec(), ErrorReply::UnsupportedProtocol { got: PROTOCOL_VERSION + 1, supported: PROTOCOL_VERSION }),
+        ("NaN parameter", encode_to_vec(&Request::WriteParams(nan)).unwrap(), ErrorReply::InvalidParam { field: ParamField::Beta, fault: ParamFault::NotFinite }),
+        ("infinite parameter", encode_to_vec(&Request::WriteParams(infinite)).unwrap(), ErrorReply::InvalidParam { field: ParamField::C1, fault: ParamFault::NotFinite }),
+        ("out-of-range parameter", encode_to_vec(&Request::WriteParams(out_of_range)).unwrap(), ErrorReply::InvalidParam { field: ParamField::GearRatio, fault: ParamFault::OutOfRange }),
+        ("line noise", [&garbage[..], &[0u8]].concat(), ErrorReply::FrameTooLong),
+    ];
+    for (what, bytes, expected) in cases {
+        assert_eq!(refused(link.exchange(&bytes)), expected, "{what}");
+        // Still answering, with the old parameters active.
+        assert_eq!(link.device_info().unwrap().protocol_version, PROTOCOL_VERSION, "{what}");
+        assert_eq!(link.read_params().unwrap(), Some(good), "{what}");
+    }
+    // The reply names the reason in words, as the CLI prints it.
+    let error = link.write_params(&nan).unwrap_err();
+    assert_eq!(error.to_string(), "device refused the request: parameter beta is not finite");
+    // And the compensation still runs on the old set.
+    let sample = swg_protocol::EncoderSample { input_angle: 0.05, output_angle: 0.0, path: EvalPath::Fast };
+    let feedforward = link.replay(&sample).unwrap();
+    assert_eq!(feedforward.compensation, swg_protocol::Compensation::Active);
+}
+
+#[test]
+#[ignore = "needs QEMU and the firmware ELF: run by scripts/test-firmware.sh"]
+fn push_refuses_values_the_device_would_refuse_and_says_why() {
+    let firmware = Firmware::boot();
+    drop(firmware.link());
+    let dir = tempfile::tempdir().unwrap();
+    let params_file = write_params_file(dir.path(), &SEED);
+    let port = firmware.address();
+    let out = swg_host(&["push", params_file.to_str().unwrap(), "--port", &port, "--ratio", "0.5"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("parameter gear_ratio is out of range"));
+    // Nothing listens here: a clear error, not a hang.
+    let closed = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let out = swg_host(&["push", params_file.to_str().unwrap(), "--port", &format!("tcp://127.0.0.1:{closed}"), "--ratio", "50"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot open tcp://127.0.0.1:"));
+}

@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Tests of the joint firmware, on a fresh machine too (installs what it needs):
+#   1. the board-independent firmware library (firmware/joint) on the host: cargo test
+#   2. the firmware for both boards (QEMU mps2-an386 and STM32F405) builds for thumbv7em
+#   3. model-core's checks and the fast path's error bound on the emulated Cortex-M4F
+#   4. end to end under QEMU: push, read back, replay, bad traffic (host/tests/firmware_e2e.rs)
+# Exits non-zero on the first failure.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+
+source scripts/thumb-toolchain.sh
+thumb_apt_install qemu-system-arm gcc-arm-none-eabi
+if [ "$THUMB_ROUTE" = debian ]; then
+    # Debian's Rust has no rust-lld: link with binutils' ld (see shared/TOOLCHAIN.md).
+    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_LINKER=arm-none-eabi-ld
+    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C link-arg=-Tlink.x -C link-arg=-Tdefmt.x -C linker-flavor=ld"
+    firmware_target_dir=firmware/target/debian-rust
+else
+    firmware_target_dir=firmware/target
+fi
+elf_dir="$root/$firmware_target_dir/thumbv7em-none-eabihf/release"
+host_triple=$(rustc -vV | sed -n 's/^host: //p')
+
+echo "== firmware library (firmware/joint) on the host"
+# From firmware/, where .cargo/config.toml would otherwise build for the Cortex-M4F.
+(cd firmware && cargo test --locked -p swg-joint --target "$host_triple")
+
+echo "== firmware for both boards (thumbv7em-none-eabihf)"
+# One board per build: the STM32 HAL turns on cortex-m-rt's `device` feature (its interrupt
+# vectors), which the QEMU board must not get through feature unification.
+(cd firmware && thumb_cargo build --locked --release -p swg-firmware --bins)
+(cd firmware && thumb_cargo build --locked --release -p swg-firmware-stm32f405)
+for elf in joint-qemu joint-stm32f405; do
+    arm-none-eabi-size "$elf_dir/$elf"
+done
+
+qemu_run() {
+    timeout 300 qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -nographic \
+        -semihosting-config enable=on,target=native "$@"
+}
+
+echo "== model-core on the emulated Cortex-M4F (QEMU mps2-an386)"
+qemu_run -kernel "$elf_dir/model-core-checks"
+
+echo "== end to end under QEMU"
+SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked -p swg-host --test firmware_e2e -- --ignored
+
+echo "== firmware tests passed"
