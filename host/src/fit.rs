@@ -9,7 +9,7 @@
 //! Errors in θ: near |θ| = A the model's slope is unbounded, so deflection noise becomes
 //! large torque residuals there. With a noise model, residuals are weighted by their total
 //! noise 1/(σ_T² + σ_θ²·K²), K the model's stiffness at the sample, refitted a few times.
-use crate::linalg::solve_spd;
+use crate::linalg::Cholesky;
 use crate::optimize::{brent, pso, PsoOptions};
 use model_core::{Direction, Identifiable, Model, Params};
 
@@ -104,7 +104,7 @@ pub enum Stage {
 }
 
 /// Per-sample quantities that do not depend on r.
-struct Basis {
+pub(crate) struct Basis {
     /// θ/S for S the largest amplitude: u, u³, u⁵.
     poly: Vec<[f64; 3]>,
     phase: Vec<f64>,
@@ -117,18 +117,24 @@ struct Basis {
     weight: Vec<f64>,
     phase_range: (f64, f64),
     scale: f64,
+    /// Further linear columns (the diagnosis' effects), one value per sample each.
+    extra: Vec<Vec<f64>>,
 }
 
 /// The weighted least-squares answer at one r.
-struct Solution {
-    coef: [f64; 4],
+pub(crate) struct Solution {
+    /// c1·S, c2·S³, c3·S⁵, k·e^shift, then one coefficient per extra column.
+    pub(crate) coef: Vec<f64>,
     /// The hysteresis column was divided by e^shift to stay finite.
     shift: f64,
-    weighted_rss: f64,
+    /// Σ w·residual², with the basis' weights.
+    pub(crate) weighted_rss: f64,
+    /// Factor of the normal equations, for the coefficients' variances.
+    pub(crate) factor: Cholesky,
 }
 
 impl Basis {
-    fn new(data: &FitData, indices: impl Iterator<Item = usize>, scale: f64) -> Basis {
+    pub(crate) fn new(data: &FitData, indices: impl Iterator<Item = usize>, scale: f64) -> Basis {
         let mut b = Basis {
             poly: Vec::new(),
             phase: Vec::new(),
@@ -139,6 +145,7 @@ impl Basis {
             weight: Vec::new(),
             phase_range: (f64::INFINITY, f64::NEG_INFINITY),
             scale,
+            extra: Vec::new(),
         };
         for i in indices {
             let (theta, amplitude) = (data.theta[i], data.amplitude[i]);
@@ -161,42 +168,79 @@ impl Basis {
         b
     }
 
-    fn solve(&self, r: f64) -> Option<Solution> {
+    /// Weighted least squares at `r` over the model's four columns and the extra ones.
+    pub(crate) fn solve(&self, r: f64) -> Option<Solution> {
         // Largest exponent −rφ over the data: dividing by e^shift keeps e^(−rφ) ≤ 1.
         let shift = (-r * self.phase_range.0).max(-r * self.phase_range.1);
+        // Fixed-size arrays let the compiler unroll the accumulation, where the swarm spends its time.
+        let (m, rhs, tt) = match self.extra.len() {
+            0 => self.normal_equations::<4>(r, shift),
+            1 => self.normal_equations::<5>(r, shift),
+            2 => self.normal_equations::<6>(r, shift),
+            3 => self.normal_equations::<7>(r, shift),
+            4 => self.normal_equations::<8>(r, shift),
+            5 => self.normal_equations::<9>(r, shift),
+            6 => self.normal_equations::<10>(r, shift),
+            7 => self.normal_equations::<11>(r, shift),
+            8 => self.normal_equations::<12>(r, shift),
+            9 => self.normal_equations::<13>(r, shift),
+            _ => return None,
+        };
+        let factor = Cholesky::new(rhs.len(), &m)?;
+        let coef = factor.solve(&rhs);
+        if !coef.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        let explained: f64 = coef.iter().zip(&rhs).map(|(c, r)| c * r).sum();
+        Some(Solution { coef, shift, weighted_rss: (tt - explained).max(0.0), factor })
+    }
+
+    /// (XᵀWX row-major, XᵀWT, TᵀWT) for the D = 4 + extra columns.
+    fn normal_equations<const D: usize>(&self, r: f64, shift: f64) -> (Vec<f64>, Vec<f64>, f64) {
         let e_shift = (-shift).exp();
-        let mut m = [[0.0f64; 4]; 4];
-        let mut rhs = [0.0f64; 4];
+        let mut m = [[0.0f64; D]; D];
+        let mut rhs = [0.0f64; D];
+        let mut cols = [0.0f64; D];
         let mut tt = 0.0;
         for i in 0..self.torque.len() {
             let p = (-r * self.phase[i] - shift).exp() + (r * self.sin[i] - self.cos[i]) * e_shift;
-            let cols = [self.poly[i][0], self.poly[i][1], self.poly[i][2], self.amp_abs_cos[i] * p];
+            cols[..3].copy_from_slice(&self.poly[i]);
+            cols[3] = self.amp_abs_cos[i] * p;
+            for (c, column) in cols[4..].iter_mut().zip(&self.extra) {
+                *c = column[i];
+            }
             let (w, t) = (self.weight[i], self.torque[i]);
-            for a in 0..4 {
+            for a in 0..D {
                 let wc = w * cols[a];
                 rhs[a] += wc * t;
-                for b in a..4 {
+                for b in a..D {
                     m[a][b] += wc * cols[b];
                 }
             }
             tt += w * t * t;
         }
-        for a in 0..4 {
-            for b in 0..a {
-                m[a][b] = m[b][a];
-            }
-        }
-        let coef = solve_spd(m, rhs)?;
-        let explained: f64 = coef.iter().zip(rhs).map(|(c, r)| c * r).sum();
-        Some(Solution { coef, shift, weighted_rss: (tt - explained).max(0.0) })
+        let full = (0..D * D).map(|k| if k / D <= k % D { m[k / D][k % D] } else { m[k % D][k / D] }).collect();
+        (full, rhs.to_vec(), tt)
     }
 
-    fn objective(&self, s: f64) -> f64 {
+    /// Uses these weights (one per sample) instead of 1.
+    pub(crate) fn with_weights(mut self, weights: Vec<f64>) -> Basis {
+        self.weight = weights;
+        self
+    }
+
+    /// Adds linear columns (one value per sample each) beside the model's own.
+    pub(crate) fn with_extra(mut self, columns: Vec<Vec<f64>>) -> Basis {
+        self.extra = columns;
+        self
+    }
+
+    pub(crate) fn objective(&self, s: f64) -> f64 {
         self.solve(s.sinh()).map_or(f64::INFINITY, |sol| sol.weighted_rss)
     }
 
-    fn params(&self, r: f64, solution: &Solution, reference_amplitude: f64) -> Result<Params<f64>, FitError> {
-        let [a1, a3, a5, ak] = solution.coef;
+    pub(crate) fn params(&self, r: f64, solution: &Solution, reference_amplitude: f64) -> Result<Params<f64>, FitError> {
+        let [a1, a3, a5, ak] = [solution.coef[0], solution.coef[1], solution.coef[2], solution.coef[3]];
         let k = ak * (-solution.shift).exp();
         let s = self.scale;
         let params = Params::from_identifiable(
@@ -283,7 +327,7 @@ pub fn fit(data: &FitData, options: &FitOptions, mut progress: impl FnMut(Stage)
 }
 
 /// Brent on s = asinh(r) around `s`, widening the bracket while the minimum sits on its edge.
-fn polish(basis: &Basis, s: f64, half_width: f64, s_limit: f64) -> (f64, usize) {
+pub(crate) fn polish(basis: &Basis, s: f64, half_width: f64, s_limit: f64) -> (f64, usize) {
     let mut evaluations = 0;
     let (mut center, mut half) = (s, half_width);
     loop {
@@ -302,14 +346,22 @@ fn polish(basis: &Basis, s: f64, half_width: f64, s_limit: f64) -> (f64, usize) 
 
 /// Total-noise weights 1/(σ_T² + σ_θ²·K²), normalised to a mean of 1.
 fn reweight(basis: &mut Basis, data: &FitData, model: &Model<f64>, noise: &NoiseModel) -> Result<(), FitError> {
-    let (var_t, var_theta) = (noise.torque_nm.powi(2), noise.deflection_rad.powi(2));
-    for (i, w) in basis.weight.iter_mut().enumerate() {
-        let stiffness = model.stiffness(data.theta[i], data.direction[i], data.amplitude[i])?;
-        *w = 1.0 / (var_t + var_theta * stiffness * stiffness).max(f64::MIN_POSITIVE);
-    }
+    basis.weight = total_noise_weights(data, model, noise)?;
     let mean = basis.weight.iter().sum::<f64>() / basis.weight.len() as f64;
     basis.weight.iter_mut().for_each(|w| *w /= mean);
     Ok(())
+}
+
+/// 1/(σ_T² + σ_θ²·K²) for every sample, K the model's stiffness there: the inverse variance
+/// of a torque residual when both torque and deflection are noisy.
+pub fn total_noise_weights(data: &FitData, model: &Model<f64>, noise: &NoiseModel) -> Result<Vec<f64>, model_core::Error> {
+    let (var_t, var_theta) = (noise.torque_nm.powi(2), noise.deflection_rad.powi(2));
+    (0..data.theta.len())
+        .map(|i| {
+            let stiffness = model.stiffness(data.theta[i], data.direction[i], data.amplitude[i])?;
+            Ok(1.0 / (var_t + var_theta * stiffness * stiffness).max(f64::MIN_POSITIVE))
+        })
+        .collect()
 }
 
 /// Unweighted residual sum of squares of `model` on `data`, (N·m)².

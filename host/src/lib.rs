@@ -3,6 +3,8 @@
 // Small dense matrix code reads better with indices, and `!(x > 0.0)` is how NaN is refused.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 pub mod baselines;
+pub mod diagnose;
+pub mod effects;
 pub mod fit;
 pub mod input;
 pub mod linalg;

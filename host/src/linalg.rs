@@ -6,67 +6,88 @@
 /// vanishes relative to its diagonal is dropped (its unknown set to 0), so collinear data
 /// gives the minimum-norm-like answer instead of garbage. `None` if nothing is left.
 pub fn solve_spd<const N: usize>(m: [[f64; N]; N], r: [f64; N]) -> Option<[f64; N]> {
-    let scale: [f64; N] = std::array::from_fn(|i| {
-        let d = m[i][i];
-        if d > 0.0 && d.is_finite() { 1.0 / d.sqrt() } else { 0.0 }
-    });
-    let mut a = [[0.0; N]; N];
-    for i in 0..N {
-        for j in 0..N {
-            a[i][j] = m[i][j] * scale[i] * scale[j];
-        }
-    }
-    // Cholesky a = L·Lᵀ, in place in the lower triangle.
-    let mut active = [false; N];
-    for j in 0..N {
-        let mut d = a[j][j];
-        for k in 0..j {
-            d -= a[j][k] * a[j][k];
-        }
-        if scale[j] == 0.0 || !(d > 1e-13) {
-            for i in j..N {
-                a[i][j] = 0.0;
-            }
-            continue;
-        }
-        active[j] = true;
-        let l = d.sqrt();
-        a[j][j] = l;
-        for i in j + 1..N {
-            let mut s = a[i][j];
+    let flat: Vec<f64> = m.iter().flatten().copied().collect();
+    let solution = Cholesky::new(N, &flat)?.solve(&r);
+    solution.iter().all(|v| v.is_finite()).then(|| std::array::from_fn(|i| solution[i]))
+}
+
+/// Cholesky factor of an equilibrated symmetric matrix, for solves and variances.
+pub struct Cholesky {
+    n: usize,
+    /// Row-major lower triangle; dropped columns are all zero.
+    lower: Vec<f64>,
+    scale: Vec<f64>,
+    active: Vec<bool>,
+}
+
+impl Cholesky {
+    /// Factors the row-major `n`×`n` matrix `m`.
+    pub fn new(n: usize, m: &[f64]) -> Option<Cholesky> {
+        let scale: Vec<f64> = (0..n)
+            .map(|i| {
+                let d = m[i * n + i];
+                if d > 0.0 && d.is_finite() { 1.0 / d.sqrt() } else { 0.0 }
+            })
+            .collect();
+        let mut a: Vec<f64> = (0..n * n).map(|k| m[k] * scale[k / n] * scale[k % n]).collect();
+        let mut active = vec![false; n];
+        for j in 0..n {
+            let mut d = a[j * n + j];
             for k in 0..j {
-                s -= a[i][k] * a[j][k];
+                d -= a[j * n + k] * a[j * n + k];
             }
-            a[i][j] = s / l;
+            if scale[j] == 0.0 || !(d > 1e-13) {
+                for i in j..n {
+                    a[i * n + j] = 0.0;
+                }
+                continue;
+            }
+            active[j] = true;
+            let l = d.sqrt();
+            a[j * n + j] = l;
+            for i in j + 1..n {
+                let mut s = a[i * n + j];
+                for k in 0..j {
+                    s -= a[i * n + k] * a[j * n + k];
+                }
+                a[i * n + j] = s / l;
+            }
         }
+        active.iter().any(|&x| x).then_some(Cholesky { n, lower: a, scale, active })
     }
-    if !active.iter().any(|&x| x) {
-        return None;
+
+    /// x with m·x = r; dropped unknowns are 0.
+    pub fn solve(&self, r: &[f64]) -> Vec<f64> {
+        let (n, a) = (self.n, &self.lower);
+        let mut y = vec![0.0; n];
+        for i in 0..n {
+            if self.active[i] {
+                let mut s = r[i] * self.scale[i];
+                for k in 0..i {
+                    s -= a[i * n + k] * y[k];
+                }
+                y[i] = s / a[i * n + i];
+            }
+        }
+        let mut x = vec![0.0; n];
+        for i in (0..n).rev() {
+            if self.active[i] {
+                let mut s = y[i];
+                for k in i + 1..n {
+                    s -= a[k * n + i] * x[k];
+                }
+                x[i] = s / a[i * n + i];
+            }
+        }
+        x.iter().zip(&self.scale).map(|(x, s)| x * s).collect()
     }
-    let mut y = [0.0; N];
-    for i in 0..N {
-        if !active[i] {
-            continue;
-        }
-        let mut s = r[i] * scale[i];
-        for k in 0..i {
-            s -= a[i][k] * y[k];
-        }
-        y[i] = s / a[i][i];
+
+    /// Diagonal element `i` of m⁻¹: the variance of unknown `i` per unit residual variance.
+    pub fn inverse_diagonal(&self, i: usize) -> f64 {
+        let mut unit = vec![0.0; self.n];
+        unit[i] = 1.0;
+        self.solve(&unit)[i]
     }
-    let mut x = [0.0; N];
-    for i in (0..N).rev() {
-        if !active[i] {
-            continue;
-        }
-        let mut s = y[i];
-        for k in i + 1..N {
-            s -= a[k][i] * x[k];
-        }
-        x[i] = s / a[i][i];
-    }
-    let solution: [f64; N] = std::array::from_fn(|i| x[i] * scale[i]);
-    solution.iter().all(|v| v.is_finite()).then_some(solution)
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! SVG pictures of a fit: the torque–deflection loop with the data, the fitted model and the
 //! baselines, and the model's residuals below it.
 use crate::baselines::{BranchLine, ThreeSegment};
+use crate::diagnose::{Diagnosis, ExtendedFit, Observed};
 use crate::fit::FitData;
 use crate::input::Branch;
 use model_core::{Direction, Model};
@@ -148,6 +149,119 @@ fn draw(plot: &LoopPlot, svg: &mut String) -> Result<(), Box<dyn std::error::Err
         };
         Circle::new((data.theta[i] * MRAD, residuals[i]), radius, color.filled())
     }))?;
+    root.present()?;
+    Ok(())
+}
+
+/// Residuals of the baseline (grey) and of the final model (blue) against deflection, time,
+/// deflection rate and input angle: the pictures `diagnose --plot` writes.
+pub fn residuals_svg(observed: &Observed, before: &[f64], after: &[f64]) -> Result<String, String> {
+    let mut svg = String::new();
+    draw_residuals(observed, before, after, &mut svg).map_err(|e| format!("drawing the residuals failed: {e}"))?;
+    Ok(svg)
+}
+
+fn draw_residuals(
+    observed: &Observed,
+    before: &[f64],
+    after: &[f64],
+    svg: &mut String,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let n = before.len();
+    let stride = n.div_ceil(MAX_POINTS).max(1);
+    let root = SVGBackend::with_string(svg, (1200, 860)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.titled("residual torque, measured − model: baseline (grey), with the effects found (blue)", ("sans-serif", 20))?;
+    let panels = root.split_evenly((2, 2));
+    let theta: Vec<f64> = observed.data.theta.iter().map(|t| t * MRAD).collect();
+    let rate: Option<Vec<f64>> = observed.rate.as_ref().map(|r| r.iter().map(|v| v * MRAD).collect());
+    let angle: Option<Vec<f64>> =
+        observed.input_angle.as_ref().map(|a| a.iter().map(|v| v.rem_euclid(std::f64::consts::TAU)).collect());
+    let axes: [(&str, Option<&[f64]>, &str); 4] = [
+        ("against deflection", Some(&theta), "deflection θ (mrad)"),
+        ("against time", observed.time.as_deref(), "time (s)"),
+        ("against deflection rate", rate.as_deref(), "dθ/dt (mrad/s)"),
+        ("against input angle", angle.as_deref(), "input angle mod 2π (rad)"),
+    ];
+    let (r_lo, r_hi) = range(before.iter().chain(after).copied().chain([0.0]));
+    let r_max = r_lo.abs().max(r_hi.abs());
+    for (area, (title, xs, label)) in panels.iter().zip(axes) {
+        let Some(xs) = xs else {
+            area.draw(&Text::new(format!("{title}: not in this data"), (40, 60), ("sans-serif", 16)))?;
+            continue;
+        };
+        let (x_lo, x_hi) = range(xs.iter().copied());
+        let mut chart = ChartBuilder::on(area)
+            .caption(title, ("sans-serif", 16))
+            .margin(10)
+            .x_label_area_size(36)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x_lo..x_hi, -r_max..r_max)?;
+        chart.configure_mesh().x_desc(label).y_desc("residual (N·m)").draw()?;
+        let grey = RGBColor(150, 150, 150);
+        let blue = RGBColor(0, 90, 200);
+        chart.draw_series((0..n).step_by(stride).map(|i| Circle::new((xs[i], before[i]), 2, grey.mix(0.5).filled())))?;
+        chart.draw_series((0..n).step_by(stride).map(|i| Circle::new((xs[i], after[i]), 2, blue.mix(0.7).filled())))?;
+    }
+    root.present()?;
+    Ok(())
+}
+
+/// The loop with the baseline model's and the final model's torque at every sample.
+pub fn diagnosis_loop_svg(observed: &Observed, diagnosis: &Diagnosis) -> Result<String, String> {
+    let mut svg = String::new();
+    draw_diagnosis_loop(observed, diagnosis, &mut svg).map_err(|e| format!("drawing the loop failed: {e}"))?;
+    Ok(svg)
+}
+
+fn draw_diagnosis_loop(
+    observed: &Observed,
+    diagnosis: &Diagnosis,
+    svg: &mut String,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let d = &observed.data;
+    let n = d.theta.len();
+    let stride = n.div_ceil(MAX_POINTS).max(1);
+    let all: Vec<usize> = (0..n).step_by(stride).collect();
+    let predicted = |fit: &ExtendedFit| -> Result<Vec<f64>, String> {
+        let residuals = fit.residuals(observed, &all).ok_or("the model cannot be evaluated")?;
+        Ok(all.iter().zip(residuals).map(|(&i, r)| d.torque[i] - r).collect())
+    };
+    let (baseline, final_model) = (predicted(&diagnosis.baseline)?, predicted(&diagnosis.final_fit)?);
+    let root = SVGBackend::with_string(svg, (960, 640)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (x_lo, x_hi) = range(d.theta.iter().map(|t| t * MRAD));
+    let (y_lo, y_hi) = range(d.torque.iter().copied());
+    let effects: Vec<&str> = diagnosis.final_fit.active.iter().map(|e| e.name()).collect();
+    let title = if effects.is_empty() { "loop: no missing physics found".to_string() } else { format!("loop: baseline vs with {}", effects.join(" + ")) };
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
+    chart.configure_mesh().x_desc("deflection θ (mrad)").y_desc("torque T (N·m)").draw()?;
+    let grey = RGBColor(120, 120, 120);
+    let orange = RGBColor(230, 120, 0);
+    let blue = RGBColor(0, 90, 200);
+    chart
+        .draw_series(all.iter().map(|&i| Circle::new((d.theta[i] * MRAD, d.torque[i]), 2, grey.mix(0.5).filled())))?
+        .label("measured")
+        .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
+    chart
+        .draw_series(all.iter().zip(&baseline).map(|(&i, &t)| Circle::new((d.theta[i] * MRAD, t), 1, orange.filled())))?
+        .label("baseline model")
+        .legend(move |(x, y)| Circle::new((x + 10, y), 3, orange.filled()));
+    chart
+        .draw_series(all.iter().zip(&final_model).map(|(&i, &t)| Circle::new((d.theta[i] * MRAD, t), 1, blue.filled())))?
+        .label("with the effects found")
+        .legend(move |(x, y)| Circle::new((x + 10, y), 3, blue.filled()));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
     root.present()?;
     Ok(())
 }

@@ -210,32 +210,49 @@ fn refine_extreme(
 
 /// (time, value) of the vertex of the least-squares parabola through the samples, if it is a
 /// cap (for a maximum) or a cup (for a minimum) with its vertex inside the samples' span.
+///
+/// Over the window a sinusoidal excitation A·cos u also has a quartic term A·u⁴/24, which a
+/// plain parabola folds into its vertex (a bias of 1.7·10⁻⁴·A, measured to double a small
+/// backlash estimate). For a sine the quartic coefficient follows from the quadratic one,
+/// d = c²/(6a), so it is subtracted and the parabola refitted; |d| ≤ |c|/2 keeps the
+/// correction harmless where the reversal is not sinusoidal.
 fn fit_vertex(time: &[f64], x: &[f64], is_maximum: bool) -> Option<(f64, f64)> {
     if x.len() < 5 {
         return None;
     }
     let (t0, t1) = (*time.first()?, *time.last()?);
     let span = (t1 - t0).max(f64::MIN_POSITIVE);
-    let mut s = [0.0f64; 5];
-    let mut r = [0.0f64; 3];
-    for (&t, &v) in time.iter().zip(x) {
-        // τ in [−1, 1] over the window keeps the normal equations well conditioned.
-        let tau = 2.0 * (t - t0) / span - 1.0;
-        let mut p = 1.0;
-        for (k, sk) in s.iter_mut().enumerate() {
-            *sk += p;
-            if k < 3 {
-                r[k] += p * v;
+    // τ in [−1, 1] over the window keeps the normal equations well conditioned.
+    let tau: Vec<f64> = time.iter().map(|&t| 2.0 * (t - t0) / span - 1.0).collect();
+    let mut quartic = 0.0;
+    let mut vertex = None;
+    for _ in 0..3 {
+        let center = vertex.map_or(0.0, |(v, _)| v);
+        let mut s = [0.0f64; 5];
+        let mut r = [0.0f64; 3];
+        for (&t, &v) in tau.iter().zip(x) {
+            let y = v - quartic * (t - center).powi(4);
+            let mut p = 1.0;
+            for (k, sk) in s.iter_mut().enumerate() {
+                *sk += p;
+                if k < 3 {
+                    r[k] += p * y;
+                }
+                p *= t;
             }
-            p *= tau;
         }
+        let m = [[s[0], s[1], s[2]], [s[1], s[2], s[3]], [s[2], s[3], s[4]]];
+        let [a, b, c] = crate::linalg::solve_spd(m, r)?;
+        let cap = if is_maximum { c < 0.0 } else { c > 0.0 };
+        let vertex_tau = -b / (2.0 * c);
+        if !(cap && (-1.0..=1.0).contains(&vertex_tau)) {
+            return None;
+        }
+        let value = a - b * b / (4.0 * c);
+        vertex = Some((vertex_tau, value));
+        quartic = if value != 0.0 { (c * c / (6.0 * value)).clamp(-c.abs() / 2.0, c.abs() / 2.0) } else { 0.0 };
     }
-    let m = [[s[0], s[1], s[2]], [s[1], s[2], s[3]], [s[2], s[3], s[4]]];
-    let [a, b, c] = crate::linalg::solve_spd(m, r)?;
-    let cap = if is_maximum { c < 0.0 } else { c > 0.0 };
-    let vertex_tau = -b / (2.0 * c);
-    (cap && (-1.0..=1.0).contains(&vertex_tau))
-        .then(|| (t0 + (vertex_tau + 1.0) * span / 2.0, a - b * b / (4.0 * c)))
+    vertex.map(|(vertex_tau, value)| (t0 + (vertex_tau + 1.0) * span / 2.0, value))
 }
 
 #[cfg(test)]

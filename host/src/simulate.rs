@@ -1,8 +1,10 @@
 //! Synthetic bench recordings from the model: a sinusoidal deflection, the model's torque
-//! plus sensor noise, and quantised input/output encoders.
+//! plus sensor noise, and quantised input/output encoders, with the physical effects of
+//! [`crate::effects`] added on request.
+use crate::effects::{backlash, kinematic_error, Effect, EffectValue};
 use crate::input::{deflection, Angles, Recording};
 use model_core::{Direction, Model, Params};
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use std::f64::consts::TAU;
 
@@ -27,6 +29,8 @@ pub struct Simulation {
     pub torque_noise_nm: f64,
     /// Temperature at the start, °C, and its rise, K/s; `None` for no temperature column.
     pub temperature: Option<(f64, f64)>,
+    /// Physics the model leaves out, added to what is written.
+    pub effects: Vec<EffectValue>,
     pub seed: u64,
 }
 
@@ -36,6 +40,8 @@ pub enum SimulateError {
     Params(#[from] model_core::Error),
     #[error("{name} must be {expected}, got {value}")]
     OutOfRange { name: &'static str, expected: &'static str, value: f64 },
+    #[error("thermal_drift needs a temperature column: add --temperature (and --temperature-rise)")]
+    NeedsTemperature,
     #[error("the recording would have {0} samples; at most {MAX_SAMPLES} are written")]
     TooLong(f64),
 }
@@ -71,14 +77,29 @@ impl Simulation {
             check("temperature", start, true, "finite")?;
             check("temperature rise", rise, true, "finite")?;
         }
+        for e in &self.effects {
+            check("effect value", e.value, true, "finite")?;
+        }
+        let width = self.effect(Effect::Backlash);
+        check("backlash", width, (0.0..2.0 * self.amplitude_rad).contains(&width), "from 0 to below twice the amplitude")?;
+        if self.effect(Effect::ThermalDrift) != 0.0 && self.temperature.is_none() {
+            return Err(SimulateError::NeedsTemperature);
+        }
         Ok(())
+    }
+
+    /// The magnitude of `effect` (summed if given twice), 0 when absent.
+    pub fn effect(&self, effect: Effect) -> f64 {
+        self.effects.iter().filter(|e| e.effect == effect).map(|e| e.value).sum()
     }
 }
 
 /// The recording the simulation describes.
 pub fn simulate(sim: &Simulation) -> Result<Recording, SimulateError> {
     sim.validate()?;
-    let model = Model::new(sim.params)?.at_amplitude(sim.amplitude_rad)?;
+    let width = sim.effect(Effect::Backlash);
+    // Behind the dead band the elastic loop is narrower by half its width.
+    let model = Model::new(sim.params)?.at_amplitude(sim.amplitude_rad - width / 2.0)?;
     let duration: f64 = sim.frequencies_hz.iter().map(|f| sim.cycles as f64 / f).sum();
     let samples = (duration * sim.sample_rate_hz).floor();
     if samples > MAX_SAMPLES {
@@ -86,6 +107,12 @@ pub fn simulate(sim: &Simulation) -> Result<Recording, SimulateError> {
     }
     let n = samples as usize + 1;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(sim.seed);
+    // Phases from their own stream, so that adding an effect leaves the noise unchanged.
+    let mut phase_rng = rand_chacha::ChaCha8Rng::seed_from_u64(sim.seed ^ 0x6b69_6e65_6d61_7469);
+    let kinematic_phases = (phase_rng.random_range(0.0..TAU), phase_rng.random_range(0.0..TAU));
+    let (friction, damping, offset) =
+        (sim.effect(Effect::CoulombFriction), sim.effect(Effect::ViscousDamping), sim.effect(Effect::TorqueOffset));
+    let (kinematic, thermal) = (sim.effect(Effect::KinematicError), sim.effect(Effect::ThermalDrift));
     let torque_noise = Normal::new(0.0, sim.torque_noise_nm).map_err(|_| SimulateError::OutOfRange {
         name: "torque noise",
         expected: ">= 0 N·m",
@@ -125,11 +152,23 @@ pub fn simulate(sim: &Simulation) -> Result<Recording, SimulateError> {
         let t = i as f64 / sim.sample_rate_hz;
         let &(block_start, f) = blocks.iter().rev().find(|(s, _)| *s <= t).unwrap_or(&blocks[0]);
         let phase = TAU * f * (t - block_start);
-        let theta = sim.amplitude_rad * phase.sin();
-        let direction = if phase.cos() >= 0.0 { Direction::Rising } else { Direction::Falling };
-        let torque = model.torque(theta, direction)? + torque_noise.sample(&mut rng);
+        // The bench drives the gear's deflection x; the encoders see x minus the kinematic
+        // error, the teeth see x behind the backlash dead band.
+        let x = sim.amplitude_rad * phase.sin();
+        let rate = sim.amplitude_rad * TAU * f * phase.cos();
+        let direction = if rate >= 0.0 { Direction::Rising } else { Direction::Falling };
         let theta_in = sim.input_speed_rad_s * t;
-        let theta_out = theta_in / sim.ratio - theta;
+        let elastic = backlash(x, width);
+        let temperature = sim.temperature.map(|(start, rise)| (start + rise * t, rise * t));
+        let warming = temperature.map_or(0.0, |(_, delta)| delta);
+        let torque = model.torque(elastic, direction)?
+            + sim.params.c1 * thermal * warming * elastic
+            + friction * rate.signum()
+            + damping * rate
+            + offset
+            + torque_noise.sample(&mut rng);
+        let measured = x - kinematic_error(kinematic, kinematic_phases, theta_in);
+        let theta_out = theta_in / sim.ratio - measured;
         let (measured_in, measured_out) = (quantise(theta_in, sim.input_bits), quantise(theta_out, sim.output_bits));
         rec.time.push(t);
         if let Some(angles) = rec.angles.as_mut() {
@@ -138,8 +177,8 @@ pub fn simulate(sim: &Simulation) -> Result<Recording, SimulateError> {
         }
         rec.deflection.push(deflection(measured_in, measured_out, sim.ratio));
         rec.torque.push(torque);
-        if let (Some((start_c, rise)), Some(temps)) = (sim.temperature, rec.temperature.as_mut()) {
-            temps.push(((start_c + rise * t) * 100.0).round() / 100.0);
+        if let (Some((celsius, _)), Some(temps)) = (temperature, rec.temperature.as_mut()) {
+            temps.push((celsius * 100.0).round() / 100.0);
         }
     }
     Ok(rec)

@@ -20,7 +20,8 @@ use swg_protocol::{
 const SEED: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
 const RATIO: f64 = 50.0;
 /// A limit above the loop's torque, so that every sample is compared with the model.
-const SETTINGS: JointSettings = JointSettings { gear_ratio: RATIO, torque_limit: 100.0, direction_band: 2.0e-6 };
+const SETTINGS: JointSettings =
+    JointSettings { gear_ratio: RATIO, torque_limit: 100.0, direction_band: 2.0e-6 };
 
 /// One QEMU running the firmware, its UART0 on a free local TCP port; killed on drop.
 struct Firmware {
@@ -60,7 +61,9 @@ impl Firmware {
         loop {
             match Link::open(&self.address(), Duration::from_secs(2)) {
                 Ok(link) => return link,
-                Err(_) if start.elapsed() < Duration::from_secs(10) => std::thread::sleep(Duration::from_millis(50)),
+                Err(_) if start.elapsed() < Duration::from_secs(10) => {
+                    std::thread::sleep(Duration::from_millis(50))
+                }
                 Err(error) => panic!("cannot reach the firmware: {error}"),
             }
         }
@@ -76,7 +79,12 @@ impl Drop for Firmware {
 
 fn swg_host(args: &[&str]) -> Output {
     let output = Command::new(env!("CARGO_BIN_EXE_swg-host")).args(args).output().unwrap();
-    println!("$ swg-host {}\n{}{}", args.join(" "), String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    println!(
+        "$ swg-host {}\n{}{}",
+        args.join(" "),
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
     output
 }
 
@@ -101,6 +109,7 @@ fn recording() -> swg_host::input::Recording {
         output_bits: Some(20),
         torque_noise_nm: 0.0,
         temperature: None,
+        effects: Vec::new(),
         seed: 7,
     })
     .unwrap()
@@ -119,8 +128,16 @@ fn push_read_back_and_replay_match_the_host_model() {
 
     let port = firmware.address();
     let pushed = swg_host(&[
-        "push", params_file.to_str().unwrap(), "--port", &port, "--ratio", "50", "--torque-limit", "100",
-        "--direction-band", "2e-6",
+        "push",
+        params_file.to_str().unwrap(),
+        "--port",
+        &port,
+        "--ratio",
+        "50",
+        "--torque-limit",
+        "100",
+        "--direction-band",
+        "2e-6",
     ]);
     assert!(pushed.status.success());
     let stdout = String::from_utf8_lossy(&pushed.stdout);
@@ -134,7 +151,8 @@ fn push_read_back_and_replay_match_the_host_model() {
     drop(link);
 
     for path in ["fast", "direct"] {
-        let replayed = swg_host(&["replay", recording_file.to_str().unwrap(), "--port", &port, "--path", path]);
+        let replayed =
+            swg_host(&["replay", recording_file.to_str().unwrap(), "--port", &port, "--path", path]);
         assert!(replayed.status.success(), "{path}");
         let stdout = String::from_utf8_lossy(&replayed.stdout);
         assert!(stdout.contains("(0 samples outside"), "{stdout}");
@@ -184,10 +202,26 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
     let cases: Vec<(&str, Vec<u8>, ErrorReply)> = vec![
         ("corrupted byte", corrupted, ErrorReply::BadCrc),
         ("truncated frame", truncated, ErrorReply::BadFrame),
-        ("wrong protocol version", other_version[..len].to_vec(), ErrorReply::UnsupportedProtocol { got: PROTOCOL_VERSION + 1, supported: PROTOCOL_VERSION }),
-        ("NaN parameter", encode_to_vec(&Request::WriteParams(nan)).unwrap(), ErrorReply::InvalidParam { field: ParamField::Beta, fault: ParamFault::NotFinite }),
-        ("infinite parameter", encode_to_vec(&Request::WriteParams(infinite)).unwrap(), ErrorReply::InvalidParam { field: ParamField::C1, fault: ParamFault::NotFinite }),
-        ("out-of-range parameter", encode_to_vec(&Request::WriteParams(out_of_range)).unwrap(), ErrorReply::InvalidParam { field: ParamField::GearRatio, fault: ParamFault::OutOfRange }),
+        (
+            "wrong protocol version",
+            other_version[..len].to_vec(),
+            ErrorReply::UnsupportedProtocol { got: PROTOCOL_VERSION + 1, supported: PROTOCOL_VERSION },
+        ),
+        (
+            "NaN parameter",
+            encode_to_vec(&Request::WriteParams(nan)).unwrap(),
+            ErrorReply::InvalidParam { field: ParamField::Beta, fault: ParamFault::NotFinite },
+        ),
+        (
+            "infinite parameter",
+            encode_to_vec(&Request::WriteParams(infinite)).unwrap(),
+            ErrorReply::InvalidParam { field: ParamField::C1, fault: ParamFault::NotFinite },
+        ),
+        (
+            "out-of-range parameter",
+            encode_to_vec(&Request::WriteParams(out_of_range)).unwrap(),
+            ErrorReply::InvalidParam { field: ParamField::GearRatio, fault: ParamFault::OutOfRange },
+        ),
         ("line noise", [&garbage[..], &[0u8]].concat(), ErrorReply::FrameTooLong),
     ];
     for (what, bytes, expected) in cases {
@@ -218,7 +252,14 @@ fn push_refuses_values_the_device_would_refuse_and_says_why() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("parameter gear_ratio is out of range"));
     // Nothing listens here: a clear error, not a hang.
     let closed = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let out = swg_host(&["push", params_file.to_str().unwrap(), "--port", &format!("tcp://127.0.0.1:{closed}"), "--ratio", "50"]);
+    let out = swg_host(&[
+        "push",
+        params_file.to_str().unwrap(),
+        "--port",
+        &format!("tcp://127.0.0.1:{closed}"),
+        "--ratio",
+        "50",
+    ]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot open tcp://127.0.0.1:"));
 }

@@ -29,6 +29,7 @@ fn base(params: Params<f64>, seed: u64) -> Simulation {
         output_bits: Some(20),
         torque_noise_nm: 0.05,
         temperature: None,
+        effects: Vec::new(),
         seed,
     }
 }

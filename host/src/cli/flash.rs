@@ -16,16 +16,23 @@ pub struct FlashArgs {
 
 #[cfg(feature = "probe")]
 pub fn run(args: FlashArgs) -> Result<()> {
+    flash_with(probe_rs::probe::list::Lister::new().list_all(), &args)
+}
+
+/// Flashes through the first of `probes`.
+#[cfg(feature = "probe")]
+fn flash_with(probes: Vec<probe_rs::probe::DebugProbeInfo>, args: &FlashArgs) -> Result<()> {
     use probe_rs::flashing::{download_file, ElfLoader, ElfOptions};
-    use probe_rs::probe::list::Lister;
     use probe_rs::Permissions;
 
     if !args.elf.is_file() {
         bail!("{}: no such firmware file", args.elf.display());
     }
-    let probes = Lister::new().list_all();
     let Some(probe) = probes.first() else {
-        bail!("no debug probe found: connect an ST-Link, J-Link or CMSIS-DAP probe to the board (and check USB permissions)");
+        bail!(
+            "no debug probe found: connect an ST-Link, J-Link or CMSIS-DAP probe to the board \
+             (and check its USB permissions)"
+        );
     };
     if probes.len() > 1 {
         eprintln!("{} probes found; using the first: {}", probes.len(), probe.identifier);
@@ -39,6 +46,22 @@ pub fn run(args: FlashArgs) -> Result<()> {
     session.core(0)?.reset().context("reset after flashing failed")?;
     println!("flashed {} to {}; restore its parameters with `swg-host push`", args.elf.display(), args.chip);
     Ok(())
+}
+
+#[cfg(all(test, feature = "probe"))]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn without_a_probe_it_says_so() {
+        let elf = tempfile::NamedTempFile::new().unwrap();
+        let args = FlashArgs { elf: elf.path().to_owned(), chip: "STM32F405RGTx".into() };
+        let error = flash_with(Vec::new(), &args).unwrap_err().to_string();
+        assert!(error.starts_with("no debug probe found"), "{error}");
+        let missing = FlashArgs { elf: "does-not-exist.elf".into(), chip: "STM32F405RGTx".into() };
+        let error = flash_with(Vec::new(), &missing).unwrap_err().to_string();
+        assert_eq!(error, "does-not-exist.elf: no such firmware file");
+    }
 }
 
 #[cfg(not(feature = "probe"))]

@@ -1,4 +1,5 @@
 //! Command-line interface: one module per subcommand, shared options flattened.
+mod diagnose;
 mod fit;
 mod flash;
 mod push;
@@ -20,6 +21,8 @@ enum Command {
     Fit(fit::FitArgs),
     /// Write a bench recording (format v1) from the model.
     Simulate(simulate::SimulateArgs),
+    /// Find where the model and a recording disagree and which physics the model misses.
+    Diagnose(diagnose::DiagnoseArgs),
     /// Send parameters to a joint: check versions, write, read back, store in flash.
     Push(push::PushArgs),
     /// Stream a recording through the joint firmware; compare its T_ff and K with the host model.
@@ -33,6 +36,7 @@ impl Cli {
         match self.command {
             Command::Fit(args) => fit::run(args),
             Command::Simulate(args) => simulate::run(args),
+            Command::Diagnose(args) => diagnose::run(args),
             Command::Push(args) => push::run(args),
             Command::Replay(args) => replay::run(args),
             Command::Flash(args) => flash::run(args),

@@ -2,6 +2,7 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use std::path::PathBuf;
+use swg_host::effects::EffectValue;
 use swg_host::output::write_atomically;
 use swg_host::paramsfile::{parse_params, read_params};
 use swg_host::simulate::{simulate, Simulation};
@@ -50,6 +51,11 @@ pub struct SimulateArgs {
     /// Temperature rise over time, K/s (with --temperature).
     #[arg(long, default_value_t = 0.0, value_name = "K_PER_S", requires = "temperature")]
     temperature_rise: f64,
+    /// Add a physical effect the model leaves out, NAME=VALUE in SI units (repeatable):
+    /// backlash=WIDTH_RAD, coulomb_friction=NM, viscous_damping=NM_S_PER_RAD,
+    /// kinematic_error=RAD (2nd-order amplitude), thermal_drift=PER_K, torque_offset=NM.
+    #[arg(long = "effect", value_name = "NAME=VALUE")]
+    effects: Vec<EffectValue>,
     /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -72,6 +78,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         output_bits: args.output_bits,
         torque_noise_nm: args.torque_noise,
         temperature: args.temperature.map(|start| (start, args.temperature_rise)),
+        effects: args.effects,
         seed: args.seed,
     };
     let recording = simulate(&simulation)?;

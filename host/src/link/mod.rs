@@ -13,15 +13,14 @@ use swg_protocol::{
 
 /// Baud rate for serial ports; the joint boards' UARTs are set to the same.
 pub const BAUD_RATE: u32 = 115_200;
-/// How long to wait for a response by default.
-pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(2);
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum LinkError {
-    #[error("cannot open {port}: {source}")]
+    // The cause follows as the error's source (printed by `{:#}` in the binary).
+    #[error("cannot open {port}")]
     Open { port: String, source: io::Error },
-    #[error("cannot open serial port {port}: {source}")]
+    #[error("cannot open serial port {port}")]
     OpenSerial { port: String, source: serialport::Error },
     #[error("link I/O: {0}")]
     Io(#[from] io::Error),
@@ -174,7 +173,10 @@ pub(crate) mod fake {
 
     impl FakeDevice {
         pub fn new() -> Self {
-            FakeDevice { server: Server::new(ParamStore::new(RamFlash::new()).unwrap()), pending: VecDeque::new() }
+            FakeDevice {
+                server: Server::new(ParamStore::new(RamFlash::new()).unwrap()),
+                pending: VecDeque::new(),
+            }
         }
 
         pub fn link(self) -> Link {
@@ -250,9 +252,9 @@ mod tests {
 
     #[test]
     fn unknown_ports_fail_to_open_with_their_name() {
-        let error = Link::open("/dev/does-not-exist", DEFAULT_TIMEOUT).err().unwrap();
+        let error = Link::open("/dev/does-not-exist", Duration::from_secs(1)).err().unwrap();
         assert!(error.to_string().contains("/dev/does-not-exist"), "{error}");
-        let error = Link::open("tcp://127.0.0.1:1", DEFAULT_TIMEOUT).err().unwrap();
+        let error = Link::open("tcp://127.0.0.1:1", Duration::from_secs(1)).err().unwrap();
         assert!(error.to_string().contains("tcp://127.0.0.1:1"), "{error}");
     }
 }

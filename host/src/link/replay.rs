@@ -71,7 +71,11 @@ impl std::fmt::Display for ReplayReport {
             self.samples, self.active, self.clamped, self.off, self.near_turning_points
         )?;
         writeln!(f, "T_ff difference: worst {:.3e} N·m, RMS {:.3e} N·m", self.torque_worst, self.torque_rms)?;
-        writeln!(f, "K difference:    worst {:.3e} N·m/rad, RMS {:.3e} N·m/rad", self.stiffness_worst, self.stiffness_rms)?;
+        writeln!(
+            f,
+            "K difference:    worst {:.3e} N·m/rad, RMS {:.3e} N·m/rad",
+            self.stiffness_worst, self.stiffness_rms
+        )?;
         write!(
             f,
             "worst error / f32 tolerance: {:.3} ({} samples outside; tolerance: {:.0e} of the loop's T and K scale plus the f32 rounding sensitivity of θ/A)",
@@ -214,7 +218,8 @@ mod tests {
     use crate::link::push::{joint_params, push, JointSettings};
     use crate::simulate::{simulate, Simulation};
 
-    const SEED: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
+    const SEED: Params<f64> =
+        Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
 
     fn recording(input_bits: Option<u32>) -> Recording {
         simulate(&Simulation {
@@ -229,6 +234,7 @@ mod tests {
             output_bits: input_bits,
             torque_noise_nm: 0.0,
             temperature: None,
+            effects: Vec::new(),
             seed: 1,
         })
         .unwrap()
