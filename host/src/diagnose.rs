@@ -371,7 +371,10 @@ pub fn fit_extended(
             let x = d.theta[i] + kinematic_at(&state, observed, i);
             let elastic = backlash(x, state.backlash);
             let amplitude = observed.elastic_amplitude(&state, i);
-            let stiffness = model.stiffness(elastic, d.direction[i], amplitude).unwrap_or(0.0);
+            let (torque, stiffness) = model
+                .at_amplitude(amplitude)
+                .and_then(|l| l.evaluate(elastic, d.direction[i]))
+                .map_or((0.0, 0.0), |e| (e.torque, e.stiffness));
             sub.theta.push(elastic);
             sub.torque.push(d.torque[i]);
             sub.direction.push(d.direction[i]);
@@ -380,8 +383,16 @@ pub fn fit_extended(
             for &effect in active {
                 match effect {
                     Effect::Backlash => {
+                        // w shifts the elastic deflection by ∓w/2 and narrows the loop by w/2:
+                        // ∂T/∂A at fixed θ is z/A − (θ/A)·dz/dθ, z the hysteresis term.
+                        let (c1, c2, c3) = (params.c1, params.c2, params.c3);
+                        let e2 = elastic * elastic;
+                        let z = torque - elastic * (c1 + e2 * (c2 + e2 * c3));
+                        let dz = stiffness - (c1 + e2 * (3.0 * c2 + 5.0 * c3 * e2));
+                        let by_amplitude = z / amplitude - elastic / amplitude * dz;
                         let inside = x.abs() <= state.backlash / 2.0;
-                        column.next()?.push(if inside { 0.0 } else { -stiffness * x.signum() / 2.0 });
+                        let shift = if inside { 0.0 } else { -stiffness * x.signum() / 2.0 };
+                        column.next()?.push(shift - by_amplitude / 2.0);
                     }
                     Effect::KinematicError => {
                         let psi = observed.input_angle.as_ref()?[i];
