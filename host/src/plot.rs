@@ -227,25 +227,40 @@ fn draw_diagnosis_loop(
         let residuals = fit.residuals(observed, &all).ok_or("the model cannot be evaluated")?;
         Ok(all.iter().zip(residuals).map(|(&i, r)| d.torque[i] - r).collect())
     };
-    let (baseline, final_model) = (predicted(&diagnosis.baseline)?, predicted(&diagnosis.final_fit)?);
+    // The loop is nearly a straight line; removing its mean stiffness shows the hysteresis.
+    let mean_stiffness = d.theta.iter().zip(&d.torque).map(|(t, q)| t * q).sum::<f64>()
+        / d.theta.iter().map(|t| t * t).sum::<f64>().max(f64::MIN_POSITIVE);
+    let detrend = |values: Vec<f64>| -> Vec<f64> {
+        all.iter().zip(values).map(|(&i, v)| v - mean_stiffness * d.theta[i]).collect()
+    };
+    let (baseline, final_model) = (detrend(predicted(&diagnosis.baseline)?), detrend(predicted(&diagnosis.final_fit)?));
+    let measured = detrend(all.iter().map(|&i| d.torque[i]).collect());
     let root = SVGBackend::with_string(svg, (960, 640)).into_drawing_area();
     root.fill(&WHITE)?;
     let (x_lo, x_hi) = range(d.theta.iter().map(|t| t * MRAD));
-    let (y_lo, y_hi) = range(d.torque.iter().copied());
+    let (y_lo, y_hi) = range(measured.iter().copied());
     let effects: Vec<&str> = diagnosis.final_fit.active.iter().map(|e| e.name()).collect();
-    let title = if effects.is_empty() { "loop: no missing physics found".to_string() } else { format!("loop: baseline vs with {}", effects.join(" + ")) };
+    let title = if effects.is_empty() {
+        "loop, mean stiffness removed: no missing physics found".to_string()
+    } else {
+        format!("loop, mean stiffness removed: baseline vs with {}", effects.join(" + "))
+    };
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 20))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(64)
         .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
-    chart.configure_mesh().x_desc("deflection θ (mrad)").y_desc("torque T (N·m)").draw()?;
+    chart
+        .configure_mesh()
+        .x_desc("deflection θ (mrad)")
+        .y_desc(format!("torque − {mean_stiffness:.4e} N·m/rad · θ (N·m)"))
+        .draw()?;
     let grey = RGBColor(120, 120, 120);
     let orange = RGBColor(230, 120, 0);
     let blue = RGBColor(0, 90, 200);
     chart
-        .draw_series(all.iter().map(|&i| Circle::new((d.theta[i] * MRAD, d.torque[i]), 2, grey.mix(0.5).filled())))?
+        .draw_series(all.iter().zip(&measured).map(|(&i, &t)| Circle::new((d.theta[i] * MRAD, t), 2, grey.mix(0.5).filled())))?
         .label("measured")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
     chart

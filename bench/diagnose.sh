@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Benchmark of `swg-host diagnose` (not a test: figures, no pass/fail):
+#  1. accuracy on the simulated corpus, with the test's seeds and with seeds it never ran on;
+#  2. wall time on a 60,000-sample recording, median of 5 runs.
+# Usage: bash bench/diagnose.sh [OTHER_SEED …]   (default other seeds: 1000 2000)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+mkdir -p bench/out
+cargo build --release --locked -p swg-host >/dev/null
+swg=target/release/swg-host
+
+echo "== corpus accuracy (32 recordings each; right set / false alarms / misses / magnitude error)"
+for seed in 0 "${@:-1000 2000}"; do
+    for s in $seed; do
+        SWG_CORPUS_SEED=$s cargo test --release --locked -p swg-host --test diagnose_corpus -- --nocapture 2>&1 \
+            | grep -E '^corpus seed' || echo "corpus seed $s: run failed (see cargo test output)"
+    done
+done
+
+echo "== speed: 60,000 samples (15 cycles at 0.25 Hz, 1 kHz), turning input, temperature, two effects"
+gear=bench/out/decaying-gear.json
+cat > "$gear" <<'JSON'
+{"model": "genetic-hysteresis", "params": {"c1": 22000.0, "c2": 4.0e9, "c3": 0.0, "alpha": 3050.0, "beta": 1.2, "omega": 1.0}}
+JSON
+recording=bench/out/diagnose-60k.csv
+$swg simulate --params "$gear" --out "$recording" --cycles 15 --frequency 0.25 --rate 1000 \
+    --output-bits 20 --input-bits 20 --input-speed 3 --temperature 25 --temperature-rise 0.2 \
+    --torque-noise 0.05 --seed 5 --effect coulomb_friction=0.05 --effect kinematic_error=3e-6 >/dev/null
+python3 - "$swg" "$recording" <<'PY'
+import statistics, subprocess, sys, time
+swg, recording = sys.argv[1:3]
+times = []
+for _ in range(5):
+    start = time.perf_counter()
+    with open("bench/out/diagnose-60k.json", "w") as out:
+        subprocess.run([swg, "diagnose", recording, "--json"], stdout=out, check=True)
+    times.append(time.perf_counter() - start)
+print(f"diagnose, 60,001 samples: median {statistics.median(times):.2f} s of 5 runs "
+      f"({' '.join(f'{t:.2f}' for t in times)}); goal <= 5 s")
+PY
+python3 - <<'PY'
+import json
+report = json.load(open("bench/out/diagnose-60k.json"))
+found = ", ".join(f"{f['effect']} = {f['magnitude']:.4g} {f['unit']}" for f in report["findings"])
+print(f"found: {found}  (simulated: coulomb_friction = 0.05 N·m, kinematic_error = 3e-06 rad)")
+PY
