@@ -4,8 +4,9 @@
 #      QEMU -icount shift=0 makes one instruction 1 ns of virtual time and SysTick run at
 #      25 MHz, so SysTick ticks × 40 = instructions, exactly repeatable (shared/TOOLCHAIN.md).
 #      Instruction counts depend on the compiler version: the toolchain is printed below.
-#   2. flash and RAM of the QEMU build (arm-none-eabi-size): flash = text + data, RAM = data + bss
-#      (the stack comes on top; cortex-m-rt puts it at the end of RAM).
+#   2. flash and RAM of the QEMU build (arm-none-eabi-size): flash = text + data, RAM = data + bss;
+#      the stack on top of that is measured in 3: the firmware paints it at boot, and after the
+#      pushes and replays its deepest overwritten word is read through QEMU's monitor.
 #   3. time for `swg-host push` (version check, write, read back, commit) over QEMU's TCP link.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,7 +16,8 @@ source scripts/thumb-toolchain.sh
 thumb_apt_install qemu-system-arm gcc-arm-none-eabi
 if [ "$THUMB_ROUTE" = debian ]; then
     export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_LINKER=arm-none-eabi-ld
-    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C link-arg=-Tlink.x -C link-arg=-Tdefmt.x -C linker-flavor=ld"
+    # Added to the link scripts of firmware/.cargo/config.toml (cargo merges the two).
+    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C linker-flavor=ld"
     elf_dir="$root/firmware/target/debian-rust/thumbv7em-none-eabihf/release"
 else
     elf_dir="$root/firmware/target/thumbv7em-none-eabihf/release"
@@ -29,15 +31,17 @@ timeout 120 qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -nographic -icoun
 
 echo "== 2. flash and RAM of the QEMU build (goal: ≤ 48 KiB flash, ≤ 8 KiB RAM)"
 arm-none-eabi-size "$elf_dir/joint-qemu" | awk 'NR == 2 {
-    printf "joint-qemu: flash %d B (%.1f KiB), RAM %d B (%.1f KiB) + stack\n",
+    printf "joint-qemu: flash %d B (%.1f KiB), RAM %d B (%.1f KiB) + stack (measured in 3)\n",
         $1 + $2, ($1 + $2) / 1024, $2 + $3, ($2 + $3) / 1024 }'
+static_ram=$(arm-none-eabi-size "$elf_dir/joint-qemu" | awk 'NR == 2 { print $2 + $3 }')
 
 echo "== 3. swg-host push over the link"
 cargo build --locked --release -p swg-host
 swg="${CARGO_TARGET_DIR:-target}/release/swg-host"
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -display none -monitor none \
-    -semihosting-config enable=on,target=native \
+monitor="$(mktemp -d)/monitor.sock"
+qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -display none \
+    -monitor "unix:$monitor,server=on,wait=off" -semihosting-config enable=on,target=native \
     -serial "tcp:127.0.0.1:$port,server=on,wait=off,nodelay=on" \
     -kernel "$elf_dir/joint-qemu" >/dev/null &
 qemu=$!
@@ -49,3 +53,34 @@ done
 for run in 1 2 3 4 5; do
     "$swg" push data/seed/lht-20-50-fit.json --port "tcp://127.0.0.1:$port" --ratio 50 | grep committed
 done
+
+echo "== stack high-water mark after the pushes and two replays"
+mkdir -p bench/out
+"$swg" simulate --out bench/out/replay-loops.csv --cycles 2 --frequency 1 --rate 1000 \
+    --input-bits 20 --output-bits 20 >/dev/null
+for path in fast direct; do
+    "$swg" replay bench/out/replay-loops.csv --port "tcp://127.0.0.1:$port" --path "$path" | grep "worst error"
+done
+# The painted area is the 16 KiB below the top of RAM (0x2040_0000); see firmware/src/lib.rs.
+python3 - "$monitor" "$static_ram" <<'PY'
+import re, socket, sys, time
+top, painted, pattern = 0x2040_0000, 16 * 1024, 0x5AFE57AC
+monitor = socket.socket(socket.AF_UNIX)
+monitor.connect(sys.argv[1])
+monitor.sendall(f"xp /{painted // 4}wx {top - painted:#x}\n".encode())
+text, deadline = b"", time.time() + 10
+while text.count(b"(qemu)") < 2 and time.time() < deadline:
+    text += monitor.recv(65536)
+words = []
+for line in text.decode(errors="replace").splitlines():
+    match = re.match(r"\s*([0-9a-f]+):((?:\s+0x[0-9a-f]+)+)", line)
+    if match:
+        base = int(match.group(1), 16)
+        words += [(base + 4 * i, int(w, 16)) for i, w in enumerate(match.group(2).split())]
+if len(words) != painted // 4:
+    sys.exit(f"monitor returned {len(words)} of {painted // 4} words")
+deepest = next(address for address, word in words if word != pattern)
+used, static = top - deepest, int(sys.argv[2])
+print(f"joint-qemu RAM: {static} B data + bss, {used} B stack at most "
+      f"(of {painted} B painted) = {static + used} B ({(static + used) / 1024:.1f} KiB)")
+PY

@@ -23,16 +23,23 @@ Every peer's best point is written as a canonical parameter file (ω = 1, β = r
 α = k·(1 + r²), k = w/(S·(1 + e^(−rπ)))) and evaluated by `swg-host fit --compare`, so
 every RSS in the table comes from the same code, the same direction and amplitude.
 
-Timing: the peers' times are in-process (time.perf_counter) and cover reading the file,
-preparing direction and amplitude, and the whole optimisation; Python start-up and imports
-are excluded. swg-host's times are the wall time of the whole `swg-host fit FILE --json`
-process, started from Python.
+Timing: single-threaded (OPENBLAS_NUM_THREADS=1 unless set), like swg-host. The peers'
+times are in-process (time.perf_counter) and cover reading the file, preparing direction and
+amplitude, and the whole optimisation; Python start-up and imports are excluded. swg-host's
+times are the wall time of the whole `swg-host fit FILE --json` process, started from Python.
 """
+import os
+
+# One thread, like swg-host: on a busy 2-core machine OpenBLAS' threads make the peers'
+# linear algebra (least_squares' SVDs) several times slower, not faster.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
 import argparse
 import json
 import logging
 import math
-import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -41,7 +48,6 @@ import time
 import numpy as np
 import scipy
 import scipy.optimize as so
-import pyswarms
 import pyswarms as ps
 
 logging.disable(logging.CRITICAL)  # pyswarms logs every run at INFO
@@ -136,24 +142,34 @@ def zigzag(x, band):
 
 def fit_vertex(t, x, is_maximum):
     """(time, value) of the vertex of the least-squares parabola, if it is a cap (maximum)
-    or a cup (minimum) with its vertex inside the window; else None."""
+    or a cup (minimum) with its vertex inside the window; else None. The quartic term of a
+    sinusoidal reversal, d = c²/(6a) clamped to |c|/2, is subtracted and the parabola
+    refitted (three passes)."""
     if len(x) < 5:
         return None
     t0, t1 = t[0], t[-1]
     span = max(t1 - t0, sys.float_info.min)
     tau = 2.0 * (t - t0) / span - 1.0
     v = np.vander(tau, 3, increasing=True)
-    try:
-        a, b, c = np.linalg.solve(v.T @ v, v.T @ x)
-    except np.linalg.LinAlgError:
-        return None
-    if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c)) or c == 0.0:
-        return None
-    cap = c < 0.0 if is_maximum else c > 0.0
-    vertex_tau = -b / (2.0 * c)
-    if cap and -1.0 <= vertex_tau <= 1.0:
-        return t0 + (vertex_tau + 1.0) * span / 2.0, a - b * b / (4.0 * c)
-    return None
+    normal = v.T @ v
+    quartic, vertex = 0.0, None
+    for _ in range(3):
+        center = 0.0 if vertex is None else vertex[0]
+        y = x - quartic * (tau - center) ** 4
+        try:
+            a, b, c = np.linalg.solve(normal, v.T @ y)
+        except np.linalg.LinAlgError:
+            return None
+        if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c)) or c == 0.0:
+            return None
+        cap = c < 0.0 if is_maximum else c > 0.0
+        vertex_tau = -b / (2.0 * c)
+        if not (cap and -1.0 <= vertex_tau <= 1.0):
+            return None
+        value = a - b * b / (4.0 * c)
+        vertex = (vertex_tau, value)
+        quartic = min(max(c * c / (6.0 * value), -abs(c) / 2.0), abs(c) / 2.0) if value != 0.0 else 0.0
+    return t0 + (vertex[0] + 1.0) * span / 2.0, vertex[1]
 
 
 def refine_extreme(t, x, index, previous, nxt, is_maximum, noise):
@@ -370,6 +386,11 @@ def recording_metadata(path):
         return meta
 
 
+def children_cpu():
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def swg_json(swg, args):
     out = subprocess.run([swg, "fit", *args, "--json"], check=True, capture_output=True, text=True)
     return json.loads(out.stdout)
@@ -423,9 +444,11 @@ def bench_file(path, swg, outdir, runs, ours_runs, caps, truth_file):
     swg_json(swg, [path])
     ours = []
     for seed in range(1, ours_runs + 1):
+        cpu = children_cpu()
         t = time.perf_counter()
         report = swg_json(swg, [path, "--seed", str(seed)])
-        ours.append({"seed": seed, "total": time.perf_counter() - t, "rss": report["rss"], "params": report["params"]})
+        ours.append({"seed": seed, "total": time.perf_counter() - t, "cpu": children_cpu() - cpu,
+                     "rss": report["rss"], "params": report["params"]})
     n = report["n"]
     ours_time = statistics.median(r["total"] for r in ours)
     print(f"swg-host fit: {ours_runs} runs, median {fmt_time(ours_time)}, "
@@ -440,10 +463,12 @@ def bench_file(path, swg, outdir, runs, ours_runs, caps, truth_file):
     for label, run in peers.items():
         records = []
         for seed in range(runs):
+            cpu = time.process_time()
             t = time.perf_counter()
             problem = run(seed)
             total = time.perf_counter() - t
-            records.append({"seed": seed, "total": total, "trace": problem.trace, "own_rss": problem.best,
+            records.append({"seed": seed, "total": total, "cpu": time.process_time() - cpu,
+                            "trace": problem.trace, "own_rss": problem.best,
                             "params": problem.canonical(problem.best_q), "evaluations": problem.evaluations,
                             "canonical": problem.canonical})
             print(f"{label}: seed {seed}: {fmt_time(total)}, own rss {problem.best:.9g}, "
@@ -516,6 +541,10 @@ def bench_file(path, swg, outdir, runs, ours_runs, caps, truth_file):
         lines.append(f"RSS at the true parameters the recording was simulated from ({truth_file}): "
                      f"{truth_rss:.9g} (N·m)². \"RMS from the true loop\": the best run's torque minus the true "
                      f"torque over one clean loop θ = A·sin φ, A = {amplitude} rad.")
+    cpu = [("swg-host", statistics.median(r["cpu"] for r in ours))]
+    cpu += [(label.split()[1], statistics.median(rec["cpu"] for rec in records)) for label, records in results.items()]
+    lines.append("Median CPU time (user + system; less sensitive to other load than the wall times above): "
+                 + ", ".join(f"{name} {fmt_time(t)}" for name, t in cpu) + ".")
     lines.append(f"Largest relative difference between a peer's own RSS (Python port of the direction and "
                  f"amplitude) and swg-host's evaluation of its parameters: {mismatch:.1e}.")
     fastest = min(rows[1:], key=lambda r: r[4])
@@ -548,7 +577,7 @@ def main():
     ap.add_argument("--runs", type=int, default=3, help="runs of every peer")
     ap.add_argument("--ours-runs", type=int, default=7, help="timed runs of swg-host fit")
     ap.add_argument("--de-maxiter", type=int, default=300, help="cap on differential_evolution's generations")
-    ap.add_argument("--pso-iters", type=int, default=300, help="pyswarms iterations")
+    ap.add_argument("--pso-iters", type=int, default=1000, help="pyswarms iterations")
     ap.add_argument("--truth", help="parameter file the recordings were simulated from (reported, not a method)")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
@@ -559,9 +588,11 @@ def main():
         "## `swg-host fit` against the peers",
         "",
         f"Machine: {os.cpu_count()} CPUs, load average at the end {os.getloadavg()[0]:.2f}; Python "
-        f"{sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, pyswarms {pyswarms.__version__}.",
+        f"{sys.version.split()[0]}, numpy {np.__version__}, scipy {scipy.__version__}, pyswarms {ps.__version__}.",
         "",
-        f"- Peers: {args.runs} runs each (seeds 0…{args.runs - 1}); time in-process, covering reading the file, "
+        f"- Peers: {args.runs} runs each (seeds 0…{args.runs - 1}), BLAS threads "
+        f"{os.environ['OPENBLAS_NUM_THREADS']} (swg-host is single-threaded); time in-process, "
+        "covering reading the file, "
         "preparing direction and amplitude and the whole optimisation (Python start-up and imports excluded). "
         "Their time to 1 % is when their own best objective first got within 1 % of the best RSS.",
         f"- swg-host: {args.ours_runs} runs (`--seed 1…{args.ours_runs}`) after one untimed run; wall time of the "

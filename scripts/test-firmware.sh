@@ -14,7 +14,8 @@ thumb_apt_install qemu-system-arm gcc-arm-none-eabi
 if [ "$THUMB_ROUTE" = debian ]; then
     # Debian's Rust has no rust-lld: link with binutils' ld (see shared/TOOLCHAIN.md).
     export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_LINKER=arm-none-eabi-ld
-    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C link-arg=-Tlink.x -C link-arg=-Tdefmt.x -C linker-flavor=ld"
+    # Added to the link scripts of firmware/.cargo/config.toml (cargo merges the two).
+    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C linker-flavor=ld"
     firmware_target_dir=firmware/target/debian-rust
 else
     firmware_target_dir=firmware/target
@@ -44,6 +45,8 @@ echo "== model-core on the emulated Cortex-M4F (QEMU mps2-an386)"
 qemu_run -kernel "$elf_dir/model-core-checks"
 
 echo "== end to end under QEMU"
-SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked -p swg-host --test firmware_e2e -- --ignored
+# --nocapture shows the CLI runs with their replay figures (worst and RMS difference).
+# --release: scripts/test.sh has just built the host tests in that profile.
+SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host --test firmware_e2e -- --ignored --nocapture
 
 echo "== firmware tests passed"

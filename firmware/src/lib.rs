@@ -3,13 +3,42 @@
 #![no_std]
 
 #[cfg(not(target_arch = "arm"))]
-compile_error!("the firmware runs on thumbv7em-none-eabihf: build it from firmware/ (see firmware/.cargo/config.toml)");
+compile_error!(
+    "the firmware runs on thumbv7em-none-eabihf: build it from firmware/ (see firmware/.cargo/config.toml)"
+);
 
 // The defmt transport under QEMU: frames go to QEMU's stdout.
 use defmt_semihosting as _;
 use panic_semihosting as _;
 
 pub mod uart;
+
+/// The pattern [`paint_stack`] writes; bench/firmware.sh reads the deepest overwritten word
+/// through QEMU's monitor to measure the stack's high-water mark.
+pub const STACK_PAINT: u32 = 0x5AFE_57AC;
+/// How far below the top of RAM (the stack's start) the stack is painted.
+pub const STACK_PAINT_BYTES: usize = 16 * 1024;
+
+/// Fills the stack's unused part, down to [`STACK_PAINT_BYTES`] below its start, with
+/// [`STACK_PAINT`]. Call once at boot, before interrupts are enabled.
+#[inline(never)]
+pub fn paint_stack() {
+    extern "C" {
+        // cortex-m-rt's initial stack pointer: the top of RAM.
+        static _stack_start: u32;
+    }
+    let top = core::ptr::addr_of!(_stack_start) as usize;
+    // Everything below this function's frame is unused: no interrupts run yet, and Arm
+    // code never uses memory below the stack pointer.
+    let below_frame = cortex_m::register::msp::read() as usize - 16;
+    let mut address = top - STACK_PAINT_BYTES;
+    while address < below_frame {
+        // SAFETY: RAM between the bottom of the painted area and the live stack, which
+        // nothing else uses (the statics lie at the start of RAM, 4 MiB below).
+        unsafe { core::ptr::write_volatile(address as *mut u32, STACK_PAINT) };
+        address += 4;
+    }
+}
 
 /// Ends the emulation with exit status 0 or 1.
 pub fn exit(success: bool) -> ! {

@@ -6,8 +6,9 @@
 //! every failure and exit with a status.
 use crate::{Direction, Error, Model, ParamName, Params};
 use core::f64::consts::PI;
-// std's inherent float methods shadow the trait's on the host.
-#[cfg_attr(test, allow(unused_imports))]
+// Without std the float functions come from this trait; where std's inherent methods are
+// visible they shadow it and the import goes unused.
+#[allow(unused_imports)]
 use num_traits::Float;
 
 /// A failed check: which property and where.
@@ -35,14 +36,8 @@ pub const ALL: [NamedCheck; 7] = [
 ];
 
 /// The paper's identified values (Table 2).
-pub const PAPER: Params<f64> = Params {
-    c1: 2.4737e4,
-    c2: 1.0e9,
-    c3: -1.1774e14,
-    alpha: 2.6532e6,
-    beta: -4.2268e2,
-    omega: -2.2631e2,
-};
+pub const PAPER: Params<f64> =
+    Params { c1: 2.4737e4, c2: 1.0e9, c3: -1.1774e14, alpha: 2.6532e6, beta: -4.2268e2, omega: -2.2631e2 };
 
 /// The seed table's fit in canonical form (ω = 1) at A = 1.168 mrad.
 pub const SEED_FIT: Params<f64> = Params {
@@ -69,7 +64,12 @@ fn model(params: Params<f64>) -> Result<Model<f64>, Failure> {
     Model::new(params).map_err(|_| Failure { what: "Model::new refused valid parameters", at: 0.0 })
 }
 
-fn eval<F: crate::Real>(m: &Model<F>, theta: F, direction: Direction, a: F) -> Result<crate::Evaluation<F>, Failure> {
+fn eval<F: crate::Real>(
+    m: &Model<F>,
+    theta: F,
+    direction: Direction,
+    a: F,
+) -> Result<crate::Evaluation<F>, Failure> {
     m.at_amplitude(a)
         .and_then(|lp| lp.evaluate(theta, direction))
         .map_err(|_| Failure { what: "evaluation failed", at: theta.to_f64().unwrap_or(f64::NAN) })
@@ -117,7 +117,11 @@ fn stiffness_matches_finite_differences() -> Check {
                 let t = |d: f64| eval(&m, theta + d, direction, A).map(|e| e.torque);
                 let fd = (8.0 * (t(step)? - t(-step)?) - (t(2.0 * step)? - t(-2.0 * step)?)) / (12.0 * step);
                 let analytic = eval(&m, theta, direction, A)?.stiffness;
-                ensure((analytic - fd).abs() <= 1e-5 * analytic.abs().max(1e3), "stiffness vs finite difference", theta)?;
+                ensure(
+                    (analytic - fd).abs() <= 1e-5 * analytic.abs().max(1e3),
+                    "stiffness vs finite difference",
+                    theta,
+                )?;
             }
         }
     }
@@ -134,13 +138,21 @@ fn turning_points_are_capped_and_continuous() -> Check {
                 let x_cap = (1.0f64 - 0.01 * 0.01).sqrt();
                 let inside = eval(&m, side * x_cap * (1.0 - 1e-12) * A, direction, A)?.stiffness;
                 let outside = eval(&m, side * x_cap * (1.0 + 1e-12) * A, direction, A)?.stiffness;
-                ensure((inside - outside).abs() <= 1e-6 * inside.abs(), "stiffness continuous at the cap", side * A)?;
+                ensure(
+                    (inside - outside).abs() <= 1e-6 * inside.abs(),
+                    "stiffness continuous at the cap",
+                    side * A,
+                )?;
             }
         }
         for side in [-1.0, 1.0] {
             let rising = eval(&m, side * A, Direction::Rising, A)?.torque;
             let falling = eval(&m, side * A, Direction::Falling, A)?.torque;
-            ensure((rising - falling).abs() <= 1e-9 * rising.abs().max(1.0), "branches meet at the turning point", side * A)?;
+            ensure(
+                (rising - falling).abs() <= 1e-9 * rising.abs().max(1.0),
+                "branches meet at the turning point",
+                side * A,
+            )?;
         }
     }
     Ok(())
@@ -175,7 +187,11 @@ fn f32_stays_within_its_bound_of_f64() -> Check {
                 let down = eval(&m64, theta * (1.0 - ulps), direction, A)?;
                 let torque_in = (up.torque - down.torque).abs() / 2.0;
                 let stiffness_in = (up.stiffness - down.stiffness).abs() / 2.0;
-                ensure((f64::from(e32.torque) - e64.torque).abs() <= 2e-5 * scale + torque_in, "f32 torque", theta)?;
+                ensure(
+                    (f64::from(e32.torque) - e64.torque).abs() <= 2e-5 * scale + torque_in,
+                    "f32 torque",
+                    theta,
+                )?;
                 ensure(
                     (f64::from(e32.stiffness) - e64.stiffness).abs()
                         <= 1e-3 * e64.stiffness.abs().max(scale / A) + stiffness_in,
@@ -192,13 +208,22 @@ fn only_h_and_r_are_identifiable() -> Check {
     let m = model(PAPER)?;
     let id = PAPER.identifiable(A).map_err(|_| Failure { what: "identifiable", at: A })?;
     for scale in [-1.0, 2.0, 0.5, -3.7, 1e3] {
-        let scaled = Params { alpha: PAPER.alpha * scale, beta: PAPER.beta * scale, omega: PAPER.omega * scale, ..PAPER };
+        let scaled = Params {
+            alpha: PAPER.alpha * scale,
+            beta: PAPER.beta * scale,
+            omega: PAPER.omega * scale,
+            ..PAPER
+        };
         let other = model(scaled)?;
         for direction in BOTH {
             for theta in grid(100, A) {
                 let a = eval(&m, theta, direction, A)?.torque;
                 let b = eval(&other, theta, direction, A)?.torque;
-                ensure((a - b).abs() <= 1e-9 * (1.0 + a.abs()), "scaled (alpha, beta, omega) same torque", theta)?;
+                ensure(
+                    (a - b).abs() <= 1e-9 * (1.0 + a.abs()),
+                    "scaled (alpha, beta, omega) same torque",
+                    theta,
+                )?;
             }
         }
     }
@@ -216,19 +241,32 @@ fn only_h_and_r_are_identifiable() -> Check {
 
 fn bad_inputs_are_errors_not_panics() -> Check {
     let refused = |what, ok: bool| ensure(ok, what, 0.0);
-    refused("NaN c2", Model::new(Params { c2: f64::NAN, ..PAPER }) == Err(Error::NonFiniteParameter(ParamName::C2)))?;
+    refused(
+        "NaN c2",
+        Model::new(Params { c2: f64::NAN, ..PAPER }) == Err(Error::NonFiniteParameter(ParamName::C2)),
+    )?;
     refused("zero omega", Model::new(Params { omega: 0.0, ..PAPER }) == Err(Error::ZeroOmega))?;
     let m = model(PAPER)?;
     for a in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
         ensure(m.at_amplitude(a) == Err(Error::InvalidAmplitude), "bad amplitude refused", a)?;
     }
     for theta in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
-        ensure(m.torque(theta, Direction::Rising, A) == Err(Error::NonFiniteDeflection), "bad deflection refused", theta)?;
+        ensure(
+            m.torque(theta, Direction::Rising, A) == Err(Error::NonFiniteDeflection),
+            "bad deflection refused",
+            theta,
+        )?;
     }
     let steep = Params { beta: -1e6, omega: 1.0, alpha: 1.0, ..PAPER };
-    refused("overflow is an error", Model::new(steep).map(|m| m.torque(0.0, Direction::Falling, A)) == Ok(Err(Error::Overflow)))?;
+    refused(
+        "overflow is an error",
+        Model::new(steep).map(|m| m.torque(0.0, Direction::Falling, A)) == Ok(Err(Error::Overflow)),
+    )?;
     let p32 = Params { c1: 1.0f32, c2: 0.0, c3: 0.0, alpha: 1e30, beta: -30.0, omega: 1.0 };
-    refused("f32 overflow is an error", Model::new(p32).map(|m| m.torque(0.0, Direction::Falling, 1.0)) == Ok(Err(Error::Overflow)))
+    refused(
+        "f32 overflow is an error",
+        Model::new(p32).map(|m| m.torque(0.0, Direction::Falling, 1.0)) == Ok(Err(Error::Overflow)),
+    )
 }
 
 fn no_hysteresis_when_alpha_is_zero() -> Check {

@@ -65,3 +65,25 @@ impl Bound {
             && (stiffness - self.exact.stiffness).abs() <= self.stiffness
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::checks::PAPER;
+
+    #[test]
+    fn the_bound_widens_where_the_model_is_steep_in_theta_over_a() {
+        let model = Model::new(PAPER).unwrap();
+        let a = 1.168e-3;
+        let scales = loop_scales(&model, a).unwrap();
+        let middle = Bound::at(&model, 0.0, Direction::Rising, a, scales).unwrap();
+        // Just inside the cap of 1/|cos ωt| (|θ| ≤ 0.99995·A), where K is steepest.
+        let edge = Bound::at(&model, 0.9999 * a, Direction::Rising, a, scales).unwrap();
+        assert!(edge.stiffness > 10.0 * middle.stiffness, "{edge:?} vs {middle:?}");
+        assert!(middle.torque >= RELATIVE_TOLERANCE * scales.0);
+        let e = middle.exact;
+        assert!(middle.admits(e.torque + 0.9 * middle.torque, e.stiffness - 0.9 * middle.stiffness));
+        assert!(!middle.admits(e.torque + 1.1 * middle.torque, e.stiffness));
+        assert!(!middle.admits(e.torque, f64::NAN));
+    }
+}

@@ -85,10 +85,7 @@ impl JointParams {
     /// The checks the firmware applies before it uses a set; the host may run them first.
     pub fn validate(&self) -> Result<(), ErrorReply> {
         if self.model_version != MODEL_VERSION {
-            return Err(ErrorReply::ModelVersion {
-                got: self.model_version,
-                supported: MODEL_VERSION,
-            });
+            return Err(ErrorReply::ModelVersion { got: self.model_version, supported: MODEL_VERSION });
         }
         let model = &self.model;
         let values = [
@@ -153,7 +150,8 @@ pub enum Compensation {
     Active,
     /// The model's torque exceeded the limit; T_ff is the limit with the model's sign.
     Clamped,
-    /// No valid parameters (or the model could not be evaluated): T_ff = K = 0.
+    /// No valid parameters, an implausible encoder reading, or the model could not be
+    /// evaluated: T_ff = K = 0.
     Off,
 }
 
@@ -198,7 +196,9 @@ pub enum Response {
     /// `None` when the device has no valid parameters.
     Params(Option<JointParams>),
     /// Stored with this sequence number.
-    Committed { sequence: u32 },
+    Committed {
+        sequence: u32,
+    },
     Feedforward(Feedforward),
     Error(ErrorReply),
 }
@@ -253,11 +253,20 @@ pub enum ErrorReply {
     BadCrc,
     /// The frame did not fit the device's receive buffer.
     FrameTooLong,
-    UnsupportedProtocol { got: u16, supported: u16 },
+    UnsupportedProtocol {
+        got: u16,
+        supported: u16,
+    },
     /// Right version and CRC, but not a request of this protocol.
     UndecodableRequest,
-    ModelVersion { got: u16, supported: u16 },
-    InvalidParam { field: ParamField, fault: ParamFault },
+    ModelVersion {
+        got: u16,
+        supported: u16,
+    },
+    InvalidParam {
+        field: ParamField,
+        fault: ParamFault,
+    },
     /// The parameters are valid numbers but the model overflows f32 with them.
     ModelOverflow,
     /// Commit without a valid active parameter set.
@@ -335,9 +344,7 @@ impl From<FrameError> for ErrorReply {
             FrameError::Malformed | FrameError::BufferTooSmall => ErrorReply::BadFrame,
             FrameError::Crc => ErrorReply::BadCrc,
             FrameError::TooLong => ErrorReply::FrameTooLong,
-            FrameError::Version(got) => {
-                ErrorReply::UnsupportedProtocol { got, supported: PROTOCOL_VERSION }
-            }
+            FrameError::Version(got) => ErrorReply::UnsupportedProtocol { got, supported: PROTOCOL_VERSION },
             FrameError::Message => ErrorReply::UndecodableRequest,
         }
     }
@@ -355,9 +362,8 @@ pub fn encode_with_version<T: Serialize>(
     out: &mut [u8],
 ) -> Result<usize, FrameError> {
     let mut payload = [0u8; MAX_PAYLOAD_LEN];
-    let body_len = postcard::to_slice(&(version, message), &mut payload)
-        .map_err(|_| FrameError::BufferTooSmall)?
-        .len();
+    let body_len =
+        postcard::to_slice(&(version, message), &mut payload).map_err(|_| FrameError::BufferTooSmall)?.len();
     let crc = CRC.checksum(payload.get(..body_len).ok_or(FrameError::BufferTooSmall)?);
     let with_crc = body_len + CRC_LEN;
     payload
@@ -387,8 +393,7 @@ pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<T, FrameErr
     if crc != CRC.checksum(body).to_le_bytes() {
         return Err(FrameError::Crc);
     }
-    let (version, message) =
-        postcard::take_from_bytes::<u16>(body).map_err(|_| FrameError::Message)?;
+    let (version, message) = postcard::take_from_bytes::<u16>(body).map_err(|_| FrameError::Message)?;
     if version != PROTOCOL_VERSION {
         return Err(FrameError::Version(version));
     }

@@ -36,8 +36,8 @@ fn golden_bytes() {
             Request::Replay(EncoderSample { input_angle: 1.0, output_angle: -0.5, path: EvalPath::Fast }),
             &[
                 // version 1, variant 4, f32 1.0, f32 -0.5, Fast, CRC; COBS-stuffed
-                0x03, 0x01, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x3d,
-                0x13, 0x82, 0xca, 0x00,
+                0x03, 0x01, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x3d, 0x13, 0x82,
+                0xca, 0x00,
             ],
         ),
     ];
@@ -157,13 +157,10 @@ fn reader_splits_a_stream_and_survives_garbage() {
     let mut results = Vec::new();
     for byte in stream {
         if let Some(frame) = reader.push(byte) {
-            results.push(frame.map(|frame| decode::<Request>(frame)));
+            results.push(frame.map(decode::<Request>));
         }
     }
-    assert_eq!(
-        results,
-        vec![Err(FrameError::TooLong), Ok(Ok(Request::Commit)), Ok(Ok(Request::ReadParams))]
-    );
+    assert_eq!(results, vec![Err(FrameError::TooLong), Ok(Ok(Request::Commit)), Ok(Ok(Request::ReadParams))]);
 }
 
 #[test]
@@ -176,20 +173,11 @@ fn validation_names_the_field() {
     };
     let invalid = |field, fault| Err(ErrorReply::InvalidParam { field, fault });
     assert_eq!(with(|p| p.model.c2 = f32::NAN), invalid(ParamField::C2, ParamFault::NotFinite));
-    assert_eq!(
-        with(|p| p.model.beta = f32::INFINITY),
-        invalid(ParamField::Beta, ParamFault::NotFinite)
-    );
+    assert_eq!(with(|p| p.model.beta = f32::INFINITY), invalid(ParamField::Beta, ParamFault::NotFinite));
     assert_eq!(with(|p| p.model.omega = 0.0), invalid(ParamField::Omega, ParamFault::OutOfRange));
     assert_eq!(with(|p| p.gear_ratio = 0.5), invalid(ParamField::GearRatio, ParamFault::OutOfRange));
-    assert_eq!(
-        with(|p| p.torque_limit = 0.0),
-        invalid(ParamField::TorqueLimit, ParamFault::OutOfRange)
-    );
-    assert_eq!(
-        with(|p| p.direction_band = -1.0),
-        invalid(ParamField::DirectionBand, ParamFault::OutOfRange)
-    );
+    assert_eq!(with(|p| p.torque_limit = 0.0), invalid(ParamField::TorqueLimit, ParamFault::OutOfRange));
+    assert_eq!(with(|p| p.direction_band = -1.0), invalid(ParamField::DirectionBand, ParamFault::OutOfRange));
     assert_eq!(
         with(|p| p.model_version = MODEL_VERSION + 1),
         Err(ErrorReply::ModelVersion { got: MODEL_VERSION + 1, supported: MODEL_VERSION })

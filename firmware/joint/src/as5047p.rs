@@ -26,7 +26,9 @@ pub enum Error<E> {
     /// The answer's parity bit is wrong: the frame was corrupted.
     Parity,
     /// The sensor flagged an error; ERRFL bits: 0 framing, 1 invalid command, 2 parity.
-    Sensor { errfl: u16 },
+    Sensor {
+        errfl: u16,
+    },
 }
 
 impl<E: core::fmt::Debug> core::fmt::Display for Error<E> {
@@ -153,12 +155,8 @@ mod tests {
     #[test]
     fn the_error_flag_reads_and_clears_errfl() {
         // EF set (bit 14) with even parity; ERRFL answers 0x0004 = parity error on MOSI.
-        let mut sensor = As5047p::new(expect(&[
-            (0xFFFF, 0x0000),
-            (0xC000, 0x4001),
-            (0x4001, 0x0000),
-            (0xC000, 0x8004),
-        ]));
+        let mut sensor =
+            As5047p::new(expect(&[(0xFFFF, 0x0000), (0xC000, 0x4001), (0x4001, 0x0000), (0xC000, 0x8004)]));
         assert_eq!(sensor.read_counts(), Err(Error::Sensor { errfl: 0x0004 }));
         sensor.release().done();
     }

@@ -1,6 +1,11 @@
 use crate::{fast::FastModel, tracker::DirectionTracker};
 use model_core::{Direction, Model};
-use swg_protocol::{Compensation, EvalPath, ErrorReply, Feedforward, JointParams};
+use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams};
+
+/// Largest plausible torsional deflection, rad (≈ 5.7°; strain wave gears deflect a few mrad).
+/// Beyond it a reading is an encoder fault: the tick is skipped without touching the loop
+/// tracking, so one glitch cannot inflate the amplitude for the loops after it.
+pub const MAX_DEFLECTION: f32 = 0.1;
 
 /// A validated parameter set with everything a tick needs prepared.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,15 +46,17 @@ impl Compensator {
 
     /// The set the next tick will use.
     pub fn params(&self) -> Option<JointParams> {
-        self.staged.or(self.active).map(|installed| installed.params)
+        self.staged.as_ref().or(self.active.as_ref()).map(|installed| installed.params)
     }
 
     /// One control tick on the two encoder angles (rad; the input side multi-turn).
-    /// Never NaN: without valid parameters, with non-finite angles or when the model cannot
-    /// be evaluated the compensation is off and T_ff = K = 0.
+    /// Never NaN: without valid parameters, with a deflection that is not finite or beyond
+    /// [`MAX_DEFLECTION`], or when the model cannot be evaluated, the compensation is off and
+    /// T_ff = K = 0.
     pub fn tick(&mut self, input_angle: f32, output_angle: f32, path: EvalPath) -> Feedforward {
-        if let Some(staged) = self.staged.take() {
-            self.active = Some(staged);
+        // Copies the set only when one is staged: the tick works on references otherwise.
+        if self.staged.is_some() {
+            self.active = self.staged.take();
         }
         let off = Feedforward {
             deflection: 0.0,
@@ -59,16 +66,16 @@ impl Compensator {
             stiffness: 0.0,
             compensation: Compensation::Off,
         };
-        let Some(installed) = self.active else { return off };
+        let Some(installed) = self.active.as_ref() else { return off };
         let deflection = input_angle / installed.params.gear_ratio - output_angle;
-        if !deflection.is_finite() {
+        if deflection.is_nan() || deflection.abs() > MAX_DEFLECTION {
             return off;
         }
         let band = installed.params.direction_band;
         let tracker = self.tracker.get_or_insert_with(|| DirectionTracker::new(band));
         tracker.set_band(band);
         let (direction, amplitude) = tracker.update(deflection);
-        let evaluation = match (path, installed.fast) {
+        let evaluation = match (path, &installed.fast) {
             (EvalPath::Fast, Some(fast)) => fast.evaluate(deflection, direction, amplitude),
             _ => installed
                 .model
@@ -98,7 +105,14 @@ mod tests {
 
     const PARAMS: JointParams = JointParams {
         model_version: MODEL_VERSION,
-        model: Params { c1: 2.4737e4, c2: 1.0e9, c3: -1.1774e14, alpha: 2.6532e6, beta: -4.2268e2, omega: -2.2631e2 },
+        model: Params {
+            c1: 2.4737e4,
+            c2: 1.0e9,
+            c3: -1.1774e14,
+            alpha: 2.6532e6,
+            beta: -4.2268e2,
+            omega: -2.2631e2,
+        },
         gear_ratio: 100.0,
         torque_limit: 40.0,
         direction_band: 1.0e-6,
@@ -127,15 +141,36 @@ mod tests {
     fn torque_is_clamped_and_never_nan() {
         let mut compensator = Compensator::new();
         compensator.stage(PARAMS).unwrap();
-        for output in [-0.5f32, -1.0e-2, 1.0e-2, 0.5, f32::NAN, f32::INFINITY, 1.0e30] {
+        for output in [-0.5f32, -1.0e-2, 1.0e-2, 0.5, f32::NAN, f32::INFINITY, 1.0e30, -0.09] {
             for path in [EvalPath::Direct, EvalPath::Fast] {
                 let out = compensator.tick(0.0, output, path);
                 assert!(out.torque.abs() <= PARAMS.torque_limit, "{out:?}");
                 assert!(!out.torque.is_nan() && !out.stiffness.is_nan(), "{out:?}");
             }
         }
-        let out = compensator.tick(0.0, -0.5, EvalPath::Fast);
-        assert_eq!((out.torque, out.compensation), (PARAMS.torque_limit, Compensation::Clamped));
+        // θ = ±2 mrad, past the paper's loop: |T| ≈ 55 N·m > 40 N·m, with the sign of θ.
+        for (output, limit) in [(-2.0e-3, PARAMS.torque_limit), (2.0e-3, -PARAMS.torque_limit)] {
+            let mut compensator = Compensator::new();
+            compensator.stage(PARAMS).unwrap();
+            let out = compensator.tick(0.0, output, EvalPath::Fast);
+            assert_eq!((out.torque, out.stiffness, out.compensation), (limit, 0.0, Compensation::Clamped));
+        }
+    }
+
+    #[test]
+    fn an_encoder_glitch_does_not_disturb_the_loop() {
+        let mut steady = Compensator::new();
+        steady.stage(PARAMS).unwrap();
+        let mut glitched = steady.clone();
+        let thetas = [0.2e-3f32, 0.6e-3, 1.0e-3, 0.7e-3, 0.1e-3];
+        for (i, theta) in thetas.into_iter().enumerate() {
+            if i == 2 {
+                let out = glitched.tick(0.0, -0.5, EvalPath::Fast);
+                assert_eq!((out.torque, out.compensation), (0.0, Compensation::Off));
+            }
+            let expected = steady.tick(100.0 * theta, 0.0, EvalPath::Fast);
+            assert_eq!(glitched.tick(100.0 * theta, 0.0, EvalPath::Fast), expected);
+        }
     }
 
     #[test]

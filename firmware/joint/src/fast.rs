@@ -6,6 +6,7 @@
 //! range-reduced polynomial exponential and the FPU's `vsqrt`; the constants that depend
 //! only on the parameters (k = α/(ω(1 + r²)), r = β/ω) are prepared once when a set is
 //! installed. Error against the f64 model: see the tests (`fast_path_error_bound`).
+use crate::{larger, limit};
 use core::f32::consts::{FRAC_PI_2, LN_2, LOG2_E, PI};
 use model_core::{Direction, Evaluation, Params, Real};
 
@@ -55,7 +56,8 @@ impl FastModel {
         params.validate().map_err(|_| FastPathError::Invalid)?;
         // Prepared in f64: runs once per push, and keeps k exact to f32 rounding.
         let r = f64::from(params.beta) / f64::from(params.omega);
-        if !(r.abs() <= f64::from(MAX_ABS_R)) {
+        // Finite operands and ω ≠ 0 leave r finite or ±∞, never NaN.
+        if r.abs() > f64::from(MAX_ABS_R) {
             return Err(FastPathError::DecayOutOfRange);
         }
         let k = f64::from(params.alpha) / (f64::from(params.omega) * (1.0 + r * r));
@@ -65,15 +67,7 @@ impl FastModel {
         if !(k.is_finite() && c2x3.is_finite() && c3x5.is_finite()) {
             return Err(FastPathError::Overflow);
         }
-        Ok(FastModel {
-            c1: params.c1,
-            c2: params.c2,
-            c3: params.c3,
-            c2x3,
-            c3x5,
-            r: r as f32,
-            k,
-        })
+        Ok(FastModel { c1: params.c1, c2: params.c2, c3: params.c3, c2x3, c3x5, r: r as f32, k })
     }
 
     /// T(θ) and dT/dθ on a loop of amplitude `amplitude`, the same formula as
@@ -85,7 +79,7 @@ impl FastModel {
             return None;
         }
         let inv_amplitude = 1.0 / amplitude;
-        let x = (theta * inv_amplitude).clamp(-1.0, 1.0);
+        let x = limit(theta * inv_amplitude, -1.0, 1.0);
         let abs_cos = sqrt((1.0 - x) * (1.0 + x));
         let asin_x = asin(x);
         let (phase, cos_phase, dphase_sign) = match direction {
@@ -101,7 +95,7 @@ impl FastModel {
         let theta2 = theta * theta;
         let poly = theta * (self.c1 + theta2 * (self.c2 + theta2 * self.c3));
         let dpoly = self.c1 + theta2 * (self.c2x3 + self.c3x5 * theta2);
-        let dz = (dphase_sign * hdp - hp * x / abs_cos.max(<f32 as Real>::MIN_COS)) * inv_amplitude;
+        let dz = (dphase_sign * hdp - hp * x / larger(abs_cos, <f32 as Real>::MIN_COS)) * inv_amplitude;
         let torque = poly + z;
         let stiffness = dpoly + dz;
         (torque.is_finite() && stiffness.is_finite()).then_some(Evaluation { torque, stiffness })
@@ -155,7 +149,8 @@ use vsqrt::swg_vsqrtf;
 #[inline(always)]
 pub fn asin(x: f32) -> f32 {
     let a = x.abs();
-    let p = 1.570_796_3
+    // A&S's leading coefficient 1.5707963050 rounds to the same f32 as π/2.
+    let p = FRAC_PI_2
         + a * (-0.214_598_8
             + a * (0.088_978_99
                 + a * (-0.050_174_3
@@ -172,7 +167,7 @@ pub fn asin(x: f32) -> f32 {
 /// degree 6 (relative error ≤ 1.3·10⁻⁷), 2^n put into the exponent bits.
 #[inline(always)]
 pub fn exp(y: f32) -> f32 {
-    let y = y.clamp(-87.0, 87.0);
+    let y = limit(y, -87.0, 87.0);
     let half = if y < 0.0 { -0.5 } else { 0.5 };
     let n = (y * LOG2_E + half) as i32;
     // ln 2 split in a part exact in f32 times n and a correction (Cody–Waite).
@@ -180,8 +175,7 @@ pub fn exp(y: f32) -> f32 {
     const LN_2_LOW: f32 = LN_2 - LN_2_HIGH;
     let f = (y - n as f32 * LN_2_HIGH) - n as f32 * LN_2_LOW;
     let poly = 1.0
-        + f * (1.0
-            + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0))))));
+        + f * (1.0 + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0))))));
     let scale = f32::from_bits(((n + 127) as u32) << 23);
     poly * scale
 }

@@ -20,7 +20,7 @@ mod server;
 pub mod storage;
 mod tracker;
 
-pub use compensator::Compensator;
+pub use compensator::{Compensator, MAX_DEFLECTION};
 pub use fast::FastModel;
 pub use server::Server;
 pub use tracker::DirectionTracker;
@@ -29,6 +29,29 @@ use swg_protocol::Version;
 
 /// This firmware's version, reported in [`swg_protocol::DeviceInfo`].
 pub const FIRMWARE_VERSION: Version = Version { major: 0, minor: 1, patch: 0 };
+
+/// The larger of `a` and `b` (`b` if either is NaN). `f32::max` becomes a call to `fmaxf`
+/// on the Cortex-M4F (no `vmaxnm` before Armv8); a comparison is two instructions.
+#[inline(always)]
+pub(crate) fn larger(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// `value` limited to [`low`, `high`] by comparisons (see [`larger`]); NaN stays NaN.
+#[inline(always)]
+pub(crate) fn limit(value: f32, low: f32, high: f32) -> f32 {
+    if value < low {
+        low
+    } else if value > high {
+        high
+    } else {
+        value
+    }
+}
 
 /// An absolute angle sensor on a shaft.
 pub trait AngleSensor {

@@ -1,8 +1,8 @@
 use crate::{storage::ParamStore, Compensator, FIRMWARE_VERSION};
 use embedded_storage::nor_flash::NorFlash;
 use swg_protocol::{
-    decode, encode, DeviceInfo, ErrorReply, FrameReader, Request, Response, MAX_FRAME_LEN,
-    MODEL_VERSION, PROTOCOL_VERSION,
+    decode, encode, DeviceInfo, ErrorReply, FrameReader, Request, Response, MAX_FRAME_LEN, MODEL_VERSION,
+    PROTOCOL_VERSION,
 };
 
 /// The device end of the link: bytes in, one response frame per request frame out.
@@ -66,8 +66,7 @@ impl<F: NorFlash> Server<F> {
                 if !(sample.input_angle.is_finite() && sample.output_angle.is_finite()) {
                     return Response::Error(ErrorReply::NonFiniteSample);
                 }
-                let feedforward =
-                    self.compensator.tick(sample.input_angle, sample.output_angle, sample.path);
+                let feedforward = self.compensator.tick(sample.input_angle, sample.output_angle, sample.path);
                 Response::Feedforward(feedforward)
             }
         }
@@ -92,7 +91,7 @@ mod tests {
 
     const PARAMS: JointParams = JointParams {
         model_version: MODEL_VERSION,
-        model: Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 0.0128 * 6.28 / 1.168e-3, beta: -2.298, omega: 1.0 },
+        model: Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 },
         gear_ratio: 100.0,
         torque_limit: 50.0,
         direction_band: 2.0e-6,
@@ -172,11 +171,20 @@ mod tests {
         let too_long = [&[0x55u8; 300][..], &[0u8][..]].concat();
 
         let cases: [(Vec<u8>, ErrorReply); 6] = [
-            (frame(&Request::WriteParams(nan)), ErrorReply::InvalidParam { field: ParamField::C1, fault: ParamFault::NotFinite }),
-            (good, ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
+            (
+                frame(&Request::WriteParams(nan)),
+                ErrorReply::InvalidParam { field: ParamField::C1, fault: ParamFault::NotFinite },
+            ),
+            (
+                good,
+                ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange },
+            ),
             (corrupted, ErrorReply::BadCrc),
             (truncated, ErrorReply::BadFrame),
-            (other_version[..len].to_vec(), ErrorReply::UnsupportedProtocol { got: PROTOCOL_VERSION + 1, supported: PROTOCOL_VERSION }),
+            (
+                other_version[..len].to_vec(),
+                ErrorReply::UnsupportedProtocol { got: PROTOCOL_VERSION + 1, supported: PROTOCOL_VERSION },
+            ),
             (too_long, ErrorReply::FrameTooLong),
         ];
         for (bytes, reason) in cases {
@@ -184,7 +192,10 @@ mod tests {
             assert_eq!(request(&mut server, &Request::ReadParams), Response::Params(Some(PARAMS)));
         }
         let nan_sample = EncoderSample { input_angle: f32::NAN, output_angle: 0.0, path: EvalPath::Direct };
-        assert_eq!(request(&mut server, &Request::Replay(nan_sample)), Response::Error(ErrorReply::NonFiniteSample));
+        assert_eq!(
+            request(&mut server, &Request::Replay(nan_sample)),
+            Response::Error(ErrorReply::NonFiniteSample)
+        );
         // Same tick result as before: the tracker saw the same θ again.
         assert_eq!(replay(&mut server), before);
     }

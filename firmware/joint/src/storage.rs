@@ -1,7 +1,7 @@
 //! The parameter set in flash, as two slots with a sequence number and a CRC.
 //!
-//! A commit erases the older slot, writes the record without its CRC, then the CRC. Power
-//! lost at any point leaves the older slot intact, and the slot being written either
+//! A commit erases the older slot, writes the record without its CRC, then the CRC, and reads
+//! it back. Power lost at any point leaves the older slot intact, and the slot being written either
 //! without a matching CRC (ignored) or complete, so the newest valid record is always the
 //! old or the new set. Records that no longer validate (another model version) are ignored.
 use embedded_storage::nor_flash::NorFlash;
@@ -27,6 +27,8 @@ pub enum StorageError {
     Flash,
     /// The parameter set did not serialize into a record.
     Encoding,
+    /// The record read back differs from what was written (worn or protected flash).
+    Verify,
 }
 
 impl core::fmt::Display for StorageError {
@@ -35,6 +37,7 @@ impl core::fmt::Display for StorageError {
             StorageError::Geometry => f.write_str("flash region too small or write size unsupported"),
             StorageError::Flash => f.write_str("flash driver error"),
             StorageError::Encoding => f.write_str("parameter set does not fit a record"),
+            StorageError::Verify => f.write_str("flash read back differs from what was written"),
         }
     }
 }
@@ -81,9 +84,12 @@ impl<F: NorFlash> ParamStore<F> {
         };
         let mut body = [0xFFu8; MAX_BODY_LEN];
         let (header, payload_area) = body.split_at_mut(HEADER_LEN);
-        let payload_len = postcard::to_slice(params, payload_area.get_mut(..MAX_PAYLOAD_LEN).ok_or(StorageError::Encoding)?)
-            .map_err(|_| StorageError::Encoding)?
-            .len();
+        let payload_len = postcard::to_slice(
+            params,
+            payload_area.get_mut(..MAX_PAYLOAD_LEN).ok_or(StorageError::Encoding)?,
+        )
+        .map_err(|_| StorageError::Encoding)?
+        .len();
         header.copy_from_slice(&header_bytes(sequence, payload_len as u16));
         let body_len = (HEADER_LEN + payload_len).div_ceil(ALIGN) * ALIGN;
         let crc = CRC.checksum(body.get(..HEADER_LEN + payload_len).ok_or(StorageError::Encoding)?);
@@ -96,7 +102,10 @@ impl<F: NorFlash> ParamStore<F> {
         let body = body.get(..body_len).ok_or(StorageError::Encoding)?;
         flash.write(start, body).map_err(|_| StorageError::Flash)?;
         flash.write(start + body_len as u32, &crc_block).map_err(|_| StorageError::Flash)?;
-        Ok(sequence)
+        match self.read_slot(slot) {
+            Some(stored) if stored == (Stored { params: *params, sequence }) => Ok(sequence),
+            _ => Err(StorageError::Verify),
+        }
     }
 
     fn newest(&mut self) -> Option<(u32, Stored)> {

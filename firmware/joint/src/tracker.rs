@@ -1,3 +1,4 @@
+use crate::larger;
 use model_core::Direction;
 
 /// Smallest loop amplitude reported, rad: keeps θ/A defined before θ has moved at all.
@@ -23,7 +24,7 @@ impl DirectionTracker {
     /// `band` in rad; negative or NaN counts as 0.
     pub fn new(band: f32) -> Self {
         DirectionTracker {
-            band: band.max(0.0),
+            band: larger(band, 0.0),
             direction: Direction::Rising,
             extreme: None,
             turns: [0.0; 2],
@@ -32,7 +33,7 @@ impl DirectionTracker {
 
     /// Changes the band without losing the loop being tracked.
     pub fn set_band(&mut self, band: f32) {
-        self.band = band.max(0.0);
+        self.band = larger(band, 0.0);
     }
 
     pub fn direction(&self) -> Direction {
@@ -53,11 +54,10 @@ impl DirectionTracker {
             },
         };
         self.extreme = Some(extreme);
-        let amplitude = self.turns[0]
-            .max(self.turns[1])
-            .max(extreme.abs())
-            .max(theta.abs())
-            .max(MIN_AMPLITUDE);
+        let amplitude = larger(
+            larger(self.turns[0], self.turns[1]),
+            larger(larger(extreme.abs(), theta.abs()), MIN_AMPLITUDE),
+        );
         (self.direction, amplitude)
     }
 

@@ -48,7 +48,13 @@ fn main() -> ! {
         swg_firmware::exit(false)
     };
     let mut compensator = swg_joint::Compensator::new();
-    let joint = JointParams { model_version: MODEL_VERSION, model: params, gear_ratio: 100.0, torque_limit: 100.0, direction_band: 1.0e-6 };
+    let joint = JointParams {
+        model_version: MODEL_VERSION,
+        model: params,
+        gear_ratio: 100.0,
+        torque_limit: 100.0,
+        direction_band: 1.0e-6,
+    };
     if compensator.stage(joint).is_err() {
         swg_firmware::exit(false)
     }
@@ -63,7 +69,8 @@ fn main() -> ! {
         for i in 0..RUNS {
             let (theta, direction) = point(black_box(i));
             // As a tick runs it: the loop's constants for the current amplitude, then T and K.
-            let result = model.at_amplitude(black_box(AMPLITUDE)).and_then(|lp| lp.evaluate(theta, direction));
+            let result =
+                model.at_amplitude(black_box(AMPLITUDE)).and_then(|lp| lp.evaluate(theta, direction));
             black_box(result.ok());
         }
     });
@@ -80,8 +87,14 @@ fn main() -> ! {
             black_box(compensator.tick(theta * 100.0, 0.0, EvalPath::Fast));
         }
     });
-    hprintln!("instructions per T_ff + K evaluation, direct (model-core f32, libm): {}", per_run(direct, baseline));
+    hprintln!(
+        "instructions per T_ff + K evaluation, direct (model-core f32, libm): {}",
+        per_run(direct, baseline)
+    );
     hprintln!("instructions per T_ff + K evaluation, fast path: {}", per_run(fast_path, baseline));
-    hprintln!("instructions per full control tick (deflection, tracking, fast path, clamp): {}", per_run(tick, baseline));
+    hprintln!(
+        "instructions per full control tick (deflection, tracking, fast path, clamp): {}",
+        per_run(tick, baseline)
+    );
     swg_firmware::exit(true)
 }

@@ -15,10 +15,15 @@ type BoardFlash = RamFlash<2048>;
 
 #[entry]
 fn main() -> ! {
+    swg_firmware::paint_stack();
     let Some(mut uart) = Uart0::take() else { swg_firmware::exit(false) };
-    let Ok(store) = ParamStore::new(BoardFlash::new()) else { swg_firmware::exit(false) };
-    // In a static, so that `size` accounts for it.
-    let Some(server) = cortex_m::singleton!(: Server<BoardFlash> = Server::new(store)) else {
+    // Both in statics, built in place: `size` accounts for them, and the 2 KiB of flash never
+    // pass through the stack.
+    let Some(flash) = cortex_m::singleton!(: BoardFlash = BoardFlash::new()) else {
+        swg_firmware::exit(false)
+    };
+    let Ok(store) = ParamStore::new(flash) else { swg_firmware::exit(false) };
+    let Some(server) = cortex_m::singleton!(: Server<&'static mut BoardFlash> = Server::new(store)) else {
         swg_firmware::exit(false)
     };
     defmt::info!(

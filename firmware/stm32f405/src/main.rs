@@ -9,7 +9,9 @@
 #![no_main]
 
 #[cfg(not(target_arch = "arm"))]
-compile_error!("the firmware runs on thumbv7em-none-eabihf: build it from firmware/ (see firmware/.cargo/config.toml)");
+compile_error!(
+    "the firmware runs on thumbv7em-none-eabihf: build it from firmware/ (see firmware/.cargo/config.toml)"
+);
 
 use core::cell::RefCell;
 use cortex_m::peripheral::syst::SystClkSource;

@@ -50,8 +50,12 @@ pub fn check(
 
 /// [`check`] for the fast path of `params` (rounded to f32 as the firmware holds them).
 pub fn check_fast_path(params: &Params<f64>, amplitude: f32) -> Result<(), Violation> {
-    let fast = FastModel::new(&to_f32(params))
-        .map_err(|_| Violation { theta: 0.0, direction: Direction::Rising, got: None, bound: None })?;
+    let fast = FastModel::new(&to_f32(params)).map_err(|_| Violation {
+        theta: 0.0,
+        direction: Direction::Rising,
+        got: None,
+        bound: None,
+    })?;
     check(params, amplitude, |theta, direction, a| fast.evaluate(theta, direction, a))
 }
 

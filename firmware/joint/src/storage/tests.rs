@@ -165,6 +165,41 @@ fn sequence_numbers_wrap_around() {
     assert_eq!(store.load(), Some(Stored { params: params(2.0e3), sequence: 0 }));
 }
 
+/// Flash whose writes are acknowledged but never land, like a write-protected sector.
+struct WriteProtected(Flash);
+
+impl ErrorType for WriteProtected {
+    type Error = NorFlashErrorKind;
+}
+
+impl ReadNorFlash for WriteProtected {
+    const READ_SIZE: usize = 1;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        self.0.read(offset, bytes)
+    }
+    fn capacity(&self) -> usize {
+        self.0.capacity()
+    }
+}
+
+impl NorFlash for WriteProtected {
+    const WRITE_SIZE: usize = Flash::WRITE_SIZE;
+    const ERASE_SIZE: usize = Flash::ERASE_SIZE;
+    fn erase(&mut self, _: u32, _: u32) -> Result<(), Self::Error> {
+        Ok(())
+    }
+    fn write(&mut self, _: u32, _: &[u8]) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+#[test]
+fn a_write_that_does_not_land_is_an_error() {
+    let mut store = ParamStore::new(WriteProtected(Flash::new())).unwrap();
+    assert_eq!(store.save(&params(1.0e3)), Err(StorageError::Verify));
+    assert_eq!(store.load(), None);
+}
+
 #[test]
 fn too_small_a_flash_is_refused() {
     assert!(matches!(ParamStore::new(RamFlash::<1024>::new()), Err(StorageError::Geometry)));
