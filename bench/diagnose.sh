@@ -12,7 +12,7 @@ swg=target/release/swg-host
 echo "== corpus accuracy (32 recordings each; right set / false alarms / misses / magnitude error)"
 for seed in 0 "${@:-1000 2000}"; do
     for s in $seed; do
-        SWG_CORPUS_SEED=$s cargo test --release --locked -p swg-host --test diagnose_corpus -- --nocapture 2>&1 \
+        SWG_CORPUS_SEED=$s cargo test --release --locked -p swg-system-tests --test diagnose_corpus -- --nocapture 2>&1 \
             | grep -E '^corpus seed' || echo "corpus seed $s: run failed (see cargo test output)"
     done
 done
