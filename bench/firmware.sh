@@ -10,18 +10,10 @@
 #   3. time for `swg-host push` (version check, write, read back, commit) over QEMU's TCP link.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-root=$(pwd)
 
 source scripts/thumb-toolchain.sh
-thumb_apt_install qemu-system-arm gcc-arm-none-eabi
-if [ "$THUMB_ROUTE" = debian ]; then
-    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_LINKER=arm-none-eabi-ld
-    # Added to the link scripts of firmware/.cargo/config.toml (cargo merges the two).
-    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C linker-flavor=ld"
-    elf_dir="$root/firmware/target/debian-rust/thumbv7em-none-eabihf/release"
-else
-    elf_dir="$root/firmware/target/thumbv7em-none-eabihf/release"
-fi
+thumb_firmware_setup
+elf_dir=$FIRMWARE_ELF_DIR
 (cd firmware && thumb_cargo build --locked --release --bins)
 echo "toolchain: $(rustc --version) ($THUMB_ROUTE route)"
 

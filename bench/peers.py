@@ -594,7 +594,8 @@ def main():
         f"{os.environ['OPENBLAS_NUM_THREADS']} (swg-host is single-threaded); time in-process, "
         "covering reading the file, "
         "preparing direction and amplitude and the whole optimisation (Python start-up and imports excluded). "
-        "Their time to 1 % is when their own best objective first got within 1 % of the best RSS.",
+        "Their time to 1 % is when a run's best point so far first had an RSS (evaluated by swg-host) within "
+        "1 % of the best RSS; the median over runs, \"never\" when most runs never get there.",
         f"- swg-host: {args.ours_runs} runs (`--seed 1…{args.ours_runs}`) after one untimed run; wall time of the "
         "whole `swg-host fit FILE --json` process (start-up, reading, segmenting, fitting, baselines, JSON). Its "
         "time to 1 % is its total time (counted only if its RSS is within 1 % of the best).",

@@ -7,20 +7,10 @@
 # Exits non-zero on the first failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-root=$(pwd)
 
 source scripts/thumb-toolchain.sh
-thumb_apt_install qemu-system-arm gcc-arm-none-eabi
-if [ "$THUMB_ROUTE" = debian ]; then
-    # Debian's Rust has no rust-lld: link with binutils' ld (see shared/TOOLCHAIN.md).
-    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_LINKER=arm-none-eabi-ld
-    # Added to the link scripts of firmware/.cargo/config.toml (cargo merges the two).
-    export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C linker-flavor=ld"
-    firmware_target_dir=firmware/target/debian-rust
-else
-    firmware_target_dir=firmware/target
-fi
-elf_dir="$root/$firmware_target_dir/thumbv7em-none-eabihf/release"
+thumb_firmware_setup
+elf_dir=$FIRMWARE_ELF_DIR
 host_triple=$(rustc -vV | sed -n 's/^host: //p')
 
 echo "== firmware library (firmware/joint) on the host"

@@ -30,3 +30,18 @@ else
     }
 fi
 export THUMB_ROUTE
+
+# For firmware builds, run from the repository root: QEMU and binutils, the Debian route's
+# linker, and FIRMWARE_ELF_DIR, where the release ELFs land.
+thumb_firmware_setup() {
+    thumb_apt_install qemu-system-arm gcc-arm-none-eabi
+    if [ "$THUMB_ROUTE" = debian ]; then
+        # Debian's Rust has no rust-lld: link with binutils' ld (see shared/TOOLCHAIN.md).
+        export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_LINKER=arm-none-eabi-ld
+        # Added to the link scripts of firmware/.cargo/config.toml (cargo merges the two).
+        export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C linker-flavor=ld"
+        FIRMWARE_ELF_DIR="$PWD/firmware/target/debian-rust/$THUMB_TARGET/release"
+    else
+        FIRMWARE_ELF_DIR="$PWD/firmware/target/$THUMB_TARGET/release"
+    fi
+}

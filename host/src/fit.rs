@@ -53,9 +53,9 @@ pub const MIN_POINTS: usize = IDENTIFIABLE_PARAMETERS + 1;
 /// Search range of r = β/ω. Beyond it e^(−rφ) spans more than 10²⁰⁰ over one loop.
 pub const R_LIMIT: f64 = 50.0;
 /// PSO runs on at most this many samples; the polish always uses all of them.
-const PSO_SAMPLES: usize = 4096;
+const PSO_SAMPLES: usize = 1024;
 /// Reweighting rounds for the total-noise weights.
-const REWEIGHTINGS: usize = 3;
+const REWEIGHTINGS: usize = 2;
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct SearchSummary {
@@ -119,7 +119,25 @@ pub(crate) struct Basis {
     scale: f64,
     /// Further linear columns (the diagnosis' effects), one value per sample each.
     extra: Vec<Vec<f64>>,
+    /// The normal equations' entries that do not involve the hysteresis column, which alone
+    /// depends on r: computed once per set of weights, so each r costs one exp and a row.
+    fixed: FixedSums,
 }
+
+#[derive(Clone, Debug, Default)]
+struct FixedSums {
+    /// XᵀWX, row-major, zero in the hysteresis row and column.
+    gram: Vec<f64>,
+    /// XᵀWT, zero for the hysteresis column.
+    rhs: Vec<f64>,
+    /// TᵀWT.
+    tt: f64,
+}
+
+/// Column of the hysteresis term in the normal equations.
+const HYSTERESIS: usize = 3;
+/// Below this many samples one thread accumulates faster than several.
+const PARALLEL_SAMPLES: usize = 16_384;
 
 /// The weighted least-squares answer at one r.
 pub(crate) struct Solution {
@@ -146,6 +164,7 @@ impl Basis {
             phase_range: (f64::INFINITY, f64::NEG_INFINITY),
             scale,
             extra: Vec::new(),
+            fixed: FixedSums::default(),
         };
         for i in indices {
             let (theta, amplitude) = (data.theta[i], data.amplitude[i]);
@@ -165,73 +184,116 @@ impl Basis {
             b.torque.push(data.torque[i]);
             b.weight.push(1.0);
         }
+        b.refresh_fixed();
         b
+    }
+
+    /// The value of column `column` (not the hysteresis one) at sample `i`.
+    fn column(&self, column: usize, i: usize) -> f64 {
+        match column {
+            0..=2 => self.poly[i][column],
+            _ => self.extra[column - 4][i],
+        }
+    }
+
+    fn dimension(&self) -> usize {
+        4 + self.extra.len()
+    }
+
+    fn refresh_fixed(&mut self) {
+        let dim = self.dimension();
+        let mut fixed = FixedSums { gram: vec![0.0; dim * dim], rhs: vec![0.0; dim], tt: 0.0 };
+        let columns: Vec<usize> = (0..dim).filter(|&c| c != HYSTERESIS).collect();
+        for i in 0..self.torque.len() {
+            let (w, t) = (self.weight[i], self.torque[i]);
+            for &a in &columns {
+                let wa = w * self.column(a, i);
+                fixed.rhs[a] += wa * t;
+                for &b in columns.iter().filter(|&&b| b >= a) {
+                    fixed.gram[a * dim + b] += wa * self.column(b, i);
+                }
+            }
+            fixed.tt += w * t * t;
+        }
+        for a in 0..dim {
+            for b in 0..a {
+                fixed.gram[a * dim + b] = fixed.gram[b * dim + a];
+            }
+        }
+        self.fixed = fixed;
+    }
+
+    /// Σ w·b·x_a for every column a (the hysteresis column b itself included) and Σ w·b·T,
+    /// over samples `range`, with b the hysteresis column at r.
+    fn hysteresis_sums(&self, range: std::ops::Range<usize>, r: f64, shift: f64) -> (Vec<f64>, f64) {
+        let dim = self.dimension();
+        let e_shift = (-shift).exp();
+        let mut cross = vec![0.0; dim];
+        let mut bt = 0.0;
+        for i in range {
+            let p = (-r * self.phase[i] - shift).exp() + (r * self.sin[i] - self.cos[i]) * e_shift;
+            let wb = self.weight[i] * self.amp_abs_cos[i] * p;
+            let poly = &self.poly[i];
+            cross[0] += wb * poly[0];
+            cross[1] += wb * poly[1];
+            cross[2] += wb * poly[2];
+            cross[HYSTERESIS] += wb * self.amp_abs_cos[i] * p;
+            for (sum, column) in cross[4..].iter_mut().zip(&self.extra) {
+                *sum += wb * column[i];
+            }
+            bt += wb * self.torque[i];
+        }
+        (cross, bt)
     }
 
     /// Weighted least squares at `r` over the model's four columns and the extra ones.
     pub(crate) fn solve(&self, r: f64) -> Option<Solution> {
+        use rayon::prelude::*;
         // Largest exponent −rφ over the data: dividing by e^shift keeps e^(−rφ) ≤ 1.
         let shift = (-r * self.phase_range.0).max(-r * self.phase_range.1);
-        // Fixed-size arrays let the compiler unroll the accumulation, where the swarm spends its time.
-        let (m, rhs, tt) = match self.extra.len() {
-            0 => self.normal_equations::<4>(r, shift),
-            1 => self.normal_equations::<5>(r, shift),
-            2 => self.normal_equations::<6>(r, shift),
-            3 => self.normal_equations::<7>(r, shift),
-            4 => self.normal_equations::<8>(r, shift),
-            5 => self.normal_equations::<9>(r, shift),
-            6 => self.normal_equations::<10>(r, shift),
-            7 => self.normal_equations::<11>(r, shift),
-            8 => self.normal_equations::<12>(r, shift),
-            9 => self.normal_equations::<13>(r, shift),
-            _ => return None,
+        let n = self.torque.len();
+        let (cross, bt) = if n < PARALLEL_SAMPLES {
+            self.hysteresis_sums(0..n, r, shift)
+        } else {
+            let chunk = n.div_ceil(rayon::current_num_threads().max(1));
+            (0..n)
+                .step_by(chunk)
+                .collect::<Vec<_>>()
+                .into_par_iter()
+                .map(|start| self.hysteresis_sums(start..(start + chunk).min(n), r, shift))
+                .reduce_with(|(mut a, x), (b, y)| {
+                    a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+                    (a, x + y)
+                })?
         };
-        let factor = Cholesky::new(rhs.len(), &m)?;
+        let dim = self.dimension();
+        let mut m = self.fixed.gram.clone();
+        for (a, value) in cross.iter().enumerate() {
+            m[a * dim + HYSTERESIS] = *value;
+            m[HYSTERESIS * dim + a] = *value;
+        }
+        let mut rhs = self.fixed.rhs.clone();
+        rhs[HYSTERESIS] = bt;
+        let factor = Cholesky::new(dim, &m)?;
         let coef = factor.solve(&rhs);
         if !coef.iter().all(|c| c.is_finite()) {
             return None;
         }
         let explained: f64 = coef.iter().zip(&rhs).map(|(c, r)| c * r).sum();
-        Some(Solution { coef, shift, weighted_rss: (tt - explained).max(0.0), factor })
-    }
-
-    /// (XᵀWX row-major, XᵀWT, TᵀWT) for the D = 4 + extra columns.
-    fn normal_equations<const D: usize>(&self, r: f64, shift: f64) -> (Vec<f64>, Vec<f64>, f64) {
-        let e_shift = (-shift).exp();
-        let mut m = [[0.0f64; D]; D];
-        let mut rhs = [0.0f64; D];
-        let mut cols = [0.0f64; D];
-        let mut tt = 0.0;
-        for i in 0..self.torque.len() {
-            let p = (-r * self.phase[i] - shift).exp() + (r * self.sin[i] - self.cos[i]) * e_shift;
-            cols[..3].copy_from_slice(&self.poly[i]);
-            cols[3] = self.amp_abs_cos[i] * p;
-            for (c, column) in cols[4..].iter_mut().zip(&self.extra) {
-                *c = column[i];
-            }
-            let (w, t) = (self.weight[i], self.torque[i]);
-            for a in 0..D {
-                let wc = w * cols[a];
-                rhs[a] += wc * t;
-                for b in a..D {
-                    m[a][b] += wc * cols[b];
-                }
-            }
-            tt += w * t * t;
-        }
-        let full = (0..D * D).map(|k| if k / D <= k % D { m[k / D][k % D] } else { m[k % D][k / D] }).collect();
-        (full, rhs.to_vec(), tt)
+        Some(Solution { coef, shift, weighted_rss: (self.fixed.tt - explained).max(0.0), factor })
     }
 
     /// Uses these weights (one per sample) instead of 1.
     pub(crate) fn with_weights(mut self, weights: Vec<f64>) -> Basis {
         self.weight = weights;
+        self.refresh_fixed();
         self
     }
 
     /// Adds linear columns (one value per sample each) beside the model's own.
     pub(crate) fn with_extra(mut self, columns: Vec<Vec<f64>>) -> Basis {
         self.extra = columns;
+        self.refresh_fixed();
         self
     }
 
@@ -333,7 +395,7 @@ pub(crate) fn polish(basis: &Basis, s: f64, half_width: f64, s_limit: f64) -> (f
     loop {
         let lo = (center - half).max(-s_limit);
         let hi = (center + half).min(s_limit);
-        let (x, _, used) = brent(|s| basis.objective(s), lo, hi, 1e-10);
+        let (x, _, used) = brent(|s| basis.objective(s), lo, hi, 1e-8);
         evaluations += used;
         let on_edge = (x - lo < 1e-3 * half && lo > -s_limit) || (hi - x < 1e-3 * half && hi < s_limit);
         if !on_edge || half > 2.0 * s_limit {
@@ -349,6 +411,7 @@ fn reweight(basis: &mut Basis, data: &FitData, model: &Model<f64>, noise: &Noise
     basis.weight = total_noise_weights(data, model, noise)?;
     let mean = basis.weight.iter().sum::<f64>() / basis.weight.len() as f64;
     basis.weight.iter_mut().for_each(|w| *w /= mean);
+    basis.refresh_fixed();
     Ok(())
 }
 

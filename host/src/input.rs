@@ -92,6 +92,20 @@ pub enum Dataset {
     Recording(Recording),
 }
 
+impl Dataset {
+    /// Number of samples (rows).
+    pub fn len(&self) -> usize {
+        match self {
+            Dataset::LoopTable(table) => table.torque.len(),
+            Dataset::Recording(recording) => recording.time.len(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
 /// First line of a recording.
 pub const RECORDING_MAGIC: &str = "swg-recording v1";
 

@@ -1,6 +1,6 @@
 //! `swg-host diagnose`: where the model and a recording disagree, and which physics is missing.
 use super::InputOptions;
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use model_core::Params;
 use serde::Serialize;
@@ -10,8 +10,8 @@ use swg_host::diagnose::{
     diagnose_dataset, locate, ExtendedFit, Finding, Observation, Observed, Rejection, MAX_HALF_SPREAD,
     MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z,
 };
-use swg_host::fit::{NoiseModel, MIN_POINTS};
-use swg_host::input::{self, Dataset};
+use swg_host::fit::NoiseModel;
+use swg_host::input::Dataset;
 use swg_host::output::write_atomically;
 use swg_host::paramsfile::read_params;
 use swg_host::plot::{diagnosis_loop_svg, residuals_svg};
@@ -99,18 +99,11 @@ fn summary(observed: &Observed, fit: &ExtendedFit) -> Result<ModelSummary> {
 }
 
 pub fn run(args: DiagnoseArgs) -> Result<()> {
-    let dataset = input::read(&args.input, args.input_options.ratio)?;
-    let n = match &dataset {
-        Dataset::LoopTable(table) => table.torque.len(),
-        Dataset::Recording(recording) => recording.time.len(),
-    };
-    if n < MIN_POINTS {
-        bail!("{}: {n} points, fewer than the {MIN_POINTS} needed to fit the model", args.input.display());
-    }
+    let dataset = args.input_options.read_to_fit(&args.input)?;
     let baseline = args.params.as_deref().map(read_params).transpose()?;
     let (observed, diagnosis) =
         diagnose_dataset(&dataset, baseline, args.seed).with_context(|| args.input.display().to_string())?;
-    let all: Vec<usize> = (0..n).collect();
+    let all: Vec<usize> = (0..dataset.len()).collect();
     let before = diagnosis.baseline.residuals(&observed, &all).context("baseline residuals")?;
     let after = diagnosis.final_fit.residuals(&observed, &all).context("final residuals")?;
 

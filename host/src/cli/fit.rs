@@ -7,8 +7,8 @@ use model_core::Model;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use swg_host::baselines::{lines_per_branch, three_segment};
-use swg_host::fit::{fit, rss, FitOptions, Stage, MIN_POINTS};
-use swg_host::input::{self, Dataset};
+use swg_host::fit::{fit, rss, FitOptions, Stage};
+use swg_host::input::Dataset;
 use swg_host::output::write_atomically;
 use swg_host::paramsfile::read_params;
 use swg_host::plot::{loop_svg, LoopPlot};
@@ -44,14 +44,7 @@ pub fn run(args: FitArgs) -> Result<()> {
             bail!("--plot {}: the picture is written as SVG; name the file *.svg", plot.display());
         }
     }
-    let dataset = input::read(&args.input, args.input_options.ratio)?;
-    let n = match &dataset {
-        Dataset::LoopTable(table) => table.torque.len(),
-        Dataset::Recording(recording) => recording.time.len(),
-    };
-    if n < MIN_POINTS {
-        bail!("{}: {n} points, fewer than the {MIN_POINTS} needed to fit the model", args.input.display());
-    }
+    let dataset = args.input_options.read_to_fit(&args.input)?;
     let prepared = prepare(&dataset).with_context(|| args.input.display().to_string())?;
     let compared_params = args
         .compare

@@ -51,3 +51,16 @@ pub struct InputOptions {
     #[arg(long, value_name = "N")]
     pub ratio: Option<f64>,
 }
+
+impl InputOptions {
+    /// Reads a loop table or a recording with enough points to fit the model.
+    pub fn read_to_fit(&self, path: &std::path::Path) -> anyhow::Result<swg_host::input::Dataset> {
+        use swg_host::fit::MIN_POINTS;
+        let dataset = swg_host::input::read(path, self.ratio)?;
+        let n = dataset.len();
+        if n < MIN_POINTS {
+            anyhow::bail!("{}: {n} points, fewer than the {MIN_POINTS} needed to fit the model", path.display());
+        }
+        Ok(dataset)
+    }
+}
