@@ -158,21 +158,10 @@ fn turning_points_are_capped_and_continuous() -> Check {
     Ok(())
 }
 
-fn to_f32(p: &Params<f64>) -> Params<f32> {
-    Params {
-        c1: p.c1 as f32,
-        c2: p.c2 as f32,
-        c3: p.c3 as f32,
-        alpha: p.alpha as f32,
-        beta: p.beta as f32,
-        omega: p.omega as f32,
-    }
-}
-
 fn f32_stays_within_its_bound_of_f64() -> Check {
     for params in [PAPER, SEED_FIT] {
         let m64 = model(params)?;
-        let m32 = Model::new(to_f32(&params)).map_err(|_| Failure { what: "f32 model refused", at: 0.0 })?;
+        let m32 = Model::new(params.to_f32()).map_err(|_| Failure { what: "f32 model refused", at: 0.0 })?;
         let mut scale: f64 = 0.0;
         for theta in grid(200, A) {
             scale = scale.max(eval(&m64, theta, Direction::Rising, A)?.torque.abs());

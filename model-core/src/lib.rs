@@ -217,6 +217,20 @@ impl<F: Real> Params<F> {
     }
 }
 
+impl Params<f64> {
+    /// The set rounded to f32, as the microcontroller holds it.
+    pub fn to_f32(&self) -> Params<f32> {
+        Params {
+            c1: self.c1 as f32,
+            c2: self.c2 as f32,
+            c3: self.c3 as f32,
+            alpha: self.alpha as f32,
+            beta: self.beta as f32,
+            omega: self.omega as f32,
+        }
+    }
+}
+
 /// A validated parameter set, with the amplitude-independent constants precomputed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Model<F> {

@@ -124,14 +124,7 @@ fn stiffness_at_the_turning_points_is_the_capped_edge_slope() {
 #[test]
 fn f32_stays_within_its_bound_of_f64() {
     for params in [PAPER, seed_fit()] {
-        let p32 = Params {
-            c1: params.c1 as f32,
-            c2: params.c2 as f32,
-            c3: params.c3 as f32,
-            alpha: params.alpha as f32,
-            beta: params.beta as f32,
-            omega: params.omega as f32,
-        };
+        let p32 = params.to_f32();
         let l64 = Model::new(params).unwrap().at_amplitude(A).unwrap();
         let l32 = Model::new(p32).unwrap().at_amplitude(A as f32).unwrap();
         let scale = grid(200, A)

@@ -9,7 +9,7 @@ use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use model_core::{checks::SEED_FIT, Direction, Model};
-use swg_joint::{fast::verify::to_f32, FastModel};
+use swg_joint::FastModel;
 use swg_protocol::{EvalPath, JointParams, MODEL_VERSION};
 
 const INSTRUCTIONS_PER_TICK: u32 = 40;
@@ -43,7 +43,7 @@ fn main() -> ! {
     core.SYST.clear_current();
     core.SYST.enable_counter();
 
-    let params = to_f32(&SEED_FIT);
+    let params = SEED_FIT.to_f32();
     let (Ok(model), Ok(fast)) = (Model::new(params), FastModel::new(&params)) else {
         swg_firmware::exit(false)
     };

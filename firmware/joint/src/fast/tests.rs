@@ -1,5 +1,5 @@
 extern crate std;
-use super::verify::{check, check_fast_path, to_f32};
+use super::verify::{check, check_fast_path};
 use super::*;
 use model_core::checks::{PAPER, SEED_FIT};
 use model_core::Model;
@@ -18,7 +18,7 @@ fn fast_path_error_bound() {
 #[test]
 fn the_direct_f32_path_meets_the_same_bound() {
     for params in [PAPER, SEED_FIT] {
-        let direct = Model::new(to_f32(&params)).unwrap();
+        let direct = Model::new(params.to_f32()).unwrap();
         for amplitude in AMPLITUDES {
             let result = check(&params, amplitude, |theta, direction, a| {
                 direct.at_amplitude(a).and_then(|lp| lp.evaluate(theta, direction)).ok()
@@ -31,7 +31,7 @@ fn the_direct_f32_path_meets_the_same_bound() {
 #[test]
 fn the_bound_catches_a_small_error() {
     // A fast path off by 10⁻⁴ of the hysteresis term must fail the check.
-    let fast = FastModel::new(&to_f32(&SEED_FIT)).unwrap();
+    let fast = FastModel::new(&SEED_FIT.to_f32()).unwrap();
     let result = check(&SEED_FIT, 1.168e-3, |theta, direction, a| {
         let mut e = fast.evaluate(theta, direction, a)?;
         e.torque *= 1.0 + 1.0e-4;
@@ -55,7 +55,7 @@ fn elementary_functions_are_accurate() {
 
 #[test]
 fn out_of_range_sets_have_no_fast_path() {
-    let mut params = to_f32(&SEED_FIT);
+    let mut params = SEED_FIT.to_f32();
     params.beta = 20.0;
     assert_eq!(FastModel::new(&params), Err(FastPathError::DecayOutOfRange));
     params.beta = 1.0;
@@ -69,7 +69,7 @@ fn out_of_range_sets_have_no_fast_path() {
 
 #[test]
 fn invalid_inputs_give_none_not_nan() {
-    let fast = FastModel::new(&to_f32(&PAPER)).unwrap();
+    let fast = FastModel::new(&PAPER.to_f32()).unwrap();
     assert_eq!(fast.evaluate(f32::NAN, Direction::Rising, 1.0e-3), None);
     assert_eq!(fast.evaluate(0.0, Direction::Rising, 0.0), None);
     assert_eq!(fast.evaluate(0.0, Direction::Falling, f32::INFINITY), None);

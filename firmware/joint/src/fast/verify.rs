@@ -50,7 +50,7 @@ pub fn check(
 
 /// [`check`] for the fast path of `params` (rounded to f32 as the firmware holds them).
 pub fn check_fast_path(params: &Params<f64>, amplitude: f32) -> Result<(), Violation> {
-    let fast = FastModel::new(&to_f32(params)).map_err(|_| Violation {
+    let fast = FastModel::new(&params.to_f32()).map_err(|_| Violation {
         theta: 0.0,
         direction: Direction::Rising,
         got: None,
@@ -59,13 +59,3 @@ pub fn check_fast_path(params: &Params<f64>, amplitude: f32) -> Result<(), Viola
     check(params, amplitude, |theta, direction, a| fast.evaluate(theta, direction, a))
 }
 
-pub fn to_f32(p: &Params<f64>) -> Params<f32> {
-    Params {
-        c1: p.c1 as f32,
-        c2: p.c2 as f32,
-        c3: p.c3 as f32,
-        alpha: p.alpha as f32,
-        beta: p.beta as f32,
-        omega: p.omega as f32,
-    }
-}
