@@ -153,7 +153,7 @@ fn loop_table_from_table(table: &Table) -> Result<LoopTable, InputError> {
     let torque_col = table.required_column("torque_nm", "torque, N·m")?;
     let deflection_col = table.required_column("deflection_rad", "torsional deflection, rad")?;
     let mut out = LoopTable { branch: Vec::new(), torque: Vec::new(), deflection: Vec::new() };
-    for row in &table.rows {
+    table.for_each_row(|row| {
         let name = row.fields.get(branch_col).unwrap_or("");
         let branch = Branch::ALL.into_iter().find(|b| b.name() == name).ok_or_else(|| {
             let names: Vec<_> = Branch::ALL.iter().map(|b| b.name()).collect();
@@ -162,7 +162,8 @@ fn loop_table_from_table(table: &Table) -> Result<LoopTable, InputError> {
         out.branch.push(branch);
         out.torque.push(table.number(row, torque_col)?);
         out.deflection.push(table.number(row, deflection_col)?);
-    }
+        Ok(())
+    })?;
     Ok(out)
 }
 
@@ -232,17 +233,14 @@ fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Re
         ));
     }
 
-    let n = table.rows.len();
     let mut rec = Recording {
         ratio,
         metadata,
-        time: Vec::with_capacity(n),
-        angles: angle_cols.map(|_| Angles { input: Vec::with_capacity(n), output: Vec::with_capacity(n) }),
-        deflection: Vec::with_capacity(n),
-        torque: Vec::with_capacity(n),
-        temperature: temperature_col.map(|_| Vec::with_capacity(n)),
+        angles: angle_cols.map(|_| Angles::default()),
+        temperature: temperature_col.map(|_| Vec::new()),
+        ..Recording::default()
     };
-    for row in &table.rows {
+    table.for_each_row(|row| {
         let time = table.number(row, time_col)?;
         if let Some(&previous) = rec.time.last() {
             if time <= previous {
@@ -274,7 +272,8 @@ fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Re
         if let (Some(col), Some(temps)) = (temperature_col, rec.temperature.as_mut()) {
             temps.push(table.number(row, col)?);
         }
-    }
+        Ok(())
+    })?;
     Ok(rec)
 }
 

@@ -68,8 +68,17 @@ fn bundled_seed_fit_is_what_fit_produces_today() {
     let fresh: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     let bundled: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(repo("data/seed/lht-20-50-fit.json")).unwrap()).unwrap();
-    assert_eq!(fresh["rss"], bundled["rss"], "regenerate data/seed/lht-20-50-fit.json with `swg-host fit … --out`");
-    assert_eq!(fresh["params"], bundled["params"]);
+    // The file is what the current fit produces: the same RSS to rounding, the same parameters
+    // to the 10⁻⁵ that the flat optimum along r determines them to.
+    let close = |a: &serde_json::Value, b: &serde_json::Value, tolerance: f64| {
+        let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+        (a - b).abs() <= tolerance * a.abs().max(b.abs())
+    };
+    let stale = "regenerate data/seed/lht-20-50-fit.json with `swg-host fit data/seed/lht-20-50.csv --out …`";
+    assert!(close(&fresh["rss"], &bundled["rss"], 1e-9), "{stale}");
+    for key in ["c1", "c2", "c3", "alpha", "beta", "omega"] {
+        assert!(close(&fresh["params"][key], &bundled["params"][key], 1e-5), "{key}: {stale}");
+    }
 }
 
 #[test]
