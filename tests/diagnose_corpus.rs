@@ -71,7 +71,8 @@ fn make_case(name: &str, effects: &[Effect], setting: Setting, seed: u64) -> Cas
     .unwrap();
     let needs_turning = setting.turning_input || effects.contains(&Effect::KinematicError);
     let needs_temperature = setting.temperature || effects.contains(&Effect::ThermalDrift);
-    let frequencies: Vec<f64> = (0..setting.frequencies).map(|k| rng.random_range(0.2..0.5) * (1.0 + k as f64)).collect();
+    let frequencies: Vec<f64> =
+        (0..setting.frequencies).map(|k| rng.random_range(0.2..0.5) * (1.0 + k as f64)).collect();
     let mut simulation = Simulation {
         params,
         amplitude_rad: amplitude,
@@ -100,7 +101,11 @@ fn make_case(name: &str, effects: &[Effect], setting: Setting, seed: u64) -> Cas
         };
         let share_at_unit = share_of_residual(&quiet);
         let share = rng.random_range(0.5..1.5);
-        let sign = if matches!(effect, Effect::Backlash | Effect::KinematicError) || rng.random_bool(0.5) { 1.0 } else { -1.0 };
+        let sign = if matches!(effect, Effect::Backlash | Effect::KinematicError) || rng.random_bool(0.5) {
+            1.0
+        } else {
+            -1.0
+        };
         truth.push(EffectValue { effect, value: sign * unit(effect) * share * noise_rms / share_at_unit });
     }
     simulation.effects = truth.clone();
@@ -180,11 +185,8 @@ fn run(case: &Case) -> Outcome {
     let recording = simulate(&case.simulation).unwrap();
     let (_, diagnosis) = diagnose_dataset(&Dataset::Recording(recording), None, 1).unwrap();
     let named = diagnosis.findings.iter().map(|f| (f.effect.parse::<Effect>().unwrap(), f.magnitude)).collect();
-    let rejected = diagnosis
-        .rejected
-        .iter()
-        .map(|r| format!("{} ({:.3e}): {}", r.effect, r.magnitude, r.reason))
-        .collect();
+    let rejected =
+        diagnosis.rejected.iter().map(|r| format!("{} ({:.3e}): {}", r.effect, r.magnitude, r.reason)).collect();
     Outcome { name: case.name.clone(), named, truth: case.truth.clone(), rejected }
 }
 
@@ -205,7 +207,13 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
         let named: Vec<String> = o.named.iter().map(|(e, m)| format!("{e}={m:.3e}")).collect();
         let magnitude_errors = o.magnitude_errors();
         let worst = magnitude_errors.iter().copied().fold(0.0, f64::max);
-        println!("{:<52} truth [{}]  named [{}]  worst magnitude error {:.1} %", o.name, truth.join(", "), named.join(", "), 100.0 * worst);
+        println!(
+            "{:<52} truth [{}]  named [{}]  worst magnitude error {:.1} %",
+            o.name,
+            truth.join(", "),
+            named.join(", "),
+            100.0 * worst
+        );
         false_alarms += o.named.iter().filter(|(e, _)| o.truth.iter().all(|t| t.effect != *e)).count();
         misses += o.truth.iter().filter(|t| o.named.iter().all(|(e, _)| *e != t.effect)).count();
         errors.extend(magnitude_errors);

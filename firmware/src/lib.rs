@@ -3,9 +3,7 @@
 #![no_std]
 
 #[cfg(not(target_arch = "arm"))]
-compile_error!(
-    "the firmware runs on thumbv7em-none-eabihf: build it from firmware/ (see firmware/.cargo/config.toml)"
-);
+compile_error!("the firmware runs on thumbv7em-none-eabihf: build it from firmware/ (see firmware/.cargo/config.toml)");
 
 // The defmt transport under QEMU: frames go to QEMU's stdout.
 use defmt_semihosting as _;

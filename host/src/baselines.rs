@@ -167,7 +167,13 @@ mod tests {
         let b2 = b1 + (t2 - t1) / k2;
         let curve = |x: f64| {
             let a = x.abs();
-            let t = if a <= b1 { k1 * a } else if a <= b2 { t1 + k2 * (a - b1) } else { t2 + k3 * (a - b2) };
+            let t = if a <= b1 {
+                k1 * a
+            } else if a <= b2 {
+                t1 + k2 * (a - b1)
+            } else {
+                t2 + k3 * (a - b2)
+            };
             t.copysign(x)
         };
         let theta: Vec<f64> = (-200..=200).map(|i| i as f64 * 7e-6 + 1e-7).collect();

@@ -80,7 +80,11 @@ impl Observed {
                 for i in 0..n {
                     let k: &mut usize = seen.entry(prepared.branch[i]).or_default();
                     observed.parts[*k % 2].push(i);
-                    if *k % 4 == 3 { observed.held_out.push(i) } else { observed.training.push(i) }
+                    if *k % 4 == 3 {
+                        observed.held_out.push(i)
+                    } else {
+                        observed.training.push(i)
+                    }
                     *k += 1;
                 }
                 for (effect, why) in [
@@ -136,10 +140,8 @@ impl Observed {
                 if hi - lo >= 0.5 {
                     self.warming = Some(temps.iter().map(|t| t - temps[0]).collect());
                 } else {
-                    self.cannot_reveal.push((
-                        Effect::ThermalDrift,
-                        format!("the temperature changed by only {:.2} K", hi - lo),
-                    ));
+                    self.cannot_reveal
+                        .push((Effect::ThermalDrift, format!("the temperature changed by only {:.2} K", hi - lo)));
                 }
             }
             None => self.cannot_reveal.push((Effect::ThermalDrift, "the recording has no temperature column".into())),
@@ -155,10 +157,8 @@ impl Observed {
         let closest = self.data.theta.iter().map(|t| t.abs()).fold(f64::INFINITY, f64::min);
         let amplitude = self.data.amplitude.iter().copied().fold(0.0, f64::max);
         if closest > 0.25 * amplitude {
-            self.cannot_reveal.push((
-                Effect::Backlash,
-                format!("the deflection never comes near zero (closest {closest:.3e} rad)"),
-            ));
+            self.cannot_reveal
+                .push((Effect::Backlash, format!("the deflection never comes near zero (closest {closest:.3e} rad)")));
         }
     }
 
@@ -200,8 +200,7 @@ pub fn local_slope(time: &[f64], x: &[f64], half: usize) -> Vec<f64> {
     };
     // Times relative to the first sample keep the sums well conditioned.
     let t = |i: usize| time[i] - time[0];
-    let (st, sx, stt, stx) =
-        (prefix(&|i| t(i)), prefix(&|i| x[i]), prefix(&|i| t(i) * t(i)), prefix(&|i| t(i) * x[i]));
+    let (st, sx, stt, stx) = (prefix(&|i| t(i)), prefix(&|i| x[i]), prefix(&|i| t(i) * t(i)), prefix(&|i| t(i) * x[i]));
     (0..n)
         .map(|i| {
             let (a, b) = (i.saturating_sub(half), (i + half + 1).min(n));
@@ -209,7 +208,11 @@ pub fn local_slope(time: &[f64], x: &[f64], half: usize) -> Vec<f64> {
             let (mt, mx) = ((st[b] - st[a]) / m, (sx[b] - sx[a]) / m);
             let var = (stt[b] - stt[a]) / m - mt * mt;
             let cov = (stx[b] - stx[a]) / m - mt * mx;
-            if var > 0.0 { cov / var } else { 0.0 }
+            if var > 0.0 {
+                cov / var
+            } else {
+                0.0
+            }
         })
         .collect()
 }
@@ -243,7 +246,11 @@ pub struct ExtendedFit {
 }
 
 fn columns(effect: Effect) -> usize {
-    if effect == Effect::KinematicError { 4 } else { 1 }
+    if effect == Effect::KinematicError {
+        4
+    } else {
+        1
+    }
 }
 
 impl ExtendedFit {
@@ -691,7 +698,12 @@ fn unweighted_rss(observed: &Observed, fit: &ExtendedFit, subset: &[usize]) -> O
 }
 
 /// RMS on the held-out samples of each model refitted on the training samples only.
-fn held_out(observed: &Observed, weights: &[f64], baseline: &ExtendedFit, final_fit: &ExtendedFit) -> Option<(f64, f64)> {
+fn held_out(
+    observed: &Observed,
+    weights: &[f64],
+    baseline: &ExtendedFit,
+    final_fit: &ExtendedFit,
+) -> Option<(f64, f64)> {
     if observed.held_out.is_empty() || observed.training.len() < 10 {
         return None;
     }
@@ -711,8 +723,8 @@ fn location_words(effect: Effect, fit: &ExtendedFit) -> String {
             s.backlash
         ),
         Effect::CoulombFriction => format!(
-            "on both directions, the whole loop: the torque is {:.4} N·m higher while the deflection rises than while it falls",
-            2.0 * s.coulomb
+            "on both directions, the whole loop: the torque is {} N·m higher while the deflection rises than while it falls",
+            torque(2.0 * s.coulomb)
         ),
         Effect::ViscousDamping => {
             "grows with the deflection rate: largest where the loop crosses zero deflection, zero at the turning points".into()
@@ -745,7 +757,11 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
     let rms_of = |keep: &dyn Fn(usize) -> bool| {
         let (sum, count) =
             (0..n).filter(|&i| keep(i)).fold((0.0, 0usize), |(s, c), i| (s + residuals[i] * residuals[i], c + 1));
-        if count == 0 { f64::NAN } else { (sum / count as f64).sqrt() }
+        if count == 0 {
+            f64::NAN
+        } else {
+            (sum / count as f64).sqrt()
+        }
     };
     let mut out = Vec::new();
 
@@ -757,8 +773,10 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
             value: near_rms / far_rms,
             unit: "ratio",
             words: format!(
-                "near the turning points (|θ| ≥ 0.9·A) the residual RMS is {near_rms:.4} N·m, {:.1}× the {far_rms:.4} N·m elsewhere",
-                near_rms / far_rms
+                "near the turning points (|θ| ≥ 0.9·A) the residual RMS is {} N·m, {:.1}× the {} N·m elsewhere",
+                torque(near_rms),
+                near_rms / far_rms,
+                torque(far_rms)
             ),
         });
     }
@@ -772,15 +790,21 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
             value: low_rms / high_rms,
             unit: "ratio",
             words: format!(
-                "around zero torque (|T| < 10 % of the peak) the residual RMS is {low_rms:.4} N·m, {:.1}× the {high_rms:.4} N·m at load",
-                low_rms / high_rms
+                "around zero torque (|T| < 10 % of the peak) the residual RMS is {} N·m, {:.1}× the {} N·m at load",
+                torque(low_rms),
+                low_rms / high_rms,
+                torque(high_rms)
             ),
         });
     }
 
     let mean_of = |keep: &dyn Fn(usize) -> bool| {
         let (sum, count) = (0..n).filter(|&i| keep(i)).fold((0.0, 0usize), |(s, c), i| (s + residuals[i], c + 1));
-        if count == 0 { 0.0 } else { sum / count as f64 }
+        if count == 0 {
+            0.0
+        } else {
+            sum / count as f64
+        }
     };
     let gap = mean_of(&|i| d.direction[i] == Direction::Rising) - mean_of(&|i| d.direction[i] == Direction::Falling);
     out.push(Observation {
@@ -788,7 +812,9 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
         value: gap,
         unit: "N·m",
         words: format!(
-            "by direction: the residual averages {gap:+.4} N·m more while the deflection rises than while it falls"
+            "by direction: the residual averages {}{} N·m more while the deflection rises than while it falls",
+            if gap >= 0.0 { "+" } else { "" },
+            torque(gap)
         ),
     });
 
@@ -800,8 +826,8 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
             value: slope,
             unit: "N·m·s/rad",
             words: format!(
-                "with rate: the residual grows by {slope:.4e} N·m per rad/s of deflection rate ({:.4} N·m at the fastest {peak_rate:.3e} rad/s)",
-                slope * peak_rate
+                "with rate: the residual grows by {slope:.4e} N·m per rad/s of deflection rate ({} N·m at the fastest {peak_rate:.3e} rad/s)",
+                torque(slope * peak_rate)
             ),
         });
     }
@@ -825,8 +851,9 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
             value: amplitude,
             unit: "N·m",
             words: format!(
-                "periodic in the input angle: strongest at {order} cycle{} per input revolution, {amplitude:.4} N·m",
-                if order == 1 { "" } else { "s" }
+                "periodic in the input angle: strongest at {order} cycle{} per input revolution, {} N·m",
+                if order == 1 { "" } else { "s" },
+                torque(amplitude)
             ),
         });
     }
@@ -838,7 +865,10 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
             pattern: "time",
             value: slope,
             unit: "N·m/s",
-            words: format!("over time: the residual drifts by {:.4} N·m over the {span:.1} s recording", slope * span),
+            words: format!(
+                "over time: the residual drifts by {} N·m over the {span:.1} s recording",
+                torque(slope * span)
+            ),
         });
     }
     if let Some(warming) = &observed.warming {
@@ -848,12 +878,20 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
             pattern: "temperature",
             value: slope,
             unit: "N·m/(rad·K)",
-            words: format!(
-                "with temperature: the loop's slope changes by {slope:.4e} N·m/rad per kelvin of warming"
-            ),
+            words: format!("with temperature: the loop's slope changes by {slope:.4e} N·m/rad per kelvin of warming"),
         });
     }
     out
+}
+
+/// A torque in N·m for the report: four decimals, or four significant digits when smaller
+/// (a noise-free recording's residuals are micro-newton-metres, not 0.0000).
+fn torque(value: f64) -> String {
+    if value == 0.0 || value.abs() >= 0.01 {
+        format!("{value:.4}")
+    } else {
+        format!("{value:.3e}")
+    }
 }
 
 fn regression_slope(x: &[f64], y: &[f64]) -> f64 {
@@ -864,5 +902,9 @@ fn regression_slope(x: &[f64], y: &[f64]) -> f64 {
         sxy += (a - mx) * (b - my);
         sxx += (a - mx) * (a - mx);
     }
-    if sxx > 0.0 { sxy / sxx } else { 0.0 }
+    if sxx > 0.0 {
+        sxy / sxx
+    } else {
+        0.0
+    }
 }

@@ -301,7 +301,12 @@ impl Basis {
         self.solve(s.sinh()).map_or(f64::INFINITY, |sol| sol.weighted_rss)
     }
 
-    pub(crate) fn params(&self, r: f64, solution: &Solution, reference_amplitude: f64) -> Result<Params<f64>, FitError> {
+    pub(crate) fn params(
+        &self,
+        r: f64,
+        solution: &Solution,
+        reference_amplitude: f64,
+    ) -> Result<Params<f64>, FitError> {
         let [a1, a3, a5, ak] = [solution.coef[0], solution.coef[1], solution.coef[2], solution.coef[3]];
         let k = ak * (-solution.shift).exp();
         let s = self.scale;
@@ -422,7 +427,11 @@ fn reweight(basis: &mut Basis, data: &FitData, model: &Model<f64>, noise: &Noise
 
 /// 1/(σ_T² + σ_θ²·K²) for every sample, K the model's stiffness there: the inverse variance
 /// of a torque residual when both torque and deflection are noisy.
-pub fn total_noise_weights(data: &FitData, model: &Model<f64>, noise: &NoiseModel) -> Result<Vec<f64>, model_core::Error> {
+pub fn total_noise_weights(
+    data: &FitData,
+    model: &Model<f64>,
+    noise: &NoiseModel,
+) -> Result<Vec<f64>, model_core::Error> {
     let (var_t, var_theta) = (noise.torque_nm.powi(2), noise.deflection_rad.powi(2));
     (0..data.theta.len())
         .map(|i| {

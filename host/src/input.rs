@@ -14,12 +14,8 @@ pub enum Branch {
 }
 
 impl Branch {
-    pub const ALL: [Branch; 4] = [
-        Branch::ForwardLoading,
-        Branch::ForwardUnloading,
-        Branch::ReverseLoading,
-        Branch::ReverseUnloading,
-    ];
+    pub const ALL: [Branch; 4] =
+        [Branch::ForwardLoading, Branch::ForwardUnloading, Branch::ReverseLoading, Branch::ReverseUnloading];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -120,11 +116,9 @@ pub fn read(path: &Path, ratio: Option<f64>) -> Result<Dataset, InputError> {
             Ok(Dataset::Recording(recording_from_table(&table, ratio)?))
         }
         _ if table.column("branch").is_some() => Ok(Dataset::LoopTable(loop_table_from_table(&table)?)),
-        _ if table.column("time_s").is_some() => Err(InputError::at_line(
-            path,
-            1,
-            format!("a recording must start with the line `# {RECORDING_MAGIC}`"),
-        )),
+        _ if table.column("time_s").is_some() => {
+            Err(InputError::at_line(path, 1, format!("a recording must start with the line `# {RECORDING_MAGIC}`")))
+        }
         _ => Err(InputError::at_line(
             path,
             table.header_line,
@@ -141,10 +135,9 @@ pub fn read(path: &Path, ratio: Option<f64>) -> Result<Dataset, InputError> {
 pub fn read_recording(path: &Path, ratio: Option<f64>) -> Result<Recording, InputError> {
     match read(path, ratio)? {
         Dataset::Recording(recording) => Ok(recording),
-        Dataset::LoopTable(_) => Err(InputError::file(
-            path,
-            format!("expected a recording (`# {RECORDING_MAGIC}`), found a loop table"),
-        )),
+        Dataset::LoopTable(_) => {
+            Err(InputError::file(path, format!("expected a recording (`# {RECORDING_MAGIC}`), found a loop table")))
+        }
     }
 }
 
@@ -193,9 +186,9 @@ fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Re
     let ratio = match (ratio_override, ratio_line) {
         (Some(ratio), _) => check_ratio(ratio).map_err(|m| InputError::file(path, format!("--ratio {m}")))?,
         (None, Some((line, text))) => {
-            let value = text.parse::<f64>().map_err(|_| {
-                InputError::at_line(path, line, format!("ratio: expected a number, found {text:?}"))
-            })?;
+            let value = text
+                .parse::<f64>()
+                .map_err(|_| InputError::at_line(path, line, format!("ratio: expected a number, found {text:?}")))?;
             check_ratio(value).map_err(|m| InputError::at_line(path, line, format!("ratio {m}")))?
         }
         (None, None) => {

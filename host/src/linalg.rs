@@ -26,7 +26,11 @@ impl Cholesky {
         let scale: Vec<f64> = (0..n)
             .map(|i| {
                 let d = m[i * n + i];
-                if d > 0.0 && d.is_finite() { 1.0 / d.sqrt() } else { 0.0 }
+                if d > 0.0 && d.is_finite() {
+                    1.0 / d.sqrt()
+                } else {
+                    0.0
+                }
             })
             .collect();
         let mut a: Vec<f64> = (0..n * n).map(|k| m[k] * scale[k / n] * scale[k % n]).collect();

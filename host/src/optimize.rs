@@ -40,22 +40,22 @@ pub fn pso(
     let mut evaluate = |x: &[f64]| {
         evaluations += 1;
         let v = objective(x);
-        if v.is_nan() { f64::INFINITY } else { v }
+        if v.is_nan() {
+            f64::INFINITY
+        } else {
+            v
+        }
     };
     let width: Vec<f64> = bounds.iter().map(|(lo, hi)| hi - lo).collect();
     let mut position: Vec<Vec<f64>> = (0..options.particles.max(1))
         .map(|_| bounds.iter().map(|&(lo, hi)| rng.random_range(lo..=hi)).collect())
         .collect();
-    let mut velocity: Vec<Vec<f64>> = position
-        .iter()
-        .map(|_| width.iter().map(|w| rng.random_range(-0.5..=0.5) * w * 0.5).collect())
-        .collect();
+    let mut velocity: Vec<Vec<f64>> =
+        position.iter().map(|_| width.iter().map(|w| rng.random_range(-0.5..=0.5) * w * 0.5).collect()).collect();
     let mut personal = position.clone();
     let mut personal_value: Vec<f64> = position.iter().map(|x| evaluate(x)).collect();
-    let (best_index, _) = personal_value
-        .iter()
-        .enumerate()
-        .fold((0, f64::INFINITY), |acc, (i, &v)| if v < acc.1 { (i, v) } else { acc });
+    let (best_index, _) =
+        personal_value.iter().enumerate().fold((0, f64::INFINITY), |acc, (i, &v)| if v < acc.1 { (i, v) } else { acc });
     let mut best = personal[best_index].clone();
     let mut best_value = personal_value[best_index];
     let mut stalled = 0;
@@ -94,9 +94,7 @@ pub fn pso(
         }
         progress(iterations, best_value);
     }
-    let spread = (0..dims)
-        .map(|d| personal.iter().map(|x| (x[d] - best[d]).abs()).fold(0.0, f64::max))
-        .collect();
+    let spread = (0..dims).map(|d| personal.iter().map(|x| (x[d] - best[d]).abs()).fold(0.0, f64::max)).collect();
     PsoResult { best, value: best_value, iterations, evaluations, spread }
 }
 
@@ -147,10 +145,18 @@ pub fn brent(mut f: impl FnMut(f64) -> f64, lo: f64, hi: f64, tolerance: f64) ->
         let fu = f(u);
         evaluations += 1;
         if fu <= fx {
-            if u < x { b = x } else { a = x }
+            if u < x {
+                b = x
+            } else {
+                a = x
+            }
             (v, fv, w, fw, x, fx) = (w, fw, x, fx, u, fu);
         } else {
-            if u < x { a = u } else { b = u }
+            if u < x {
+                a = u
+            } else {
+                b = u
+            }
             if fu <= fw || w == x {
                 (v, fv, w, fw) = (w, fw, u, fu);
             } else if fu <= fv || v == x || v == w {
@@ -168,9 +174,8 @@ mod tests {
     #[test]
     fn pso_finds_the_global_minimum_of_a_multimodal_function() {
         // Rastrigin in 2-D: global minimum 0 at the origin among many local minima.
-        let rastrigin = |x: &[f64]| {
-            x.iter().map(|v| v * v - 10.0 * (2.0 * std::f64::consts::PI * v).cos() + 10.0).sum::<f64>()
-        };
+        let rastrigin =
+            |x: &[f64]| x.iter().map(|v| v * v - 10.0 * (2.0 * std::f64::consts::PI * v).cos() + 10.0).sum::<f64>();
         let options = PsoOptions { particles: 40, max_iterations: 300, stall_iterations: 60, seed: 3 };
         let result = pso(rastrigin, &[(-5.12, 5.12), (-5.12, 5.12)], &options, |_, _| {});
         assert!(result.value < 1e-6, "{result:?}");

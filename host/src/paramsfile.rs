@@ -23,8 +23,8 @@ struct ParamsFile {
 
 /// Reads and validates a parameter file.
 pub fn read_params(path: &Path) -> Result<Params<f64>, ParamsFileError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|source| ParamsFileError::Read { path: path.to_owned(), source })?;
+    let text =
+        std::fs::read_to_string(path).map_err(|source| ParamsFileError::Read { path: path.to_owned(), source })?;
     parse_params(path, &text)
 }
 

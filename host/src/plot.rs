@@ -60,7 +60,9 @@ fn draw(plot: &LoopPlot, svg: &mut String) -> Result<(), Box<dyn std::error::Err
     let (radius, opacity) = if n <= 200 { (4, 0.9) } else { (2, 0.6) };
     chart
         .draw_series(
-            (0..n).step_by(stride).map(|i| Circle::new((data.theta[i] * MRAD, data.torque[i]), radius, grey.mix(opacity).filled())),
+            (0..n)
+                .step_by(stride)
+                .map(|i| Circle::new((data.theta[i] * MRAD, data.torque[i]), radius, grey.mix(opacity).filled())),
         )?
         .label("measured")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
@@ -171,7 +173,10 @@ fn draw_residuals(
     let stride = n.div_ceil(MAX_POINTS).max(1);
     let root = SVGBackend::with_string(svg, (1200, 860)).into_drawing_area();
     root.fill(&WHITE)?;
-    let root = root.titled("residual torque, measured − model: baseline (grey), with the effects found (blue)", ("sans-serif", 20))?;
+    let root = root.titled(
+        "residual torque, measured − model: baseline (grey), with the effects found (blue)",
+        ("sans-serif", 20),
+    )?;
     let panels = root.split_evenly((2, 2));
     let theta: Vec<f64> = observed.data.theta.iter().map(|t| t * MRAD).collect();
     let rate: Option<Vec<f64>> = observed.rate.as_ref().map(|r| r.iter().map(|v| v * MRAD).collect());
@@ -200,7 +205,8 @@ fn draw_residuals(
         chart.configure_mesh().x_desc(label).y_desc("residual (N·m)").draw()?;
         let grey = RGBColor(150, 150, 150);
         let blue = RGBColor(0, 90, 200);
-        chart.draw_series((0..n).step_by(stride).map(|i| Circle::new((xs[i], before[i]), 2, grey.mix(0.5).filled())))?;
+        chart
+            .draw_series((0..n).step_by(stride).map(|i| Circle::new((xs[i], before[i]), 2, grey.mix(0.5).filled())))?;
         chart.draw_series((0..n).step_by(stride).map(|i| Circle::new((xs[i], after[i]), 2, blue.mix(0.7).filled())))?;
     }
     root.present()?;
@@ -260,7 +266,9 @@ fn draw_diagnosis_loop(
     let orange = RGBColor(230, 120, 0);
     let blue = RGBColor(0, 90, 200);
     chart
-        .draw_series(all.iter().zip(&measured).map(|(&i, &t)| Circle::new((d.theta[i] * MRAD, t), 2, grey.mix(0.5).filled())))?
+        .draw_series(
+            all.iter().zip(&measured).map(|(&i, &t)| Circle::new((d.theta[i] * MRAD, t), 2, grey.mix(0.5).filled())),
+        )?
         .label("measured")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
     chart
@@ -268,7 +276,9 @@ fn draw_diagnosis_loop(
         .label("baseline model")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, orange.filled()));
     chart
-        .draw_series(all.iter().zip(&final_model).map(|(&i, &t)| Circle::new((d.theta[i] * MRAD, t), 1, blue.filled())))?
+        .draw_series(
+            all.iter().zip(&final_model).map(|(&i, &t)| Circle::new((d.theta[i] * MRAD, t), 1, blue.filled())),
+        )?
         .label("with the effects found")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, blue.filled()));
     chart

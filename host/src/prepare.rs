@@ -46,10 +46,8 @@ pub fn from_recording(recording: &Recording) -> Result<Prepared, SegmentError> {
         .zip(&segmentation.direction)
         .map(|(&theta, &direction)| Branch::of(direction, theta))
         .collect();
-    let noise = NoiseModel {
-        torque_nm: noise_from_second_differences(&recording.torque),
-        deflection_rad: segmentation.noise,
-    };
+    let noise =
+        NoiseModel { torque_nm: noise_from_second_differences(&recording.torque), deflection_rad: segmentation.noise };
     Ok(Prepared {
         data: FitData {
             theta: recording.deflection.clone(),

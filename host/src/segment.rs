@@ -101,11 +101,9 @@ pub fn segment(time: &[f64], deflection: &[f64]) -> Result<Segmentation, Segment
             None => deflection[0].abs(),
         };
         let (end, end_index, leg_direction) = match turning_points.get(leg) {
-            Some(tp) => (
-                tp.deflection.abs(),
-                tp.index + 1,
-                if tp.is_maximum { Direction::Rising } else { Direction::Falling },
-            ),
+            Some(tp) => {
+                (tp.deflection.abs(), tp.index + 1, if tp.is_maximum { Direction::Rising } else { Direction::Falling })
+            }
             None => {
                 let last = turning_points[leg - 1];
                 (deflection[n - 1].abs(), n, if last.is_maximum { Direction::Falling } else { Direction::Rising })
@@ -276,7 +274,8 @@ mod tests {
             let step = 2.0 * std::f64::consts::PI / (1u64 << 19) as f64; // ≈ 12 µrad
             let n = 20_000;
             let time: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
-            let clean: Vec<f64> = time.iter().map(|t| amplitude * (2.0 * std::f64::consts::PI * 0.5 * t).sin()).collect();
+            let clean: Vec<f64> =
+                time.iter().map(|t| amplitude * (2.0 * std::f64::consts::PI * 0.5 * t).sin()).collect();
             let measured: Vec<f64> = clean.iter().map(|v| quantise(v + noise.sample(&mut rng), step)).collect();
             let seg = segment(&time, &measured).unwrap();
             assert_eq!(seg.turning_points.len(), 20, "seed {seed}");
@@ -285,7 +284,13 @@ mod tests {
                 assert_eq!(tp.is_maximum, k % 2 == 0);
                 assert!((time[tp.index] - true_time).abs() < 0.1, "seed {seed} tp {k}: {}", time[tp.index]);
                 // The parabola averages the noise: A within 1 % (the raw extreme is ≈ 3σ = 6 % high).
-                assert!((tp.deflection.abs() - amplitude).abs() < 0.01 * amplitude, "seed {seed} tp {k} at {}: {} noise {}", tp.index, tp.deflection, seg.noise);
+                assert!(
+                    (tp.deflection.abs() - amplitude).abs() < 0.01 * amplitude,
+                    "seed {seed} tp {k} at {}: {} noise {}",
+                    tp.index,
+                    tp.deflection,
+                    seg.noise
+                );
             }
             // Direction flips only at the turning points.
             let flips = seg.direction.windows(2).filter(|w| w[0] != w[1]).count();

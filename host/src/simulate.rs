@@ -81,7 +81,12 @@ impl Simulation {
             check("effect value", e.value, true, "finite")?;
         }
         let width = self.effect(Effect::Backlash);
-        check("backlash", width, (0.0..2.0 * self.amplitude_rad).contains(&width), "from 0 to below twice the amplitude")?;
+        check(
+            "backlash",
+            width,
+            (0.0..2.0 * self.amplitude_rad).contains(&width),
+            "from 0 to below twice the amplitude",
+        )?;
         if self.effect(Effect::ThermalDrift) != 0.0 && self.temperature.is_none() {
             return Err(SimulateError::NeedsTemperature);
         }
@@ -138,10 +143,7 @@ pub fn simulate(sim: &Simulation) -> Result<Recording, SimulateError> {
         metadata: vec![
             ("source".into(), "swg-host simulate".into()),
             ("amplitude_rad".into(), sim.amplitude_rad.to_string()),
-            (
-                "frequencies_hz".into(),
-                sim.frequencies_hz.iter().map(f64::to_string).collect::<Vec<_>>().join(" "),
-            ),
+            ("frequencies_hz".into(), sim.frequencies_hz.iter().map(f64::to_string).collect::<Vec<_>>().join(" ")),
             ("seed".into(), sim.seed.to_string()),
         ],
         angles: Some(Angles { input: Vec::with_capacity(n), output: Vec::with_capacity(n) }),

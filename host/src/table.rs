@@ -74,8 +74,8 @@ impl<'a> Table<'a> {
                 break;
             }
         }
-        let header_line = header_line
-            .ok_or_else(|| InputError::file(path, "no header line: the file has only comments"))?;
+        let header_line =
+            header_line.ok_or_else(|| InputError::file(path, "no header line: the file has only comments"))?;
 
         let mut reader = Self::reader(text);
         let mut header_record = csv::StringRecord::new();

@@ -89,10 +89,18 @@ fn plot_is_an_svg_with_data_model_baselines_and_residuals() {
     assert!(output.status.success());
     let text = std::fs::read_to_string(&svg).unwrap();
     assert!(text.starts_with("<svg"));
-    for label in ["measured", "model, θ rising", "model, θ falling", "one line per branch", "catalogue three-segment curve", "residual"] {
+    for label in [
+        "measured",
+        "model, θ rising",
+        "model, θ falling",
+        "one line per branch",
+        "catalogue three-segment curve",
+        "residual",
+    ] {
         assert!(text.contains(label), "missing {label:?}");
     }
-    let bad = swg_host(&["fit", &repo("data/seed/lht-20-50.csv"), "--plot", dir.path().join("x.png").to_str().unwrap()]);
+    let bad =
+        swg_host(&["fit", &repo("data/seed/lht-20-50.csv"), "--plot", dir.path().join("x.png").to_str().unwrap()]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("SVG"));
 }
@@ -102,8 +110,21 @@ fn simulate_then_fit_recovers_the_seed_gear() {
     let dir = tempfile::tempdir().unwrap();
     let recording = dir.path().join("rec.csv");
     let output = swg_host(&[
-        "simulate", "--out", recording.to_str().unwrap(), "--cycles", "3", "--frequency", "0.5",
-        "--output-bits", "20", "--input-bits", "20", "--torque-noise", "0.05", "--temperature", "25",
+        "simulate",
+        "--out",
+        recording.to_str().unwrap(),
+        "--cycles",
+        "3",
+        "--frequency",
+        "0.5",
+        "--output-bits",
+        "20",
+        "--input-bits",
+        "20",
+        "--torque-noise",
+        "0.05",
+        "--temperature",
+        "25",
     ]);
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let text = std::fs::read_to_string(&recording).unwrap();
@@ -123,7 +144,8 @@ fn fit_error(name: &str, content: &str, extra: &[&str]) -> String {
     std::fs::write(&input, content).unwrap();
     let out = dir.path().join("params.json");
     let plot = dir.path().join("loop.svg");
-    let mut args = vec!["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--plot", plot.to_str().unwrap()];
+    let mut args =
+        vec!["fit", input.to_str().unwrap(), "--out", out.to_str().unwrap(), "--plot", plot.to_str().unwrap()];
     args.extend(extra);
     let output = swg_host(&args);
     let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
@@ -158,7 +180,11 @@ fn bad_recordings_are_reported_by_file_line_and_column() {
     let cases = [
         ("non-numeric", with_row(5, "0.05,0,abc,1"), ":9: column 3 (theta_out_rad): expected a number, found \"abc\""),
         ("nan", with_row(6, "0.06,0,0,NaN"), ":10: column 4 (torque_nm): expected a finite number, found \"NaN\""),
-        ("time", with_row(7, "0.06,0,0,1"), ":11: column 1 (time_s): time must increase strictly: 0.06 s follows 0.06 s"),
+        (
+            "time",
+            with_row(7, "0.06,0,0,1"),
+            ":11: column 1 (time_s): time must increase strictly: 0.06 s follows 0.06 s",
+        ),
         ("fields", with_row(8, "0.08,0,0"), ":12: expected 4 fields as in the header"),
     ];
     for (name, content, expected) in cases {

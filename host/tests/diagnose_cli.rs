@@ -25,13 +25,31 @@ fn finds_friction_and_writes_the_documented_json_and_pictures() {
     std::fs::write(&params, GEAR).unwrap();
     let recording = dir.path().join("rec.csv");
     ok(swg_host(&[
-        "simulate", "--params", params.to_str().unwrap(), "--out", recording.to_str().unwrap(),
-        "--cycles", "4", "--frequency", "0.3", "--output-bits", "20", "--input-bits", "20",
-        "--torque-noise", "0.05", "--effect", "coulomb_friction=0.06",
+        "simulate",
+        "--params",
+        params.to_str().unwrap(),
+        "--out",
+        recording.to_str().unwrap(),
+        "--cycles",
+        "4",
+        "--frequency",
+        "0.3",
+        "--output-bits",
+        "20",
+        "--input-bits",
+        "20",
+        "--torque-noise",
+        "0.05",
+        "--effect",
+        "coulomb_friction=0.06",
     ]));
     let plots = dir.path().join("plots");
     let json: serde_json::Value = serde_json::from_str(&ok(swg_host(&[
-        "diagnose", recording.to_str().unwrap(), "--json", "--plot", plots.to_str().unwrap(),
+        "diagnose",
+        recording.to_str().unwrap(),
+        "--json",
+        "--plot",
+        plots.to_str().unwrap(),
     ])))
     .unwrap();
     assert!(json["baseline"]["rss"].is_f64() && json["baseline"]["n"].is_u64());
@@ -90,7 +108,11 @@ fn effects_are_checked_before_anything_is_written() {
     ] {
         let output = swg_host(&["simulate", "--out", out.to_str().unwrap(), "--effect", effect]);
         assert!(!output.status.success(), "{effect}");
-        assert!(String::from_utf8_lossy(&output.stderr).contains(message), "{effect}: {}", String::from_utf8_lossy(&output.stderr));
+        assert!(
+            String::from_utf8_lossy(&output.stderr).contains(message),
+            "{effect}: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
         assert!(!out.exists());
     }
 }

@@ -12,16 +12,15 @@ use swg_host::link::replay::{replay, samples, widen};
 use swg_host::link::{Link, LinkError};
 use swg_host::simulate::{simulate, Simulation};
 use swg_protocol::{
-    encode_to_vec, encode_with_version, ErrorReply, EvalPath, JointParams, ParamFault, ParamField, Request,
-    Response, MAX_FRAME_LEN, PROTOCOL_VERSION,
+    encode_to_vec, encode_with_version, ErrorReply, EvalPath, JointParams, ParamFault, ParamField, Request, Response,
+    MAX_FRAME_LEN, PROTOCOL_VERSION,
 };
 
 /// The seed table's fit (canonical form, ω = 1).
 const SEED: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
 const RATIO: f64 = 50.0;
 /// A limit above the loop's torque, so that every sample is compared with the model.
-const SETTINGS: JointSettings =
-    JointSettings { gear_ratio: RATIO, torque_limit: 100.0, direction_band: 2.0e-6 };
+const SETTINGS: JointSettings = JointSettings { gear_ratio: RATIO, torque_limit: 100.0, direction_band: 2.0e-6 };
 
 /// One QEMU running the firmware, its UART0 on a free local TCP port; killed on drop.
 struct Firmware {
@@ -61,9 +60,7 @@ impl Firmware {
         loop {
             match Link::open(&self.address(), Duration::from_secs(2)) {
                 Ok(link) => return link,
-                Err(_) if start.elapsed() < Duration::from_secs(10) => {
-                    std::thread::sleep(Duration::from_millis(50))
-                }
+                Err(_) if start.elapsed() < Duration::from_secs(10) => std::thread::sleep(Duration::from_millis(50)),
                 Err(error) => panic!("cannot reach the firmware: {error}"),
             }
         }
@@ -151,8 +148,7 @@ fn push_read_back_and_replay_match_the_host_model() {
     drop(link);
 
     for path in ["fast", "direct"] {
-        let replayed =
-            swg_host(&["replay", recording_file.to_str().unwrap(), "--port", &port, "--path", path]);
+        let replayed = swg_host(&["replay", recording_file.to_str().unwrap(), "--port", &port, "--path", path]);
         assert!(replayed.status.success(), "{path}");
         let stdout = String::from_utf8_lossy(&replayed.stdout);
         assert!(stdout.contains("(0 samples outside"), "{stdout}");

@@ -40,14 +40,8 @@ pub const PAPER: Params<f64> =
     Params { c1: 2.4737e4, c2: 1.0e9, c3: -1.1774e14, alpha: 2.6532e6, beta: -4.2268e2, omega: -2.2631e2 };
 
 /// The seed table's fit in canonical form (ω = 1) at A = 1.168 mrad.
-pub const SEED_FIT: Params<f64> = Params {
-    c1: 9.0e3,
-    c2: 1.2e10,
-    c3: 0.0,
-    alpha: 0.0128 * (1.0 + 2.298 * 2.298) / A,
-    beta: -2.298,
-    omega: 1.0,
-};
+pub const SEED_FIT: Params<f64> =
+    Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 0.0128 * (1.0 + 2.298 * 2.298) / A, beta: -2.298, omega: 1.0 };
 
 const A: f64 = 1.168e-3;
 const BOTH: [Direction; 2] = [Direction::Rising, Direction::Falling];
@@ -64,12 +58,7 @@ fn model(params: Params<f64>) -> Result<Model<f64>, Failure> {
     Model::new(params).map_err(|_| Failure { what: "Model::new refused valid parameters", at: 0.0 })
 }
 
-fn eval<F: crate::Real>(
-    m: &Model<F>,
-    theta: F,
-    direction: Direction,
-    a: F,
-) -> Result<crate::Evaluation<F>, Failure> {
+fn eval<F: crate::Real>(m: &Model<F>, theta: F, direction: Direction, a: F) -> Result<crate::Evaluation<F>, Failure> {
     m.at_amplitude(a)
         .and_then(|lp| lp.evaluate(theta, direction))
         .map_err(|_| Failure { what: "evaluation failed", at: theta.to_f64().unwrap_or(f64::NAN) })
@@ -138,11 +127,7 @@ fn turning_points_are_capped_and_continuous() -> Check {
                 let x_cap = (1.0f64 - 0.01 * 0.01).sqrt();
                 let inside = eval(&m, side * x_cap * (1.0 - 1e-12) * A, direction, A)?.stiffness;
                 let outside = eval(&m, side * x_cap * (1.0 + 1e-12) * A, direction, A)?.stiffness;
-                ensure(
-                    (inside - outside).abs() <= 1e-6 * inside.abs(),
-                    "stiffness continuous at the cap",
-                    side * A,
-                )?;
+                ensure((inside - outside).abs() <= 1e-6 * inside.abs(), "stiffness continuous at the cap", side * A)?;
             }
         }
         for side in [-1.0, 1.0] {
@@ -176,11 +161,7 @@ fn f32_stays_within_its_bound_of_f64() -> Check {
                 let down = eval(&m64, theta * (1.0 - ulps), direction, A)?;
                 let torque_in = (up.torque - down.torque).abs() / 2.0;
                 let stiffness_in = (up.stiffness - down.stiffness).abs() / 2.0;
-                ensure(
-                    (f64::from(e32.torque) - e64.torque).abs() <= 2e-5 * scale + torque_in,
-                    "f32 torque",
-                    theta,
-                )?;
+                ensure((f64::from(e32.torque) - e64.torque).abs() <= 2e-5 * scale + torque_in, "f32 torque", theta)?;
                 ensure(
                     (f64::from(e32.stiffness) - e64.stiffness).abs()
                         <= 1e-3 * e64.stiffness.abs().max(scale / A) + stiffness_in,
@@ -197,22 +178,14 @@ fn only_h_and_r_are_identifiable() -> Check {
     let m = model(PAPER)?;
     let id = PAPER.identifiable(A).map_err(|_| Failure { what: "identifiable", at: A })?;
     for scale in [-1.0, 2.0, 0.5, -3.7, 1e3] {
-        let scaled = Params {
-            alpha: PAPER.alpha * scale,
-            beta: PAPER.beta * scale,
-            omega: PAPER.omega * scale,
-            ..PAPER
-        };
+        let scaled =
+            Params { alpha: PAPER.alpha * scale, beta: PAPER.beta * scale, omega: PAPER.omega * scale, ..PAPER };
         let other = model(scaled)?;
         for direction in BOTH {
             for theta in grid(100, A) {
                 let a = eval(&m, theta, direction, A)?.torque;
                 let b = eval(&other, theta, direction, A)?.torque;
-                ensure(
-                    (a - b).abs() <= 1e-9 * (1.0 + a.abs()),
-                    "scaled (alpha, beta, omega) same torque",
-                    theta,
-                )?;
+                ensure((a - b).abs() <= 1e-9 * (1.0 + a.abs()), "scaled (alpha, beta, omega) same torque", theta)?;
             }
         }
     }
@@ -230,10 +203,7 @@ fn only_h_and_r_are_identifiable() -> Check {
 
 fn bad_inputs_are_errors_not_panics() -> Check {
     let refused = |what, ok: bool| ensure(ok, what, 0.0);
-    refused(
-        "NaN c2",
-        Model::new(Params { c2: f64::NAN, ..PAPER }) == Err(Error::NonFiniteParameter(ParamName::C2)),
-    )?;
+    refused("NaN c2", Model::new(Params { c2: f64::NAN, ..PAPER }) == Err(Error::NonFiniteParameter(ParamName::C2)))?;
     refused("zero omega", Model::new(Params { omega: 0.0, ..PAPER }) == Err(Error::ZeroOmega))?;
     let m = model(PAPER)?;
     for a in [0.0, -1e-3, f64::NAN, f64::INFINITY] {

@@ -24,10 +24,7 @@
 //! (`A·k·e^(−rφ)` as `exp(ln|A·k| − rφ)`), so a large `r` with a small `α` stays finite.
 #![no_std]
 #![forbid(unsafe_code)]
-#![cfg_attr(
-    not(test),
-    deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)
-)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic))]
 
 use core::fmt;
 use num_traits::{Float, FloatConst};
@@ -126,9 +123,7 @@ impl fmt::Display for Error {
                 write!(f, "parameter {} is not a finite number", name.as_str())
             }
             Error::ZeroOmega => f.write_str("parameter omega is zero; the model divides by it"),
-            Error::InvalidAmplitude => {
-                f.write_str("loop amplitude A must be a finite deflection > 0 rad")
-            }
+            Error::InvalidAmplitude => f.write_str("loop amplitude A must be a finite deflection > 0 rad"),
             Error::NonFiniteDeflection => f.write_str("deflection is not a finite number"),
             Error::Overflow => f.write_str("model result overflows the float type"),
         }
@@ -195,23 +190,10 @@ impl<F: Real> Params<F> {
     }
 
     /// The canonical parameters for an identifiable pair: ω = 1, β = r, α = h·(1 + r²)/A.
-    pub fn from_identifiable(
-        c1: F,
-        c2: F,
-        c3: F,
-        hysteresis: Identifiable<F>,
-        amplitude: F,
-    ) -> Result<Self, Error> {
+    pub fn from_identifiable(c1: F, c2: F, c3: F, hysteresis: Identifiable<F>, amplitude: F) -> Result<Self, Error> {
         check_amplitude(amplitude)?;
         let Identifiable { h, r } = hysteresis;
-        let params = Params {
-            c1,
-            c2,
-            c3,
-            alpha: h * (F::one() + r * r) / amplitude,
-            beta: r,
-            omega: F::one(),
-        };
+        let params = Params { c1, c2, c3, alpha: h * (F::one() + r * r) / amplitude, beta: r, omega: F::one() };
         params.validate()?;
         Ok(params)
     }
@@ -262,11 +244,7 @@ impl<F: Real> Model<F> {
         };
         let ln_abs_k = params.alpha.abs().ln() - params.omega.abs().ln() - ln_one_plus_r2;
         let sign = |v: F| if v > F::zero() { F::one() } else { -F::one() };
-        let sign_k = if params.alpha == F::zero() {
-            F::zero()
-        } else {
-            sign(params.alpha) * sign(params.omega)
-        };
+        let sign_k = if params.alpha == F::zero() { F::zero() } else { sign(params.alpha) * sign(params.omega) };
         Ok(Model { c1: params.c1, c2: params.c2, c3: params.c3, r, ln_abs_k, sign_k })
     }
 
@@ -371,11 +349,7 @@ impl<F: Real> Loop<F> {
         };
         let r = m.r;
         // h·e^(−rφ), in the log domain so that huge r with tiny α stays finite.
-        let h_exp = if m.sign_k == F::zero() {
-            F::zero()
-        } else {
-            m.sign_k * (self.ln_abs_h - r * phase).exp()
-        };
+        let h_exp = if m.sign_k == F::zero() { F::zero() } else { m.sign_k * (self.ln_abs_h - r * phase).exp() };
         // h·p(φ) and h·p'(φ) with p = e^(−rφ) + r sin φ − cos φ, sin φ = x.
         let hp = h_exp + self.h * (r * x - cos_phase);
         let hdp = -r * h_exp + self.h * (r * cos_phase + x);

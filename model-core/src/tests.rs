@@ -5,25 +5,12 @@ use proptest::prelude::*;
 use std::vec::Vec;
 
 /// The paper's identified values (Table 2).
-const PAPER: Params<f64> = Params {
-    c1: 2.4737e4,
-    c2: 1.0e9,
-    c3: -1.1774e14,
-    alpha: 2.6532e6,
-    beta: -4.2268e2,
-    omega: -2.2631e2,
-};
+const PAPER: Params<f64> =
+    Params { c1: 2.4737e4, c2: 1.0e9, c3: -1.1774e14, alpha: 2.6532e6, beta: -4.2268e2, omega: -2.2631e2 };
 
 /// The optimum `swg-host fit` finds on the seed table (identifiable form at A = 1.168e-3).
 fn seed_fit() -> Params<f64> {
-    Params::from_identifiable(
-        9.0e3,
-        1.2e10,
-        0.0,
-        Identifiable { h: 0.0128, r: -2.298 },
-        1.168e-3,
-    )
-    .unwrap()
+    Params::from_identifiable(9.0e3, 1.2e10, 0.0, Identifiable { h: 0.0128, r: -2.298 }, 1.168e-3).unwrap()
 }
 
 const A: f64 = 1.168e-3;
@@ -75,8 +62,7 @@ fn stiffness_matches_finite_differences_over_the_whole_loop() {
                 let step = 1e-6 * A;
                 let t = |d: f64| lp.torque(theta + d, direction).unwrap();
                 // Five-point central difference: O(step⁴) truncation error.
-                let fd = (8.0 * (t(step) - t(-step)) - (t(2.0 * step) - t(-2.0 * step)))
-                    / (12.0 * step);
+                let fd = (8.0 * (t(step) - t(-step)) - (t(2.0 * step) - t(-2.0 * step))) / (12.0 * step);
                 let analytic = lp.stiffness(theta, direction).unwrap();
                 assert!(
                     (analytic - fd).abs() <= 1e-5 * analytic.abs().max(1e3),
@@ -101,10 +87,7 @@ fn stiffness_at_the_turning_points_is_the_capped_edge_slope() {
                 // stiffness holds the edge value.
                 let beyond = lp.stiffness(side * 1.5 * A, direction).unwrap();
                 let poly_gap = |t: f64| 3.0 * params.c2 * t * t + 5.0 * params.c3 * t.powi(4);
-                assert!(
-                    ((beyond - poly_gap(1.5 * A)) - (at_edge - poly_gap(A))).abs()
-                        <= 1e-9 * at_edge.abs()
-                );
+                assert!(((beyond - poly_gap(1.5 * A)) - (at_edge - poly_gap(A))).abs() <= 1e-9 * at_edge.abs());
                 // The cap starts where |cos ωt| = 0.01, continuously.
                 let x_cap = (1.0f64 - 0.01 * 0.01).sqrt();
                 let inside = lp.stiffness(side * x_cap * (1.0 - 1e-12) * A, direction).unwrap();
@@ -127,10 +110,7 @@ fn f32_stays_within_its_bound_of_f64() {
         let p32 = params.to_f32();
         let l64 = Model::new(params).unwrap().at_amplitude(A).unwrap();
         let l32 = Model::new(p32).unwrap().at_amplitude(A as f32).unwrap();
-        let scale = grid(200, A)
-            .iter()
-            .map(|&t| l64.torque(t, Direction::Rising).unwrap().abs())
-            .fold(0.0, f64::max);
+        let scale = grid(200, A).iter().map(|&t| l64.torque(t, Direction::Rising).unwrap().abs()).fold(0.0, f64::max);
         for direction in BOTH {
             for theta in grid(4000, 1.05 * A) {
                 let e64 = l64.evaluate(theta, direction).unwrap();
@@ -138,9 +118,8 @@ fn f32_stays_within_its_bound_of_f64() {
                 // What rounding θ/A to f32 alone does to the exact model: near |θ| = A the
                 // torque is a steep function of θ/A, and no f32 evaluation can beat that.
                 let ulps = 4.0 * f32::EPSILON as f64;
-                let sensitivity = |f: &dyn Fn(f64) -> f64| {
-                    (f(theta * (1.0 + ulps)) - f(theta * (1.0 - ulps))).abs() / 2.0
-                };
+                let sensitivity =
+                    |f: &dyn Fn(f64) -> f64| (f(theta * (1.0 + ulps)) - f(theta * (1.0 - ulps))).abs() / 2.0;
                 let torque_in = sensitivity(&|t| l64.torque(t, direction).unwrap());
                 let stiffness_in = sensitivity(&|t| l64.stiffness(t, direction).unwrap());
                 // Torque: 2·10⁻⁵ of the loop's torque range (≈ 0.6 mN·m on a 30 N·m loop)
@@ -169,12 +148,8 @@ fn only_h_and_r_are_identifiable() {
     let model = Model::new(PAPER).unwrap();
     let id = PAPER.identifiable(A).unwrap();
     for scale in [-1.0, 2.0, 0.5, -3.7, 1e3] {
-        let scaled = Params {
-            alpha: PAPER.alpha * scale,
-            beta: PAPER.beta * scale,
-            omega: PAPER.omega * scale,
-            ..PAPER
-        };
+        let scaled =
+            Params { alpha: PAPER.alpha * scale, beta: PAPER.beta * scale, omega: PAPER.omega * scale, ..PAPER };
         let other = Model::new(scaled).unwrap();
         let id_scaled = scaled.identifiable(A).unwrap();
         assert!((id_scaled.h - id.h).abs() <= 1e-12 * id.h.abs());
@@ -242,10 +217,7 @@ fn no_hysteresis_when_alpha_is_zero() {
 #[test]
 fn error_messages_name_the_problem() {
     use std::string::ToString;
-    assert_eq!(
-        Error::NonFiniteParameter(ParamName::Alpha).to_string(),
-        "parameter alpha is not a finite number"
-    );
+    assert_eq!(Error::NonFiniteParameter(ParamName::Alpha).to_string(), "parameter alpha is not a finite number");
     assert!(Error::InvalidAmplitude.to_string().contains("amplitude"));
 }
 

@@ -61,8 +61,7 @@ impl Bound {
 
     /// Whether an f32 evaluation is within the bound.
     pub fn admits(&self, torque: f64, stiffness: f64) -> bool {
-        (torque - self.exact.torque).abs() <= self.torque
-            && (stiffness - self.exact.stiffness).abs() <= self.stiffness
+        (torque - self.exact.torque).abs() <= self.torque && (stiffness - self.exact.stiffness).abs() <= self.stiffness
     }
 }
 

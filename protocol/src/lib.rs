@@ -11,10 +11,7 @@
 //! [`ErrorReply::UnsupportedProtocol`] instead of a garbled message.
 #![no_std]
 #![forbid(unsafe_code)]
-#![cfg_attr(
-    not(test),
-    deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)
-)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic))]
 
 #[cfg(feature = "use-std")]
 extern crate std;
@@ -356,20 +353,12 @@ pub fn encode<T: Serialize>(message: &T, out: &mut [u8]) -> Result<usize, FrameE
 }
 
 /// [`encode`] with an explicit protocol version, for tests of version handling.
-pub fn encode_with_version<T: Serialize>(
-    version: u16,
-    message: &T,
-    out: &mut [u8],
-) -> Result<usize, FrameError> {
+pub fn encode_with_version<T: Serialize>(version: u16, message: &T, out: &mut [u8]) -> Result<usize, FrameError> {
     let mut payload = [0u8; MAX_PAYLOAD_LEN];
-    let body_len =
-        postcard::to_slice(&(version, message), &mut payload).map_err(|_| FrameError::BufferTooSmall)?.len();
+    let body_len = postcard::to_slice(&(version, message), &mut payload).map_err(|_| FrameError::BufferTooSmall)?.len();
     let crc = CRC.checksum(payload.get(..body_len).ok_or(FrameError::BufferTooSmall)?);
     let with_crc = body_len + CRC_LEN;
-    payload
-        .get_mut(body_len..with_crc)
-        .ok_or(FrameError::BufferTooSmall)?
-        .copy_from_slice(&crc.to_le_bytes());
+    payload.get_mut(body_len..with_crc).ok_or(FrameError::BufferTooSmall)?.copy_from_slice(&crc.to_le_bytes());
     let source = payload.get(..with_crc).ok_or(FrameError::BufferTooSmall)?;
     let encoded = cobs::try_encode(source, out).map_err(|_| FrameError::BufferTooSmall)?;
     *out.get_mut(encoded).ok_or(FrameError::BufferTooSmall)? = 0;

@@ -36,8 +36,7 @@ fn golden_bytes() {
             Request::Replay(EncoderSample { input_angle: 1.0, output_angle: -0.5, path: EvalPath::Fast }),
             &[
                 // version 1, variant 4, f32 1.0, f32 -0.5, Fast, CRC; COBS-stuffed
-                0x03, 0x01, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x3d, 0x13, 0x82,
-                0xca, 0x00,
+                0x03, 0x01, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x3d, 0x13, 0x82, 0xca, 0x00,
             ],
         ),
     ];
@@ -81,10 +80,7 @@ fn every_message_round_trips() {
             stiffness: 1.0e6,
             compensation: Compensation::Clamped,
         }),
-        Response::Error(ErrorReply::InvalidParam {
-            field: ParamField::DirectionBand,
-            fault: ParamFault::OutOfRange,
-        }),
+        Response::Error(ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
     ];
     for response in responses {
         let (out, len) = frame_of(&response);

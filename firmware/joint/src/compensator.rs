@@ -77,11 +77,9 @@ impl Compensator {
         let (direction, amplitude) = tracker.update(deflection);
         let evaluation = match (path, &installed.fast) {
             (EvalPath::Fast, Some(fast)) => fast.evaluate(deflection, direction, amplitude),
-            _ => installed
-                .model
-                .at_amplitude(amplitude)
-                .and_then(|on_loop| on_loop.evaluate(deflection, direction))
-                .ok(),
+            _ => {
+                installed.model.at_amplitude(amplitude).and_then(|on_loop| on_loop.evaluate(deflection, direction)).ok()
+            }
         };
         let Some(evaluation) = evaluation else {
             return Feedforward { deflection, direction, amplitude, ..off };
@@ -105,14 +103,7 @@ mod tests {
 
     const PARAMS: JointParams = JointParams {
         model_version: MODEL_VERSION,
-        model: Params {
-            c1: 2.4737e4,
-            c2: 1.0e9,
-            c3: -1.1774e14,
-            alpha: 2.6532e6,
-            beta: -4.2268e2,
-            omega: -2.2631e2,
-        },
+        model: Params { c1: 2.4737e4, c2: 1.0e9, c3: -1.1774e14, alpha: 2.6532e6, beta: -4.2268e2, omega: -2.2631e2 },
         gear_ratio: 100.0,
         torque_limit: 40.0,
         direction_band: 1.0e-6,

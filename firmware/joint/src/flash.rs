@@ -79,12 +79,7 @@ impl<const SIZE: usize> RamFlash<SIZE> {
         RamFlash { bytes: [0xFF; SIZE] }
     }
 
-    fn range(
-        &self,
-        offset: u32,
-        len: usize,
-        align: usize,
-    ) -> Result<core::ops::Range<usize>, NorFlashErrorKind> {
+    fn range(&self, offset: u32, len: usize, align: usize) -> Result<core::ops::Range<usize>, NorFlashErrorKind> {
         let start = offset as usize;
         if start % align != 0 || len % align != 0 {
             return Err(NorFlashErrorKind::NotAligned);

@@ -7,10 +7,7 @@
 //! prepared when the parameters arrive ([`FastModel`]) — clamped to the torque limit.
 #![no_std]
 #![deny(unsafe_code)]
-#![cfg_attr(
-    not(test),
-    deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)
-)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic))]
 
 pub mod as5047p;
 mod compensator;

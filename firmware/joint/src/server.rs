@@ -175,10 +175,7 @@ mod tests {
                 frame(&Request::WriteParams(nan)),
                 ErrorReply::InvalidParam { field: ParamField::C1, fault: ParamFault::NotFinite },
             ),
-            (
-                good,
-                ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange },
-            ),
+            (good, ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
             (corrupted, ErrorReply::BadCrc),
             (truncated, ErrorReply::BadFrame),
             (
@@ -192,10 +189,7 @@ mod tests {
             assert_eq!(request(&mut server, &Request::ReadParams), Response::Params(Some(PARAMS)));
         }
         let nan_sample = EncoderSample { input_angle: f32::NAN, output_angle: 0.0, path: EvalPath::Direct };
-        assert_eq!(
-            request(&mut server, &Request::Replay(nan_sample)),
-            Response::Error(ErrorReply::NonFiniteSample)
-        );
+        assert_eq!(request(&mut server, &Request::Replay(nan_sample)), Response::Error(ErrorReply::NonFiniteSample));
         // Same tick result as before: the tracker saw the same θ again.
         assert_eq!(replay(&mut server), before);
     }

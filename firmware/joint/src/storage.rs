@@ -84,12 +84,10 @@ impl<F: NorFlash> ParamStore<F> {
         };
         let mut body = [0xFFu8; MAX_BODY_LEN];
         let (header, payload_area) = body.split_at_mut(HEADER_LEN);
-        let payload_len = postcard::to_slice(
-            params,
-            payload_area.get_mut(..MAX_PAYLOAD_LEN).ok_or(StorageError::Encoding)?,
-        )
-        .map_err(|_| StorageError::Encoding)?
-        .len();
+        let payload_len =
+            postcard::to_slice(params, payload_area.get_mut(..MAX_PAYLOAD_LEN).ok_or(StorageError::Encoding)?)
+                .map_err(|_| StorageError::Encoding)?
+                .len();
         header.copy_from_slice(&header_bytes(sequence, payload_len as u16));
         let body_len = (HEADER_LEN + payload_len).div_ceil(ALIGN) * ALIGN;
         let crc = CRC.checksum(body.get(..HEADER_LEN + payload_len).ok_or(StorageError::Encoding)?);

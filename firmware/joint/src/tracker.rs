@@ -23,12 +23,7 @@ pub struct DirectionTracker {
 impl DirectionTracker {
     /// `band` in rad; negative or NaN counts as 0.
     pub fn new(band: f32) -> Self {
-        DirectionTracker {
-            band: larger(band, 0.0),
-            direction: Direction::Rising,
-            extreme: None,
-            turns: [0.0; 2],
-        }
+        DirectionTracker { band: larger(band, 0.0), direction: Direction::Rising, extreme: None, turns: [0.0; 2] }
     }
 
     /// Changes the band without losing the loop being tracked.
@@ -54,10 +49,8 @@ impl DirectionTracker {
             },
         };
         self.extreme = Some(extreme);
-        let amplitude = larger(
-            larger(self.turns[0], self.turns[1]),
-            larger(larger(extreme.abs(), theta.abs()), MIN_AMPLITUDE),
-        );
+        let amplitude =
+            larger(larger(self.turns[0], self.turns[1]), larger(larger(extreme.abs(), theta.abs()), MIN_AMPLITUDE));
         (self.direction, amplitude)
     }
 

@@ -44,9 +44,7 @@ fn main() -> ! {
     core.SYST.enable_counter();
 
     let params = SEED_FIT.to_f32();
-    let (Ok(model), Ok(fast)) = (Model::new(params), FastModel::new(&params)) else {
-        swg_firmware::exit(false)
-    };
+    let (Ok(model), Ok(fast)) = (Model::new(params), FastModel::new(&params)) else { swg_firmware::exit(false) };
     let mut compensator = swg_joint::Compensator::new();
     let joint = JointParams {
         model_version: MODEL_VERSION,
@@ -69,8 +67,7 @@ fn main() -> ! {
         for i in 0..RUNS {
             let (theta, direction) = point(black_box(i));
             // As a tick runs it: the loop's constants for the current amplitude, then T and K.
-            let result =
-                model.at_amplitude(black_box(AMPLITUDE)).and_then(|lp| lp.evaluate(theta, direction));
+            let result = model.at_amplitude(black_box(AMPLITUDE)).and_then(|lp| lp.evaluate(theta, direction));
             black_box(result.ok());
         }
     });
@@ -87,10 +84,7 @@ fn main() -> ! {
             black_box(compensator.tick(theta * 100.0, 0.0, EvalPath::Fast));
         }
     });
-    hprintln!(
-        "instructions per T_ff + K evaluation, direct (model-core f32, libm): {}",
-        per_run(direct, baseline)
-    );
+    hprintln!("instructions per T_ff + K evaluation, direct (model-core f32, libm): {}", per_run(direct, baseline));
     hprintln!("instructions per T_ff + K evaluation, fast path: {}", per_run(fast_path, baseline));
     hprintln!(
         "instructions per full control tick (deflection, tracking, fast path, clamp): {}",

@@ -19,9 +19,7 @@ fn main() -> ! {
     let Some(mut uart) = Uart0::take() else { swg_firmware::exit(false) };
     // Both in statics, built in place: `size` accounts for them, and the 2 KiB of flash never
     // pass through the stack.
-    let Some(flash) = cortex_m::singleton!(: BoardFlash = BoardFlash::new()) else {
-        swg_firmware::exit(false)
-    };
+    let Some(flash) = cortex_m::singleton!(: BoardFlash = BoardFlash::new()) else { swg_firmware::exit(false) };
     let Ok(store) = ParamStore::new(flash) else { swg_firmware::exit(false) };
     let Some(server) = cortex_m::singleton!(: Server<&'static mut BoardFlash> = Server::new(store)) else {
         swg_firmware::exit(false)

@@ -9,9 +9,7 @@
 #![no_main]
 
 #[cfg(not(target_arch = "arm"))]
-compile_error!(
-    "the firmware runs on thumbv7em-none-eabihf: build it from firmware/ (see firmware/.cargo/config.toml)"
-);
+compile_error!("the firmware runs on thumbv7em-none-eabihf: build it from firmware/ (see firmware/.cargo/config.toml)");
 
 use core::cell::RefCell;
 use cortex_m::peripheral::syst::SystClkSource;
@@ -86,11 +84,8 @@ fn main() -> ! {
         if syst.has_wrapped() {
             // A failed reading skips the tick: the last feed-forward stays until the next.
             if let (Ok(input), Ok(output)) = (input_encoder.read_angle(), output_encoder.read_angle()) {
-                let feedforward = server.compensator().tick(
-                    input_turns.update(input),
-                    output_turns.update(output),
-                    EvalPath::Fast,
-                );
+                let feedforward =
+                    server.compensator().tick(input_turns.update(input), output_turns.update(output), EvalPath::Fast);
                 // The current controller adds feedforward.torque and uses feedforward.stiffness
                 // as its stiffness gain; the motor drive itself is outside this firmware.
                 core::hint::black_box(feedforward);

@@ -7,8 +7,8 @@ use serde::Serialize;
 use std::fmt::Write;
 use std::path::PathBuf;
 use swg_host::diagnose::{
-    diagnose_dataset, locate, ExtendedFit, Finding, Observation, Observed, Rejection, MAX_HALF_SPREAD,
-    MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z,
+    diagnose_dataset, locate, ExtendedFit, Finding, Observation, Observed, Rejection, MAX_HALF_SPREAD, MIN_BIC_DROP,
+    MIN_EXPLAINED, MIN_HALF_Z,
 };
 use swg_host::fit::NoiseModel;
 use swg_host::input::Dataset;

@@ -46,11 +46,7 @@ pub fn run(args: FitArgs) -> Result<()> {
     }
     let dataset = args.input_options.read_to_fit(&args.input)?;
     let prepared = prepare(&dataset).with_context(|| args.input.display().to_string())?;
-    let compared_params = args
-        .compare
-        .iter()
-        .map(|path| Ok((path, read_params(path)?)))
-        .collect::<Result<Vec<_>>>()?;
+    let compared_params = args.compare.iter().map(|path| Ok((path, read_params(path)?))).collect::<Result<Vec<_>>>()?;
 
     let progress = DelayedProgress::new();
     let options = FitOptions { seed: args.seed, noise: prepared.noise, ..FitOptions::default() };

@@ -45,11 +45,8 @@ impl PortOptions {
 
 pub fn run(args: PushArgs) -> Result<()> {
     let params = read_params(&args.params)?;
-    let settings = JointSettings {
-        gear_ratio: args.ratio,
-        torque_limit: args.torque_limit,
-        direction_band: args.direction_band,
-    };
+    let settings =
+        JointSettings { gear_ratio: args.ratio, torque_limit: args.torque_limit, direction_band: args.direction_band };
     let joint = joint_params(&params, &settings)?;
     let mut link = args.port.open()?;
     let report = push(&mut link, &joint).with_context(|| format!("push to {} failed", args.port.port))?;

@@ -46,12 +46,7 @@ pub fn run(args: ReplayArgs) -> Result<()> {
         Path::Fast => EvalPath::Fast,
     };
     let report = replay(&mut link, &joint, &params, &samples, path)?;
-    println!(
-        "replayed {} through the firmware's {:?} path on {}",
-        args.recording.display(),
-        path,
-        args.port.port
-    );
+    println!("replayed {} through the firmware's {:?} path on {}", args.recording.display(), path, args.port.port);
     println!("{report}");
     if !report.passed() {
         bail!("the firmware's feed-forward differs from the host model beyond the f32 tolerance");

@@ -7,8 +7,8 @@ use std::io::{self, Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
 use swg_protocol::{
-    decode, encode_to_vec, DeviceInfo, EncoderSample, ErrorReply, Feedforward, FrameError, FrameReader,
-    JointParams, Request, Response, MAX_FRAME_LEN,
+    decode, encode_to_vec, DeviceInfo, EncoderSample, ErrorReply, Feedforward, FrameError, FrameReader, JointParams,
+    Request, Response, MAX_FRAME_LEN,
 };
 
 /// Baud rate for serial ports; the joint boards' UARTs are set to the same.
@@ -54,8 +54,8 @@ impl Link {
         let poll = Duration::from_millis(20).min(timeout);
         let transport: Box<dyn Transport> = match port.strip_prefix("tcp://") {
             Some(address) => {
-                let stream = TcpStream::connect(address)
-                    .map_err(|source| LinkError::Open { port: port.to_owned(), source })?;
+                let stream =
+                    TcpStream::connect(address).map_err(|source| LinkError::Open { port: port.to_owned(), source })?;
                 stream.set_nodelay(true)?;
                 stream.set_read_timeout(Some(poll))?;
                 Box::new(stream)
@@ -173,10 +173,7 @@ pub(crate) mod fake {
 
     impl FakeDevice {
         pub fn new() -> Self {
-            FakeDevice {
-                server: Server::new(ParamStore::new(RamFlash::new()).unwrap()),
-                pending: VecDeque::new(),
-            }
+            FakeDevice { server: Server::new(ParamStore::new(RamFlash::new()).unwrap()), pending: VecDeque::new() }
         }
 
         pub fn link(self) -> Link {

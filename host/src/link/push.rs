@@ -22,7 +22,9 @@ pub enum PushError {
     Link(#[from] LinkError),
     #[error("device speaks protocol version {device}, this tool {PROTOCOL_VERSION}: update the firmware or swg-host")]
     ProtocolMismatch { device: u16 },
-    #[error("device runs model version {device}, these parameters are for {MODEL_VERSION}: update the firmware or refit")]
+    #[error(
+        "device runs model version {device}, these parameters are for {MODEL_VERSION}: update the firmware or refit"
+    )]
     ModelMismatch { device: u16 },
     #[error("{name} = {value} does not fit the device's f32")]
     NotRepresentable { name: &'static str, value: f64 },
@@ -104,10 +106,8 @@ mod tests {
     use crate::link::fake::FakeDevice;
     use swg_protocol::{ParamFault, ParamField};
 
-    const SEED: Params<f64> =
-        Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
-    const SETTINGS: JointSettings =
-        JointSettings { gear_ratio: 50.0, torque_limit: 30.0, direction_band: 1.0e-5 };
+    const SEED: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
+    const SETTINGS: JointSettings = JointSettings { gear_ratio: 50.0, torque_limit: 30.0, direction_band: 1.0e-5 };
 
     #[test]
     fn push_writes_verifies_and_commits() {
@@ -123,10 +123,7 @@ mod tests {
     #[test]
     fn bad_values_are_caught_before_sending() {
         let huge = Params { c3: 1e300, ..SEED };
-        assert!(matches!(
-            joint_params(&huge, &SETTINGS),
-            Err(PushError::NotRepresentable { name: "c3", .. })
-        ));
+        assert!(matches!(joint_params(&huge, &SETTINGS), Err(PushError::NotRepresentable { name: "c3", .. })));
         let no_ratio = JointSettings { gear_ratio: 0.0, ..SETTINGS };
         assert!(matches!(
             joint_params(&SEED, &no_ratio),

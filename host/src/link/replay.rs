@@ -16,7 +16,9 @@ pub enum ReplayError {
     Model(#[from] model_core::Error),
     #[error("the device has no parameters: push some first")]
     NoParams,
-    #[error("the recording's gear ratio is {recording}, the device's {device}: push parameters with --ratio {recording}")]
+    #[error(
+        "the recording's gear ratio is {recording}, the device's {device}: push parameters with --ratio {recording}"
+    )]
     RatioMismatch { recording: f64, device: f32 },
 }
 
@@ -218,8 +220,7 @@ mod tests {
     use crate::link::push::{joint_params, push, JointSettings};
     use crate::simulate::{simulate, Simulation};
 
-    const SEED: Params<f64> =
-        Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
+    const SEED: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
 
     fn recording(input_bits: Option<u32>) -> Recording {
         simulate(&Simulation {

@@ -58,4 +58,3 @@ pub fn check_fast_path(params: &Params<f64>, amplitude: f32) -> Result<(), Viola
     })?;
     check(params, amplitude, |theta, direction, a| fast.evaluate(theta, direction, a))
 }
-
