@@ -5,6 +5,7 @@ use crate::diagnose::{Diagnosis, ExtendedFit, Observed};
 use crate::fit::FitData;
 use crate::input::Branch;
 use model_core::{Direction, Model};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 pub struct LoopPlot<'a> {
@@ -26,6 +27,19 @@ fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
     let pad = 0.05 * (hi - lo).max(1e-12);
     (lo - pad, hi + pad)
+}
+
+type LoopChart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// The legend of a loop chart, in its upper left corner.
+fn draw_legend<'a, 'b: 'a>(chart: &mut LoopChart<'a, 'b>) -> Result<(), Box<dyn std::error::Error>> {
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
 }
 
 /// Renders the picture as an SVG document.
@@ -126,12 +140,7 @@ fn draw(plot: &LoopPlot, svg: &mut String) -> Result<(), Box<dyn std::error::Err
             .label("catalogue three-segment curve")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], purple));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()?;
+    draw_legend(&mut chart)?;
 
     let (r_lo, r_hi) = range(residuals.iter().copied().chain([0.0]));
     let r_max = r_lo.abs().max(r_hi.abs());
@@ -281,12 +290,7 @@ fn draw_diagnosis_loop(
         )?
         .label("with the effects found")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, blue.filled()));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()?;
+    draw_legend(&mut chart)?;
     root.present()?;
     Ok(())
 }
