@@ -14,7 +14,8 @@ cd "$(dirname "$0")/.."
 source scripts/thumb-toolchain.sh
 thumb_firmware_setup
 elf_dir=$FIRMWARE_ELF_DIR
-(cd firmware && thumb_cargo build --locked --release --bins)
+# The QEMU board only: one board per cargo invocation (see scripts/test-firmware.sh).
+(cd firmware && thumb_cargo build --locked --release -p swg-firmware-qemu --bins)
 echo "toolchain: $(rustc --version) ($THUMB_ROUTE route)"
 
 echo "== 1. instructions per evaluation (QEMU -icount shift=0, SysTick)"
@@ -53,7 +54,7 @@ mkdir -p bench/out
 for path in fast direct; do
     "$swg" replay bench/out/replay-loops.csv --port "tcp://127.0.0.1:$port" --path "$path" | grep "worst error"
 done
-# The painted area is the 16 KiB below the top of RAM (0x2040_0000); see firmware/src/lib.rs.
+# The painted area is the 16 KiB below the top of RAM (0x2040_0000); see firmware/qemu/src/lib.rs.
 python3 - "$monitor" "$static_ram" <<'PY'
 import re, socket, sys, time
 top, painted, pattern = 0x2040_0000, 16 * 1024, 0x5AFE57AC

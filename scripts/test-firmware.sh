@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Tests of the joint firmware, on a fresh machine too (installs what it needs):
 #   1. the board-independent firmware library (firmware/joint) on the host: cargo test
-#   2. the firmware for both boards (QEMU mps2-an386 and STM32F405) builds for thumbv7em
-#   3. model-core's checks and the fast path's error bound on the emulated Cortex-M4F
-#   4. end to end under QEMU: push, read back, replay, bad traffic (host/tests/firmware_e2e.rs)
+#   2. clippy over the firmware workspace (lints: firmware/Cargo.toml, firmware/clippy.toml):
+#      joint on the host, each board on thumbv7em
+#   3. the firmware for both boards (QEMU mps2-an386 and STM32F405) builds for thumbv7em
+#   4. model-core's checks and the fast path's error bound on the emulated Cortex-M4F
+#   5. end to end under QEMU: push, read back, replay, bad traffic (host/tests/firmware_e2e.rs)
 # Exits non-zero on the first failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,10 +19,23 @@ echo "== firmware library (firmware/joint) on the host"
 # From firmware/, where .cargo/config.toml would otherwise build for the Cortex-M4F.
 (cd firmware && cargo test --locked -p swg-joint --target "$host_triple")
 
+# One board per cargo invocation, for clippy as for the builds below: the STM32 HAL turns on
+# cortex-m-rt's `device` feature (its interrupt vectors), which the QEMU board must not get
+# through feature unification.
+if [ "$THUMB_ROUTE" = rustup ]; then
+    echo "== clippy over the firmware workspace (-D warnings)"
+    cargo clippy --version >/dev/null 2>&1 || rustup component add clippy
+    (cd firmware && cargo clippy --locked -p swg-joint --all-targets --target "$host_triple" -- -D warnings)
+    for board in swg-firmware-qemu swg-firmware-stm32f405; do
+        (cd firmware && cargo clippy --locked -p "$board" --all-targets --target "$THUMB_TARGET" -- -D warnings)
+    done
+else
+    # The fallback of scripts/thumb-toolchain.sh: Debian's Rust, set up without clippy.
+    echo "== clippy SKIPPED: rustup cannot add $THUMB_TARGET here (Debian Rust route, no clippy)" >&2
+fi
+
 echo "== firmware for both boards (thumbv7em-none-eabihf)"
-# One board per build: the STM32 HAL turns on cortex-m-rt's `device` feature (its interrupt
-# vectors), which the QEMU board must not get through feature unification.
-(cd firmware && thumb_cargo build --locked --release -p swg-firmware --bins)
+(cd firmware && thumb_cargo build --locked --release -p swg-firmware-qemu --bins)
 (cd firmware && thumb_cargo build --locked --release -p swg-firmware-stm32f405)
 for elf in joint-qemu joint-stm32f405; do
     arm-none-eabi-size "$elf_dir/$elf"

@@ -11,7 +11,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use swg_host::diagnose::diagnose_dataset;
-use swg_host::effects::{Effect, EffectValue};
+use swg_host::diagnose::effects::{Effect, EffectValue};
 use swg_host::fit::{fit, rss, FitOptions};
 use swg_host::input::Dataset;
 use swg_host::prepare::prepare;
@@ -183,8 +183,8 @@ fn corpus(base_seed: u64) -> Vec<Case> {
 
 fn run(case: &Case) -> Outcome {
     let recording = simulate(&case.simulation).unwrap();
-    let (_, diagnosis) = diagnose_dataset(&Dataset::Recording(recording), None, 1).unwrap();
-    let named = diagnosis.findings.iter().map(|f| (f.effect.parse::<Effect>().unwrap(), f.magnitude)).collect();
+    let diagnosis = diagnose_dataset(&Dataset::Recording(recording), None, 1).unwrap().diagnosis;
+    let named = diagnosis.findings.iter().map(|f| (f.effect, f.magnitude)).collect();
     let rejected =
         diagnosis.rejected.iter().map(|r| format!("{} ({:.3e}): {}", r.effect, r.magnitude, r.reason)).collect();
     Outcome { name: case.name.clone(), named, truth: case.truth.clone(), rejected }

@@ -1,7 +1,7 @@
 //! Synthetic bench recordings from the model: a sinusoidal deflection, the model's torque
 //! plus sensor noise, and quantised input/output encoders, with the physical effects of
-//! [`crate::effects`] added on request.
-use crate::effects::{backlash, kinematic_error, Effect, EffectValue};
+//! [`crate::diagnose::effects`] added on request.
+use crate::diagnose::effects::{backlash, kinematic_error, Effect, EffectValue};
 use crate::input::{deflection, Angles, Recording};
 use model_core::{Direction, Model, Params};
 use rand::{Rng, SeedableRng};

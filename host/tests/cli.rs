@@ -1,19 +1,8 @@
 //! The `swg-host` binary end to end: the seed table, bad inputs, simulate → fit.
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn swg_host(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_swg-host")).args(args).output().expect("swg-host runs")
-}
-
-fn repo(path: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path).display().to_string()
-}
-
-fn json(output: &Output) -> serde_json::Value {
-    assert!(output.status.success(), "stderr: {}", String::from_utf8_lossy(&output.stderr));
-    serde_json::from_slice(&output.stdout).expect("valid JSON on stdout")
-}
+use common::{json, param_names, repo, swg_host};
+use std::path::PathBuf;
 
 #[test]
 fn seed_table_reaches_the_global_optimum_for_every_seed() {
@@ -36,7 +25,7 @@ fn json_report_has_the_documented_fields_and_honest_baselines() {
         &repo("data/seed/paper-params.json"),
     ]));
     assert_eq!(report["model"], "genetic-hysteresis");
-    for key in ["c1", "c2", "c3", "alpha", "beta", "omega"] {
+    for key in param_names() {
         assert!(report["params"][key].is_f64(), "params.{key}");
     }
     assert_eq!(report["params"]["omega"], 1.0);
@@ -76,7 +65,7 @@ fn bundled_seed_fit_is_what_fit_produces_today() {
     };
     let stale = "regenerate data/seed/lht-20-50-fit.json with `swg-host fit data/seed/lht-20-50.csv --out …`";
     assert!(close(&fresh["rss"], &bundled["rss"], 1e-9), "{stale}");
-    for key in ["c1", "c2", "c3", "alpha", "beta", "omega"] {
+    for key in param_names() {
         assert!(close(&fresh["params"][key], &bundled["params"][key], 1e-5), "{key}: {stale}");
     }
 }

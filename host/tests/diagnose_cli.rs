@@ -1,19 +1,7 @@
 //! `swg-host simulate --effect` and `swg-host diagnose` end to end.
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn swg_host(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_swg-host")).args(args).output().expect("swg-host runs")
-}
-
-fn ok(output: Output) -> String {
-    assert!(output.status.success(), "stderr: {}", String::from_utf8_lossy(&output.stderr));
-    String::from_utf8(output.stdout).unwrap()
-}
-
-fn repo(path: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path).display().to_string()
-}
+use common::{ok, repo, swg_host};
 
 /// A gear with decaying memory, as bench gears show.
 const GEAR: &str = r#"{"model": "genetic-hysteresis", "params": {"c1": 22000.0, "c2": 4.0e9, "c3": 0.0, "alpha": 3050.0, "beta": 1.2, "omega": 1.0}}"#;

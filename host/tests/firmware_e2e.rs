@@ -2,10 +2,14 @@
 //! push, read back, replay, bad traffic. Needs `qemu-system-arm` and the firmware ELF, so the
 //! tests are ignored by a plain `cargo test`; `scripts/test-firmware.sh` builds the firmware
 //! and runs them with `SWG_FIRMWARE_ELF=… cargo test --test firmware_e2e -- --ignored`.
+mod common;
+
+use common::{swg_host_echoed as swg_host, write_params_file};
+use model_core::checks::{SEED_AMPLITUDE, SEED_TABLE_FIT as SEED};
 use model_core::{Params, MODEL_VERSION};
 use std::net::TcpListener;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use swg_host::link::push::{joint_params, push, JointSettings};
 use swg_host::link::replay::{replay, samples, widen};
@@ -17,7 +21,6 @@ use swg_protocol::{
 };
 
 /// The seed table's fit (canonical form, ω = 1).
-const SEED: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
 const RATIO: f64 = 50.0;
 /// A limit above the loop's torque, so that every sample is compared with the model.
 const SETTINGS: JointSettings = JointSettings { gear_ratio: RATIO, torque_limit: 100.0, direction_band: 2.0e-6 };
@@ -74,29 +77,11 @@ impl Drop for Firmware {
     }
 }
 
-fn swg_host(args: &[&str]) -> Output {
-    let output = Command::new(env!("CARGO_BIN_EXE_swg-host")).args(args).output().unwrap();
-    println!(
-        "$ swg-host {}\n{}{}",
-        args.join(" "),
-        String::from_utf8_lossy(&output.stdout),
-        String::from_utf8_lossy(&output.stderr)
-    );
-    output
-}
-
-fn write_params_file(dir: &Path, params: &Params<f64>) -> PathBuf {
-    let path = dir.join("params.json");
-    let json = serde_json::json!({ "model": model_core::MODEL_NAME, "params": params });
-    std::fs::write(&path, json.to_string()).unwrap();
-    path
-}
-
 /// Two loops at 1 Hz of the seed model through 20-bit encoders, 1 kHz.
 fn recording() -> swg_host::input::Recording {
     simulate(&Simulation {
         params: SEED,
-        amplitude_rad: 1.168e-3,
+        amplitude_rad: SEED_AMPLITUDE,
         frequencies_hz: vec![1.0],
         cycles: 2,
         sample_rate_hz: 1000.0,

@@ -3,8 +3,8 @@
 use model_core::{Direction, Model, Params};
 use swg_host::fit::{fit, rss, FitOptions};
 use swg_host::input::Dataset;
-use swg_host::paramsfile::parse_params;
 use swg_host::prepare::prepare;
+use swg_host::report::params::parse_params;
 use swg_host::simulate::{simulate, Simulation};
 
 fn seed_fit() -> Params<f64> {

@@ -23,8 +23,6 @@
 //! would overflow are reported as [`Error`] values. Evaluation works in the log domain
 //! (`A·k·e^(−rφ)` as `exp(ln|A·k| − rφ)`), so a large `r` with a small `α` stays finite.
 #![no_std]
-#![forbid(unsafe_code)]
-#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic))]
 
 use core::fmt;
 use num_traits::{Float, FloatConst};
@@ -86,6 +84,10 @@ pub enum ParamName {
 }
 
 impl ParamName {
+    /// Every parameter, in the order of [`Params`]' fields (and of files and the wire).
+    pub const ALL: [ParamName; 6] =
+        [ParamName::C1, ParamName::C2, ParamName::C3, ParamName::Alpha, ParamName::Beta, ParamName::Omega];
+
     /// The parameter's name as written in files.
     pub const fn as_str(self) -> &'static str {
         match self {
@@ -159,18 +161,8 @@ pub struct Identifiable<F> {
 impl<F: Real> Params<F> {
     /// Checks that the set can be evaluated: all finite, ω ≠ 0.
     pub fn validate(&self) -> Result<(), Error> {
-        let named = [
-            (self.c1, ParamName::C1),
-            (self.c2, ParamName::C2),
-            (self.c3, ParamName::C3),
-            (self.alpha, ParamName::Alpha),
-            (self.beta, ParamName::Beta),
-            (self.omega, ParamName::Omega),
-        ];
-        for (value, name) in named {
-            if !value.is_finite() {
-                return Err(Error::NonFiniteParameter(name));
-            }
+        if let Some((name, _)) = self.fields().into_iter().find(|(_, value)| !value.is_finite()) {
+            return Err(Error::NonFiniteParameter(name));
         }
         if self.omega == F::zero() {
             return Err(Error::ZeroOmega);
@@ -199,16 +191,45 @@ impl<F: Real> Params<F> {
     }
 }
 
+impl<F: Copy> Params<F> {
+    /// Every parameter with its name, in [`ParamName::ALL`] order: the one list of the
+    /// parameters that validation, files and the wire's error replies go through.
+    pub fn fields(&self) -> [(ParamName, F); 6] {
+        ParamName::ALL.map(|name| (name, self.get(name)))
+    }
+
+    /// The value of one parameter.
+    pub fn get(&self, name: ParamName) -> F {
+        match name {
+            ParamName::C1 => self.c1,
+            ParamName::C2 => self.c2,
+            ParamName::C3 => self.c3,
+            ParamName::Alpha => self.alpha,
+            ParamName::Beta => self.beta,
+            ParamName::Omega => self.omega,
+        }
+    }
+
+    /// Each parameter converted by `convert`, which may refuse one (the first refusal wins).
+    pub fn try_map<G, E>(&self, mut convert: impl FnMut(ParamName, F) -> Result<G, E>) -> Result<Params<G>, E> {
+        Ok(Params {
+            c1: convert(ParamName::C1, self.c1)?,
+            c2: convert(ParamName::C2, self.c2)?,
+            c3: convert(ParamName::C3, self.c3)?,
+            alpha: convert(ParamName::Alpha, self.alpha)?,
+            beta: convert(ParamName::Beta, self.beta)?,
+            omega: convert(ParamName::Omega, self.omega)?,
+        })
+    }
+}
+
 impl Params<f64> {
     /// The set rounded to f32, as the microcontroller holds it.
     pub fn to_f32(&self) -> Params<f32> {
-        Params {
-            c1: self.c1 as f32,
-            c2: self.c2 as f32,
-            c3: self.c3 as f32,
-            alpha: self.alpha as f32,
-            beta: self.beta as f32,
-            omega: self.omega as f32,
+        let rounded: Result<Params<f32>, core::convert::Infallible> = self.try_map(|_, value| Ok(value as f32));
+        match rounded {
+            Ok(params) => params,
+            Err(never) => match never {},
         }
     }
 }
@@ -216,9 +237,7 @@ impl Params<f64> {
 /// A validated parameter set, with the amplitude-independent constants precomputed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Model<F> {
-    c1: F,
-    c2: F,
-    c3: F,
+    polynomial: Polynomial<F>,
     r: F,
     /// ln|k| with k = α/(ω(1 + r²)), so that h = A·k.
     ln_abs_k: F,
@@ -245,12 +264,18 @@ impl<F: Real> Model<F> {
         let ln_abs_k = params.alpha.abs().ln() - params.omega.abs().ln() - ln_one_plus_r2;
         let sign = |v: F| if v > F::zero() { F::one() } else { -F::one() };
         let sign_k = if params.alpha == F::zero() { F::zero() } else { sign(params.alpha) * sign(params.omega) };
-        Ok(Model { c1: params.c1, c2: params.c2, c3: params.c3, r, ln_abs_k, sign_k })
+        let polynomial = Polynomial::new(params.c1, params.c2, params.c3)?;
+        Ok(Model { polynomial, r, ln_abs_k, sign_k })
     }
 
     /// r = β/ω.
     pub fn r(&self) -> F {
         self.r
+    }
+
+    /// k = α/(ω(1 + r²)), so that h = A·k (infinite where it overflows the float type).
+    pub fn k(&self) -> F {
+        self.sign_k * self.ln_abs_k.exp()
     }
 
     /// The model on a loop of amplitude `amplitude` (rad), ready for per-sample evaluation.
@@ -285,7 +310,7 @@ fn check_amplitude<F: Real>(amplitude: F) -> Result<(), Error> {
 }
 
 /// Torque and stiffness at one deflection.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Evaluation<F> {
     /// T(θ), N·m.
@@ -332,42 +357,173 @@ impl<F: Real> Loop<F> {
     }
 
     /// Torque and stiffness together, sharing the transcendental functions.
+    #[inline]
     pub fn evaluate(&self, theta: F, direction: Direction) -> Result<Evaluation<F>, Error> {
+        let (spring, hysteresis) = self.evaluate_parts(theta, direction)?;
+        let evaluation = spring.plus(hysteresis);
+        if evaluation.torque.is_finite() && evaluation.stiffness.is_finite() {
+            Ok(evaluation)
+        } else {
+            Err(Error::Overflow)
+        }
+    }
+
+    /// The polynomial spring's and the hysteresis term z's torque and stiffness, apart; their
+    /// sum is [`Loop::evaluate`]. Each part is finite where that is.
+    #[inline]
+    pub fn evaluate_parts(&self, theta: F, direction: Direction) -> Result<(Evaluation<F>, Evaluation<F>), Error> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);
         }
         let m = &self.model;
-        let one = F::one();
-        let x = (theta * self.inv_amplitude).max(-one).min(one);
-        // |cos ωt| on both branches; (1 − x)(1 + x) keeps precision near |x| = 1.
-        let abs_cos = ((one - x) * (one + x)).sqrt();
-        let asin_x = x.asin();
-        // (ωt, cos ωt, dωt/dθ·A·|cos ωt|) for each branch.
-        let (phase, cos_phase, dphase_sign) = match direction {
-            Direction::Rising => (asin_x, abs_cos, one),
-            Direction::Falling => (F::PI() - asin_x, -abs_cos, -one),
-        };
-        let r = m.r;
+        let phase = Phase::new::<Libm>(theta * self.inv_amplitude, direction);
         // h·e^(−rφ), in the log domain so that huge r with tiny α stays finite.
-        let h_exp = if m.sign_k == F::zero() { F::zero() } else { m.sign_k * (self.ln_abs_h - r * phase).exp() };
-        // h·p(φ) and h·p'(φ) with p = e^(−rφ) + r sin φ − cos φ, sin φ = x.
-        let hp = h_exp + self.h * (r * x - cos_phase);
-        let hdp = -r * h_exp + self.h * (r * cos_phase + x);
-        let z = hp * abs_cos;
-
-        let theta2 = theta * theta;
-        let poly = theta * (m.c1 + theta2 * (m.c2 + theta2 * m.c3));
-        let dpoly = m.c1 + theta2 * (F::THREE * m.c2 + F::FIVE * m.c3 * theta2);
-        // dz/dθ = (±h·p' − h·p·x/|cos φ|)/A, the last factor capped at the turning points.
-        let dz = (dphase_sign * hdp - hp * x / abs_cos.max(F::MIN_COS)) * self.inv_amplitude;
-
-        let torque = poly + z;
-        let stiffness = dpoly + dz;
-        if torque.is_finite() && stiffness.is_finite() {
-            Ok(Evaluation { torque, stiffness })
+        let h_decay =
+            if m.sign_k == F::zero() { F::zero() } else { m.sign_k * (self.ln_abs_h - m.r * phase.angle).exp() };
+        let hysteresis = phase.hysteresis(m.r, self.h, h_decay, self.inv_amplitude);
+        let spring = m.polynomial.evaluate(theta);
+        let finite = |e: &Evaluation<F>| e.torque.is_finite() && e.stiffness.is_finite();
+        if finite(&spring) && finite(&hysteresis) {
+            Ok((spring, hysteresis))
         } else {
             Err(Error::Overflow)
         }
+    }
+}
+
+/// The elementary functions the evaluation needs besides arithmetic. model-core uses libm
+/// ([`Libm`]); the firmware's per-tick path supplies polynomial approximations, so that both
+/// run the same formula ([`Phase`], [`Polynomial`]) and differ only in these.
+pub trait Elementary<F> {
+    /// √v for v ≥ 0.
+    fn sqrt(v: F) -> F;
+    /// asin x for x ∈ [−1, 1].
+    fn asin(x: F) -> F;
+}
+
+/// The elementary functions of libm (through `num_traits::Float`).
+#[derive(Clone, Copy, Debug)]
+pub struct Libm;
+
+impl<F: Real> Elementary<F> for Libm {
+    #[inline(always)]
+    fn sqrt(v: F) -> F {
+        v.sqrt()
+    }
+    #[inline(always)]
+    fn asin(x: F) -> F {
+        x.asin()
+    }
+}
+
+/// The polynomial spring c1·θ + c2·θ³ + c3·θ⁵, with 3·c2 and 5·c3 kept for its slope.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Polynomial<F> {
+    c1: F,
+    c2: F,
+    c3: F,
+    c2x3: F,
+    c3x5: F,
+}
+
+impl<F: Real> Polynomial<F> {
+    /// Refuses coefficients whose slope factors 3·c2 or 5·c3 overflow the float type.
+    pub fn new(c1: F, c2: F, c3: F) -> Result<Self, Error> {
+        let (c2x3, c3x5) = (F::THREE * c2, F::FIVE * c3);
+        if !(c2x3.is_finite() && c3x5.is_finite()) {
+            return Err(Error::Overflow);
+        }
+        Ok(Polynomial { c1, c2, c3, c2x3, c3x5 })
+    }
+
+    /// T and dT/dθ of the polynomial at `theta`, by Horner's rule.
+    #[inline(always)]
+    pub fn evaluate(&self, theta: F) -> Evaluation<F> {
+        let theta2 = theta * theta;
+        Evaluation {
+            torque: theta * (self.c1 + theta2 * (self.c2 + theta2 * self.c3)),
+            stiffness: self.c1 + theta2 * (self.c2x3 + self.c3x5 * theta2),
+        }
+    }
+}
+
+/// Where a deflection sits on its loop: the phase φ = ωt of θ = A·sin φ on the branch that
+/// `direction` selects, φ = asin(θ/A) rising and π − asin(θ/A) falling.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Phase<F> {
+    /// φ, rad.
+    pub angle: F,
+    /// sin φ = θ/A, clamped to [−1, 1].
+    pub sin: F,
+    /// cos φ: +|cos φ| rising, −|cos φ| falling.
+    pub cos: F,
+    /// |cos φ| = √((1 − sin φ)(1 + sin φ)).
+    pub abs_cos: F,
+    /// dφ/dθ·A·|cos φ|: +1 rising, −1 falling.
+    turn: F,
+}
+
+impl<F: Real> Phase<F> {
+    /// The phase of θ/A = `ratio` (clamped to [−1, 1]; finite or ±∞, never NaN) moving in
+    /// `direction`. Comparisons rather than `max`/`min`: those are calls to `fmaxf` on the
+    /// Cortex-M4F, and this runs every control tick.
+    #[inline(always)]
+    pub fn new<M: Elementary<F>>(ratio: F, direction: Direction) -> Self {
+        let one = F::one();
+        let sin = if ratio < -one {
+            -one
+        } else if ratio > one {
+            one
+        } else {
+            ratio
+        };
+        // (1 − x)(1 + x) keeps precision near |x| = 1.
+        let abs_cos = M::sqrt((one - sin) * (one + sin));
+        let asin = M::asin(sin);
+        let (angle, cos, turn) = match direction {
+            Direction::Rising => (asin, abs_cos, one),
+            Direction::Falling => (F::PI() - asin, -abs_cos, -one),
+        };
+        Phase { angle, sin, cos, abs_cos, turn }
+    }
+
+    /// The hysteresis shape at this phase, see [`shape`].
+    #[inline(always)]
+    pub fn shape(&self, r: F, decay: F, scale: F) -> F {
+        shape(r, self.sin, self.cos, decay, scale)
+    }
+
+    /// z = h·p(φ)·|cos φ| and dz/dθ on a loop of 1/A = `inv_amplitude`, with `h_decay` =
+    /// h·e^(−rφ). At the turning points dφ/dθ is infinite; the singular factor 1/|cos φ| is
+    /// capped at 1/[`Real::MIN_COS`] (see [`Loop::stiffness`]).
+    #[inline(always)]
+    pub fn hysteresis(&self, r: F, h: F, h_decay: F, inv_amplitude: F) -> Evaluation<F> {
+        let hp = self.shape(r, h_decay, h);
+        // h·p'(φ).
+        let hdp = -r * h_decay + h * (r * self.cos + self.sin);
+        let capped_cos = if self.abs_cos > F::MIN_COS { self.abs_cos } else { F::MIN_COS };
+        Evaluation {
+            torque: hp * self.abs_cos,
+            // dz/dθ = (±h·p' − h·p·sin φ/|cos φ|)/A.
+            stiffness: (self.turn * hdp - hp * self.sin / capped_cos) * inv_amplitude,
+        }
+    }
+}
+
+/// The hysteresis shape p(φ) = e^(−rφ) + r·sin φ − cos φ, scaled: `decay` + `scale`·(r·sin φ
+/// − cos φ), where the caller supplies `decay` = `scale`·e^(−rφ) in whatever form keeps it
+/// finite (log domain, or a common factor taken out). A free function so that the fit, which
+/// keeps sin φ and cos φ of many samples in arrays of their own, evaluates the same formula.
+#[inline(always)]
+pub fn shape<F: Real>(r: F, sin: F, cos: F, decay: F, scale: F) -> F {
+    decay + scale * (r * sin - cos)
+}
+
+impl<F: Real> Evaluation<F> {
+    /// The sum of two parts of the torque (the polynomial and the hysteresis).
+    #[inline(always)]
+    pub fn plus(self, other: Self) -> Self {
+        Evaluation { torque: self.torque + other.torque, stiffness: self.stiffness + other.stiffness }
     }
 }
 

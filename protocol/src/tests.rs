@@ -24,29 +24,298 @@ fn decode_sent<T: for<'a> Deserialize<'a>>(sent: &[u8]) -> Result<T, FrameError>
     decode(&mut body)
 }
 
-/// The encoding is the contract with deployed firmware: these bytes must not change
-/// without a new PROTOCOL_VERSION.
+/// A parameter set with every field different, so that the golden frames fail if two
+/// fields trade places (or encodings). All values are exact in f32.
+const DISTINCT_PARAMS: JointParams = JointParams {
+    model_version: 1,
+    model: Params { c1: 9000.0, c2: 1.25e10, c3: -3.0e14, alpha: 48.5, beta: -2.25, omega: 1.0 },
+    gear_ratio: 100.0,
+    torque_limit: 50.0,
+    direction_band: 2.0e-5,
+};
+
+/// Encodes `message` and compares the frame with `golden`, then decodes `golden` back.
+fn assert_golden<T>(message: T, golden: &[u8])
+where
+    T: Serialize + for<'a> Deserialize<'a> + PartialEq + core::fmt::Debug,
+{
+    let (out, len) = frame_of(&message);
+    assert_eq!(&out[..len], golden, "{message:?}");
+    assert_eq!(decode_sent::<T>(golden), Ok(message));
+}
+
+/// The variant of a request, by exhaustive match: a new variant fails to compile here
+/// until it has a golden frame below.
+fn request_variant(request: &Request) -> usize {
+    match request {
+        Request::GetDeviceInfo => 0,
+        Request::WriteParams(_) => 1,
+        Request::ReadParams => 2,
+        Request::Commit => 3,
+        Request::Replay(_) => 4,
+    }
+}
+
+fn response_variant(response: &Response) -> usize {
+    match response {
+        Response::DeviceInfo(_) => 0,
+        Response::ParamsAccepted => 1,
+        Response::Params(_) => 2,
+        Response::Committed { .. } => 3,
+        Response::Feedforward(_) => 4,
+        Response::Error(_) => 5,
+    }
+}
+
+fn error_variant(error: &ErrorReply) -> usize {
+    match error {
+        ErrorReply::BadFrame => 0,
+        ErrorReply::BadCrc => 1,
+        ErrorReply::FrameTooLong => 2,
+        ErrorReply::UnsupportedProtocol { .. } => 3,
+        ErrorReply::UndecodableRequest => 4,
+        ErrorReply::ModelVersion { .. } => 5,
+        ErrorReply::InvalidParam { .. } => 6,
+        ErrorReply::ModelOverflow => 7,
+        ErrorReply::NoParams => 8,
+        ErrorReply::Storage => 9,
+        ErrorReply::NonFiniteSample => 10,
+    }
+}
+
+/// The variants in `cases` are exactly 0..n, each once.
+fn covers_every_variant<T>(cases: &[(T, &[u8])], variant: fn(&T) -> usize, n: usize) {
+    let mut seen: Vec<usize> = cases.iter().map(|(message, _)| variant(message)).collect();
+    seen.sort_unstable();
+    seen.dedup();
+    assert_eq!(seen, (0..n).collect::<Vec<_>>());
+}
+
+// The encoding is the contract with deployed firmware: these bytes must not change without a
+// new PROTOCOL_VERSION. Each frame is COBS(payload ++ CRC-32 LE) 0x00, where the payload is
+// postcard: varint protocol version (1), varint variant index, then the fields in order
+// (u16/u32 as varints, f32 as 4 bytes little-endian, enums as varint index, Option as 0/1).
+// The comments give the payload; COBS replaces each 0x00 by the distance to the next one and
+// leads with the distance to the first.
+
 #[test]
-fn golden_bytes() {
-    let cases: [(Request, &[u8]); 4] = [
+fn golden_requests() {
+    let cases: [(Request, &[u8]); 5] = [
+        // 01 | 00
         (Request::GetDeviceInfo, &[0x02, 0x01, 0x05, 0xbe, 0x23, 0xc2, 0x58, 0x00]),
+        (
+            Request::WriteParams(DISTINCT_PARAMS),
+            &[
+                // 01 | 01 | model_version 01 | c1 9e3 = 460ca000 | c2 1.25e10 = 503a43b7 |
+                // c3 -3e14 = d7886c99 | alpha 48.5 = 42420000 | beta -2.25 = c0100000 |
+                // omega 1 = 3f800000 | gear_ratio 100 = 42c80000 | torque_limit 50 = 42480000 |
+                // direction_band 2e-5 = 37a7c5ac
+                0x04, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7, 0x01,
+                0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42, 0x01, 0x0b,
+                0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xbc, 0x60, 0xe2, 0xf6, 0x00,
+            ],
+        ),
+        // 01 | 02
         (Request::ReadParams, &[0x07, 0x01, 0x02, 0x92, 0x42, 0xcc, 0xb6, 0x00]),
+        // 01 | 03
         (Request::Commit, &[0x07, 0x01, 0x03, 0x04, 0x72, 0xcb, 0xc1, 0x00]),
         (
             Request::Replay(EncoderSample { input_angle: 1.0, output_angle: -0.5, path: EvalPath::Fast }),
-            &[
-                // version 1, variant 4, f32 1.0, f32 -0.5, Fast, CRC; COBS-stuffed
-                0x03, 0x01, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x3d, 0x13, 0x82, 0xca, 0x00,
-            ],
+            // 01 | 04 | input_angle 1 = 3f800000 | output_angle -0.5 = bf000000 | Fast 01
+            &[0x03, 0x01, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x3d, 0x13, 0x82, 0xca, 0x00],
         ),
     ];
-    for (request, expected) in cases {
-        let (out, len) = frame_of(&request);
-        assert_eq!(&out[..len], expected, "{request:?}");
+    covers_every_variant(&cases, request_variant, 5);
+    for (request, golden) in cases {
+        assert_golden(request, golden);
     }
-    let response = Response::Error(ErrorReply::UnsupportedProtocol { got: 7, supported: 1 });
-    let (out, len) = frame_of(&response);
-    assert_eq!(&out[..len], &[0x0a, 0x01, 0x05, 0x03, 0x07, 0x01, 0x97, 0x36, 0x9c, 0xf6, 0x00]);
+}
+
+#[test]
+fn golden_responses() {
+    let cases: [(Response, &[u8]); 7] = [
+        (
+            Response::DeviceInfo(DeviceInfo {
+                firmware_version: Version { major: 0, minor: 1, patch: 2 },
+                protocol_version: 300,
+                model_version: 7,
+            }),
+            // 01 | 00 | 0.1.2 = 00 01 02 | protocol_version 300 = ac 02 | model_version 07
+            &[0x02, 0x01, 0x01, 0x0a, 0x01, 0x02, 0xac, 0x02, 0x07, 0xe9, 0x6d, 0xd1, 0x42, 0x00],
+        ),
+        // 01 | 01
+        (Response::ParamsAccepted, &[0x07, 0x01, 0x01, 0x28, 0x13, 0xc5, 0x2f, 0x00]),
+        (
+            Response::Params(Some(DISTINCT_PARAMS)),
+            // 01 | 02 | Some 01 | the parameters as in golden_requests' WriteParams
+            &[
+                0x05, 0x01, 0x02, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7,
+                0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42, 0x01,
+                0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0x91, 0x27, 0x23, 0xe3, 0x00,
+            ],
+        ),
+        // 01 | 02 | None 00
+        (Response::Params(None), &[0x03, 0x01, 0x02, 0x05, 0xa7, 0xd1, 0xb5, 0xcc, 0x00]),
+        (
+            Response::Committed { sequence: 0x1234_5678 },
+            // 01 | 03 | sequence 0x12345678 = f8 ac d1 91 01
+            &[0x0c, 0x01, 0x03, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x8f, 0xcf, 0x60, 0x51, 0x00],
+        ),
+        (
+            Response::Feedforward(Feedforward {
+                deflection: -0.0009765625,
+                direction: Direction::Falling,
+                amplitude: 0.001953125,
+                torque: -12.5,
+                stiffness: 40000.0,
+                compensation: Compensation::Clamped,
+            }),
+            // 01 | 04 | deflection -2⁻¹⁰ = ba800000 | Falling 01 | amplitude 2⁻⁹ = 3b000000 |
+            // torque -12.5 = c1480000 | stiffness 4e4 = 471c4000 | Clamped 01
+            &[
+                0x03, 0x01, 0x04, 0x01, 0x04, 0x80, 0xba, 0x01, 0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0x48, 0xc1, 0x09,
+                0x40, 0x1c, 0x47, 0x01, 0x6a, 0xe9, 0x53, 0xdc, 0x00,
+            ],
+        ),
+        (
+            Response::Error(ErrorReply::UnsupportedProtocol { got: 7, supported: 1 }),
+            // 01 | 05 | UnsupportedProtocol 03 | got 07 | supported 01
+            &[0x0a, 0x01, 0x05, 0x03, 0x07, 0x01, 0x97, 0x36, 0x9c, 0xf6, 0x00],
+        ),
+    ];
+    covers_every_variant(&cases, response_variant, 6);
+    for (response, golden) in cases {
+        assert_golden(response, golden);
+    }
+}
+
+#[test]
+fn golden_error_replies() {
+    let cases: [(ErrorReply, &[u8]); 11] = [
+        // Each is 01 | 05 (Response::Error) | variant index | fields.
+        (ErrorReply::BadFrame, &[0x03, 0x01, 0x05, 0x05, 0x60, 0x47, 0xf4, 0x83, 0x00]),
+        (ErrorReply::BadCrc, &[0x08, 0x01, 0x05, 0x01, 0xf6, 0x77, 0xf3, 0xf4, 0x00]),
+        (ErrorReply::FrameTooLong, &[0x08, 0x01, 0x05, 0x02, 0x4c, 0x26, 0xfa, 0x6d, 0x00]),
+        (
+            // got 07, supported 01
+            ErrorReply::UnsupportedProtocol { got: 7, supported: 1 },
+            &[0x0a, 0x01, 0x05, 0x03, 0x07, 0x01, 0x97, 0x36, 0x9c, 0xf6, 0x00],
+        ),
+        (ErrorReply::UndecodableRequest, &[0x08, 0x01, 0x05, 0x04, 0x79, 0x83, 0x99, 0x84, 0x00]),
+        (
+            // got 02, supported 01
+            ErrorReply::ModelVersion { got: 2, supported: 1 },
+            &[0x0a, 0x01, 0x05, 0x05, 0x02, 0x01, 0x60, 0xbe, 0x66, 0x8f, 0x00],
+        ),
+        (
+            // field TorqueLimit 07, fault OutOfRange 01
+            ErrorReply::InvalidParam { field: ParamField::TorqueLimit, fault: ParamFault::OutOfRange },
+            &[0x0a, 0x01, 0x05, 0x06, 0x07, 0x01, 0x7c, 0xf4, 0x57, 0xf0, 0x00],
+        ),
+        (ErrorReply::ModelOverflow, &[0x08, 0x01, 0x05, 0x07, 0xc3, 0xd2, 0x90, 0x1d, 0x00]),
+        (ErrorReply::NoParams, &[0x08, 0x01, 0x05, 0x08, 0x52, 0xcf, 0x2f, 0x8d, 0x00]),
+        (ErrorReply::Storage, &[0x08, 0x01, 0x05, 0x09, 0xc4, 0xff, 0x28, 0xfa, 0x00]),
+        (ErrorReply::NonFiniteSample, &[0x08, 0x01, 0x05, 0x0a, 0x7e, 0xae, 0x21, 0x63, 0x00]),
+    ];
+    covers_every_variant(&cases, error_variant, 11);
+    for (error, golden) in cases {
+        assert_golden(Response::Error(error), golden);
+    }
+}
+
+/// The index of every variant of the enums inside messages (postcard encodes an enum as
+/// its index): reordering them changes the wire format.
+#[test]
+fn golden_enum_indices() {
+    fn index_of<T: Serialize>(value: T) -> Vec<u8> {
+        let mut buffer = [0u8; 4];
+        postcard::to_slice(&value, &mut buffer).unwrap().to_vec()
+    }
+    let fields = [
+        ParamField::C1,
+        ParamField::C2,
+        ParamField::C3,
+        ParamField::Alpha,
+        ParamField::Beta,
+        ParamField::Omega,
+        ParamField::GearRatio,
+        ParamField::TorqueLimit,
+        ParamField::DirectionBand,
+    ];
+    for (index, field) in (0u8..).zip(fields) {
+        assert_eq!(index_of(field), [index], "{field:?}");
+    }
+    assert_eq!(index_of(ParamFault::NotFinite), [0]);
+    assert_eq!(index_of(ParamFault::OutOfRange), [1]);
+    assert_eq!(index_of(EvalPath::Direct), [0]);
+    assert_eq!(index_of(EvalPath::Fast), [1]);
+    assert_eq!(index_of(Compensation::Active), [0]);
+    assert_eq!(index_of(Compensation::Clamped), [1]);
+    assert_eq!(index_of(Compensation::Off), [2]);
+    assert_eq!(index_of(Direction::Rising), [0]);
+    assert_eq!(index_of(Direction::Falling), [1]);
+}
+
+/// Every message, at its longest (varints at their maximum, no zero byte for COBS to
+/// reuse), fits MAX_FRAME_LEN, the buffer both ends encode into and receive with.
+#[test]
+fn the_longest_message_of_each_kind_fits_a_frame() {
+    let widest = JointParams {
+        model_version: u16::MAX,
+        model: Params { c1: f32::MIN, c2: f32::MIN, c3: f32::MIN, alpha: f32::MIN, beta: f32::MIN, omega: f32::MIN },
+        gear_ratio: f32::MIN,
+        torque_limit: f32::MIN,
+        direction_band: f32::MIN,
+    };
+    let sample = EncoderSample { input_angle: f32::MIN, output_angle: f32::MIN, path: EvalPath::Fast };
+    let version = Version { major: u16::MAX, minor: u16::MAX, patch: u16::MAX };
+    let feedforward = Feedforward {
+        deflection: f32::MIN,
+        direction: Direction::Falling,
+        amplitude: f32::MIN,
+        torque: f32::MIN,
+        stiffness: f32::MIN,
+        compensation: Compensation::Off,
+    };
+    let big = u16::MAX;
+    let requests = [
+        Request::GetDeviceInfo,
+        Request::WriteParams(widest),
+        Request::ReadParams,
+        Request::Commit,
+        Request::Replay(sample),
+    ];
+    let responses = [
+        Response::DeviceInfo(DeviceInfo { firmware_version: version, protocol_version: big, model_version: big }),
+        Response::ParamsAccepted,
+        Response::Params(Some(widest)),
+        Response::Committed { sequence: u32::MAX },
+        Response::Feedforward(feedforward),
+        Response::Error(ErrorReply::UnsupportedProtocol { got: big, supported: big }),
+        Response::Error(ErrorReply::ModelVersion { got: big, supported: big }),
+        Response::Error(ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
+    ];
+    // A message too long for a frame fails here already (encode's payload buffer is sized
+    // for MAX_FRAME_LEN); the larger output buffer only keeps that buffer the one limit.
+    fn encoded<T: Serialize>(message: &T) -> Vec<u8> {
+        let mut out = [0u8; 2 * MAX_FRAME_LEN];
+        let len = encode(message, &mut out).unwrap();
+        out[..len].to_vec()
+    }
+    let mut frames: Vec<Vec<u8>> = requests.iter().map(encoded).collect();
+    frames.extend(responses.iter().map(encoded));
+    let longest = frames.iter().map(Vec::len).max().unwrap();
+    // Params(Some(widest)): version 1 + variant 1 + Some 1 + u16::MAX 3 + 9 × f32 36 = 42 bytes,
+    // + CRC 4, + 1 COBS code byte, + the delimiter. A message that grows fails here first.
+    assert_eq!(longest, 42 + 4 + 1 + 1);
+    assert!(longest <= MAX_FRAME_LEN, "{longest} > {MAX_FRAME_LEN}");
+    // And a receiver with a MAX_FRAME_LEN buffer takes every one of them.
+    let mut reader = FrameReader::<MAX_FRAME_LEN>::new();
+    for frame in &frames {
+        let (last, body) = frame.split_last().unwrap();
+        assert!(body.iter().all(|&byte| reader.push(byte).is_none()));
+        assert!(matches!(reader.push(*last), Some(Ok(_))), "{frame:02x?}");
+    }
 }
 
 #[test]
@@ -84,7 +353,6 @@ fn every_message_round_trips() {
     ];
     for response in responses {
         let (out, len) = frame_of(&response);
-        assert!(len <= MAX_FRAME_LEN);
         assert_eq!(decode_sent::<Response>(&out[..len]), Ok(response));
     }
 }

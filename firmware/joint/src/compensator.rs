@@ -98,16 +98,19 @@ impl Compensator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use model_core::{Params, MODEL_VERSION};
+    use model_core::{checks::PAPER_TABLE_2, MODEL_VERSION};
     use swg_protocol::{ParamFault, ParamField};
 
-    const PARAMS: JointParams = JointParams {
-        model_version: MODEL_VERSION,
-        model: Params { c1: 2.4737e4, c2: 1.0e9, c3: -1.1774e14, alpha: 2.6532e6, beta: -4.2268e2, omega: -2.2631e2 },
-        gear_ratio: 100.0,
-        torque_limit: 40.0,
-        direction_band: 1.0e-6,
-    };
+    /// The paper's Table 2 on a 1:100 gear, |T_ff| ≤ 40 N·m.
+    fn paper() -> JointParams {
+        JointParams {
+            model_version: MODEL_VERSION,
+            model: PAPER_TABLE_2.to_f32(),
+            gear_ratio: 100.0,
+            torque_limit: 40.0,
+            direction_band: 1.0e-6,
+        }
+    }
 
     #[test]
     fn no_parameters_no_compensation() {
@@ -119,11 +122,11 @@ mod tests {
     #[test]
     fn deflection_is_input_over_ratio_minus_output() {
         let mut compensator = Compensator::new();
-        compensator.stage(PARAMS).unwrap();
+        compensator.stage(paper()).unwrap();
         let out = compensator.tick(10.0, 0.0995, EvalPath::Direct);
         assert!((out.deflection - 0.5e-3).abs() < 1e-8, "{}", out.deflection);
         assert_eq!(out.compensation, Compensation::Active);
-        let expected = Model::new(PARAMS.model).unwrap().at_amplitude(out.amplitude).unwrap();
+        let expected = Model::new(paper().model).unwrap().at_amplitude(out.amplitude).unwrap();
         let expected = expected.evaluate(out.deflection, out.direction).unwrap();
         assert_eq!((out.torque, out.stiffness), (expected.torque, expected.stiffness));
     }
@@ -131,18 +134,18 @@ mod tests {
     #[test]
     fn torque_is_clamped_and_never_nan() {
         let mut compensator = Compensator::new();
-        compensator.stage(PARAMS).unwrap();
+        compensator.stage(paper()).unwrap();
         for output in [-0.5f32, -1.0e-2, 1.0e-2, 0.5, f32::NAN, f32::INFINITY, 1.0e30, -0.09] {
             for path in [EvalPath::Direct, EvalPath::Fast] {
                 let out = compensator.tick(0.0, output, path);
-                assert!(out.torque.abs() <= PARAMS.torque_limit, "{out:?}");
+                assert!(out.torque.abs() <= paper().torque_limit, "{out:?}");
                 assert!(!out.torque.is_nan() && !out.stiffness.is_nan(), "{out:?}");
             }
         }
         // θ = ±2 mrad, past the paper's loop: |T| ≈ 55 N·m > 40 N·m, with the sign of θ.
-        for (output, limit) in [(-2.0e-3, PARAMS.torque_limit), (2.0e-3, -PARAMS.torque_limit)] {
+        for (output, limit) in [(-2.0e-3, paper().torque_limit), (2.0e-3, -paper().torque_limit)] {
             let mut compensator = Compensator::new();
-            compensator.stage(PARAMS).unwrap();
+            compensator.stage(paper()).unwrap();
             let out = compensator.tick(0.0, output, EvalPath::Fast);
             assert_eq!((out.torque, out.stiffness, out.compensation), (limit, 0.0, Compensation::Clamped));
         }
@@ -151,7 +154,7 @@ mod tests {
     #[test]
     fn an_encoder_glitch_does_not_disturb_the_loop() {
         let mut steady = Compensator::new();
-        steady.stage(PARAMS).unwrap();
+        steady.stage(paper()).unwrap();
         let mut glitched = steady.clone();
         let thetas = [0.2e-3f32, 0.6e-3, 1.0e-3, 0.7e-3, 0.1e-3];
         for (i, theta) in thetas.into_iter().enumerate() {
@@ -167,28 +170,28 @@ mod tests {
     #[test]
     fn refused_parameters_leave_the_old_ones_active() {
         let mut compensator = Compensator::new();
-        compensator.stage(PARAMS).unwrap();
+        compensator.stage(paper()).unwrap();
         let before = compensator.tick(10.0, 0.0995, EvalPath::Direct);
-        let mut bad = PARAMS;
+        let mut bad = paper();
         bad.model.alpha = f32::NAN;
         assert_eq!(
             compensator.stage(bad),
             Err(ErrorReply::InvalidParam { field: ParamField::Alpha, fault: ParamFault::NotFinite })
         );
-        let mut huge = PARAMS;
+        let mut huge = paper();
         huge.model.alpha = f32::MAX;
         huge.model.omega = f32::MIN_POSITIVE;
         assert_eq!(compensator.stage(huge), Err(ErrorReply::ModelOverflow));
-        assert_eq!(compensator.params(), Some(PARAMS));
+        assert_eq!(compensator.params(), Some(paper()));
         assert_eq!(compensator.tick(10.0, 0.0995, EvalPath::Direct).torque, before.torque);
     }
 
     #[test]
     fn a_staged_set_applies_whole_at_the_next_tick() {
         let mut compensator = Compensator::new();
-        compensator.stage(PARAMS).unwrap();
+        compensator.stage(paper()).unwrap();
         compensator.tick(10.0, 0.0995, EvalPath::Fast);
-        let mut stiffer = PARAMS;
+        let mut stiffer = paper();
         stiffer.model.c1 *= 2.0;
         stiffer.gear_ratio = 50.0;
         compensator.stage(stiffer).unwrap();

@@ -1,14 +1,15 @@
 //! The per-tick evaluation of T(θ) and dT/dθ in a few dozen FPU instructions.
 //!
 //! model-core's f32 path calls libm's `asinf`/`expf`, which on the Cortex-M4F go through
-//! software double-precision helpers (≈ 1,600 instructions per evaluation). The same
-//! formula is evaluated here with a polynomial arcsine (Abramowitz–Stegun 4.4.46), a
-//! range-reduced polynomial exponential and the FPU's `vsqrt`; the constants that depend
-//! only on the parameters (k = α/(ω(1 + r²)), r = β/ω) are prepared once when a set is
-//! installed. Error against the f64 model: see the tests (`fast_path_error_bound`).
-use crate::{larger, limit};
-use core::f32::consts::{FRAC_PI_2, LN_2, LOG2_E, PI};
-use model_core::{Direction, Evaluation, Params, Real};
+//! software double-precision helpers (722.8 instructions per T_ff + K evaluation, measured by
+//! `bench/firmware.sh`). This path runs model-core's own formula ([`Phase`], [`Polynomial`])
+//! with a polynomial arcsine (Abramowitz–Stegun 4.4.46), a range-reduced polynomial
+//! exponential and the FPU's `vsqrt` (206 instructions); the constants that depend only on
+//! the parameters (k = α/(ω(1 + r²)), r = β/ω) are prepared once when a set is installed.
+//! Error against the f64 model: see the tests (`fast_path_error_bound`).
+use crate::limit;
+use core::f32::consts::{FRAC_PI_2, LN_2, LOG2_E};
+use model_core::{Direction, Elementary, Evaluation, Params, Phase, Polynomial};
 
 /// Largest |r| = |β/ω| for which e^(−rφ), φ ∈ [−π/2, 3π/2], stays well inside f32;
 /// real gears have |r| ≈ 2 (paper: 1.87, seed fit: 2.30).
@@ -40,12 +41,7 @@ impl core::fmt::Display for FastPathError {
 /// The constants of one parameter set, ready for [`FastModel::evaluate`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FastModel {
-    c1: f32,
-    c2: f32,
-    c3: f32,
-    /// 3·c2 and 5·c3 for dT/dθ.
-    c2x3: f32,
-    c3x5: f32,
+    polynomial: Polynomial<f32>,
     r: f32,
     /// k = α/(ω(1 + r²)), so that h = A·k.
     k: f32,
@@ -62,16 +58,16 @@ impl FastModel {
         }
         let k = f64::from(params.alpha) / (f64::from(params.omega) * (1.0 + r * r));
         let k = k as f32;
-        let c2x3 = 3.0 * params.c2;
-        let c3x5 = 5.0 * params.c3;
-        if !(k.is_finite() && c2x3.is_finite() && c3x5.is_finite()) {
+        let polynomial = Polynomial::new(params.c1, params.c2, params.c3).map_err(|_| FastPathError::Overflow)?;
+        if !k.is_finite() {
             return Err(FastPathError::Overflow);
         }
-        Ok(FastModel { c1: params.c1, c2: params.c2, c3: params.c3, c2x3, c3x5, r: r as f32, k })
+        Ok(FastModel { polynomial, r: r as f32, k })
     }
 
-    /// T(θ) and dT/dθ on a loop of amplitude `amplitude`, the same formula as
-    /// [`model_core::Loop::evaluate`] (including its cap of 1/|cos ωt| at the turning points).
+    /// T(θ) and dT/dθ on a loop of amplitude `amplitude`: model-core's own formula
+    /// ([`Phase`], [`Polynomial`], as in [`model_core::Loop::evaluate`]) with the elementary
+    /// functions below and h·e^(−rφ) formed directly (|r| ≤ [`MAX_ABS_R`] keeps it in range).
     /// Returns `None` when the inputs are not finite, A ≤ 0 or the result overflows.
     #[inline]
     pub fn evaluate(&self, theta: f32, direction: Direction, amplitude: f32) -> Option<Evaluation<f32>> {
@@ -79,26 +75,26 @@ impl FastModel {
             return None;
         }
         let inv_amplitude = 1.0 / amplitude;
-        let x = limit(theta * inv_amplitude, -1.0, 1.0);
-        let abs_cos = sqrt((1.0 - x) * (1.0 + x));
-        let asin_x = asin(x);
-        let (phase, cos_phase, dphase_sign) = match direction {
-            Direction::Rising => (asin_x, abs_cos, 1.0),
-            Direction::Falling => (PI - asin_x, -abs_cos, -1.0),
-        };
-        let r = self.r;
+        let phase = Phase::new::<FastMath>(theta * inv_amplitude, direction);
         let h = amplitude * self.k;
-        let h_exp = h * exp(-r * phase);
-        let hp = h_exp + h * (r * x - cos_phase);
-        let hdp = -r * h_exp + h * (r * cos_phase + x);
-        let z = hp * abs_cos;
-        let theta2 = theta * theta;
-        let poly = theta * (self.c1 + theta2 * (self.c2 + theta2 * self.c3));
-        let dpoly = self.c1 + theta2 * (self.c2x3 + self.c3x5 * theta2);
-        let dz = (dphase_sign * hdp - hp * x / larger(abs_cos, <f32 as Real>::MIN_COS)) * inv_amplitude;
-        let torque = poly + z;
-        let stiffness = dpoly + dz;
-        (torque.is_finite() && stiffness.is_finite()).then_some(Evaluation { torque, stiffness })
+        let z = phase.hysteresis(self.r, h, h * exp(-self.r * phase.angle), inv_amplitude);
+        let evaluation = self.polynomial.evaluate(theta).plus(z);
+        (evaluation.torque.is_finite() && evaluation.stiffness.is_finite()).then_some(evaluation)
+    }
+}
+
+/// The fast path's elementary functions: the FPU's square root and a polynomial arcsine.
+#[derive(Clone, Copy, Debug)]
+pub struct FastMath;
+
+impl Elementary<f32> for FastMath {
+    #[inline(always)]
+    fn sqrt(v: f32) -> f32 {
+        sqrt(v)
+    }
+    #[inline(always)]
+    fn asin(x: f32) -> f32 {
+        asin(x)
     }
 }
 

@@ -4,16 +4,43 @@
 //! it back. Power lost at any point leaves the older slot intact, and the slot being written either
 //! without a matching CRC (ignored) or complete, so the newest valid record is always the
 //! old or the new set. Records that no longer validate (another model version) are ignored.
+//!
+//! A record, from the start of its slot:
+//!
+//! | bytes | what |
+//! | --- | --- |
+//! | 0..4 | magic `SWGP` |
+//! | 4..8 | sequence number, u32 LE |
+//! | 8..10 | payload length n, u16 LE (≤ 64) |
+//! | 10 | record format, [`RECORD_FORMAT`] |
+//! | 11 | reserved, 0xFF |
+//! | 12..12 + n | the [`JointParams`], postcard-encoded as on the link |
+//! | then | 0xFF up to a multiple of 8 bytes, then the CRC-32 (ISO-HDLC, LE) of bytes 0..12 + n, in an 8-byte block |
+//!
+//! A slot whose format byte is neither [`RECORD_FORMAT`] nor 0xFF is not read
+//! ([`SlotFault::UnknownFormat`]). Firmware 0.1.0 wrote no format byte: it left byte 10
+//! (reserved then) at 0xFF, in the layout that became format 1, so a record with 0xFF there
+//! is read as format 1 and parameters stored before the format byte existed survive the
+//! update.
 use embedded_storage::nor_flash::NorFlash;
-use swg_protocol::JointParams;
+use swg_protocol::{ErrorReply, JointParams};
 
 const MAGIC: [u8; 4] = *b"SWGP";
-/// Magic, sequence number (u32 LE), payload length (u16 LE), 2 bytes reserved.
+/// The record format this firmware writes (header byte 10). A change of the record's layout
+/// or of the payload's encoding takes the next number; the loader then refuses records of
+/// formats it does not know instead of misreading them.
+pub const RECORD_FORMAT: u8 = 1;
+/// Header byte 10 of records written before the format byte existed: read as format 1.
+const UNVERSIONED_FORMAT: u8 = 0xFF;
+/// Magic, sequence number (u32 LE), payload length (u16 LE), record format, 1 byte reserved.
 const HEADER_LEN: usize = 12;
+const FORMAT_AT: usize = 10;
 /// Writes are padded to this; every supported flash's WRITE_SIZE divides it.
 const ALIGN: usize = 8;
 const MAX_PAYLOAD_LEN: usize = 64;
 const MAX_BODY_LEN: usize = (HEADER_LEN + MAX_PAYLOAD_LEN).div_ceil(ALIGN) * ALIGN;
+/// The longest record: body and CRC block.
+const RECORD_LEN: usize = MAX_BODY_LEN + ALIGN;
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// Why the store could not read or write.
@@ -42,6 +69,40 @@ impl core::fmt::Display for StorageError {
     }
 }
 
+/// Why a slot holds no usable record ([`ParamStore::slots`]); [`ParamStore::load`] passes
+/// over such a slot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SlotFault {
+    /// The flash driver reported an error reading the slot.
+    Flash,
+    /// No record starts here: the slot is erased, or power was lost before its header landed.
+    Empty,
+    /// The record's format byte (the value) is not a format this firmware reads: a record
+    /// written by a newer firmware.
+    UnknownFormat(u8),
+    /// The payload length is out of range or the CRC does not match: a torn or damaged write.
+    Corrupt,
+    /// The payload does not decode as a parameter set.
+    Encoding,
+    /// The set decodes but fails [`JointParams::validate`] (e.g. fitted for another model version).
+    Invalid(ErrorReply),
+}
+
+impl core::fmt::Display for SlotFault {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            SlotFault::Flash => f.write_str("flash driver error"),
+            SlotFault::Empty => f.write_str("no record"),
+            SlotFault::UnknownFormat(format) => write!(f, "record format {format} is not supported"),
+            SlotFault::Corrupt => f.write_str("record length or CRC wrong"),
+            SlotFault::Encoding => f.write_str("record payload is not a parameter set"),
+            SlotFault::Invalid(error) => write!(f, "stored parameter set is refused: {error:?}"),
+        }
+    }
+}
+
 /// A stored set and its sequence number.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Stored {
@@ -58,8 +119,7 @@ pub struct ParamStore<F> {
 impl<F: NorFlash> ParamStore<F> {
     pub fn new(flash: F) -> Result<Self, StorageError> {
         let slot_len = (flash.capacity() / 2) / F::ERASE_SIZE * F::ERASE_SIZE;
-        let record_len = MAX_BODY_LEN + ALIGN;
-        if slot_len < record_len || ALIGN % F::WRITE_SIZE != 0 {
+        if slot_len < RECORD_LEN || ALIGN % F::WRITE_SIZE != 0 {
             return Err(StorageError::Geometry);
         }
         let slot_len = u32::try_from(slot_len).map_err(|_| StorageError::Geometry)?;
@@ -101,14 +161,22 @@ impl<F: NorFlash> ParamStore<F> {
         flash.write(start, body).map_err(|_| StorageError::Flash)?;
         flash.write(start + body_len as u32, &crc_block).map_err(|_| StorageError::Flash)?;
         match self.read_slot(slot) {
-            Some(stored) if stored == (Stored { params: *params, sequence }) => Ok(sequence),
+            Ok(stored) if stored == (Stored { params: *params, sequence }) => Ok(sequence),
             _ => Err(StorageError::Verify),
         }
     }
 
+    /// What each of the two slots holds, or why it is not usable (for diagnostics; [`load`]
+    /// picks the newer of the usable ones).
+    ///
+    /// [`load`]: ParamStore::load
+    pub fn slots(&mut self) -> [Result<Stored, SlotFault>; 2] {
+        [self.read_slot(0), self.read_slot(1)]
+    }
+
     fn newest(&mut self) -> Option<(u32, Stored)> {
-        let first = self.read_slot(0);
-        let second = self.read_slot(1);
+        let first = self.read_slot(0).ok();
+        let second = self.read_slot(1).ok();
         match (first, second) {
             (Some(a), Some(b)) => {
                 // Sequence numbers compare modulo 2³² so that wrapping around is harmless.
@@ -124,29 +192,45 @@ impl<F: NorFlash> ParamStore<F> {
         }
     }
 
-    fn read_slot(&mut self, slot: u32) -> Option<Stored> {
+    fn read_slot(&mut self, slot: u32) -> Result<Stored, SlotFault> {
         let start = slot * self.slot_len;
-        let mut record = [0u8; MAX_BODY_LEN + ALIGN];
-        self.flash.read(start, &mut record).ok()?;
-        let (header, rest) = record.split_at(HEADER_LEN);
-        if header.get(..4)? != MAGIC {
-            return None;
-        }
-        let sequence = u32::from_le_bytes(header.get(4..8)?.try_into().ok()?);
-        let payload_len = usize::from(u16::from_le_bytes(header.get(8..10)?.try_into().ok()?));
-        if payload_len > MAX_PAYLOAD_LEN {
-            return None;
-        }
-        let body_len = (HEADER_LEN + payload_len).div_ceil(ALIGN) * ALIGN;
-        let crc_at = record.get(body_len..body_len + 4)?;
-        let crc = CRC.checksum(record.get(..HEADER_LEN + payload_len)?);
-        if crc_at != crc.to_le_bytes() {
-            return None;
-        }
-        let params: JointParams = postcard::from_bytes(rest.get(..payload_len)?).ok()?;
-        params.validate().ok()?;
-        Some(Stored { params, sequence })
+        let mut record = [0u8; RECORD_LEN];
+        self.flash.read(start, &mut record).map_err(|_| SlotFault::Flash)?;
+        decode(&record)
     }
+}
+
+/// The record at the start of a slot, checked and decoded. Not inlined: inside the commit path
+/// (and with it the firmware's main loop) its frame made the stack's high-water mark 164 B deeper
+/// (bench/firmware.sh).
+#[inline(never)]
+fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
+    let (header, rest) = record.split_at(HEADER_LEN);
+    if header.get(..4) != Some(&MAGIC[..]) {
+        return Err(SlotFault::Empty);
+    }
+    // Before anything else of the layout: another format may place it differently.
+    match header.get(FORMAT_AT).copied() {
+        Some(RECORD_FORMAT | UNVERSIONED_FORMAT) => {}
+        Some(format) => return Err(SlotFault::UnknownFormat(format)),
+        None => return Err(SlotFault::Corrupt),
+    }
+    let field = |range: core::ops::Range<usize>| header.get(range).ok_or(SlotFault::Corrupt);
+    let sequence = u32::from_le_bytes(field(4..8)?.try_into().map_err(|_| SlotFault::Corrupt)?);
+    let payload_len = usize::from(u16::from_le_bytes(field(8..10)?.try_into().map_err(|_| SlotFault::Corrupt)?));
+    if payload_len > MAX_PAYLOAD_LEN {
+        return Err(SlotFault::Corrupt);
+    }
+    let body_len = (HEADER_LEN + payload_len).div_ceil(ALIGN) * ALIGN;
+    let crc_at = record.get(body_len..body_len + 4).ok_or(SlotFault::Corrupt)?;
+    let crc = CRC.checksum(record.get(..HEADER_LEN + payload_len).ok_or(SlotFault::Corrupt)?);
+    if crc_at != crc.to_le_bytes() {
+        return Err(SlotFault::Corrupt);
+    }
+    let payload = rest.get(..payload_len).ok_or(SlotFault::Corrupt)?;
+    let params: JointParams = postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?;
+    params.validate().map_err(SlotFault::Invalid)?;
+    Ok(Stored { params, sequence })
 }
 
 fn header_bytes(sequence: u32, payload_len: u16) -> [u8; HEADER_LEN] {
@@ -155,8 +239,10 @@ fn header_bytes(sequence: u32, payload_len: u16) -> [u8; HEADER_LEN] {
     magic.copy_from_slice(&MAGIC);
     let (seq, rest) = rest.split_at_mut(4);
     seq.copy_from_slice(&sequence.to_le_bytes());
-    if let Some(len) = rest.get_mut(..2) {
-        len.copy_from_slice(&payload_len.to_le_bytes());
+    let (len, rest) = rest.split_at_mut(2);
+    len.copy_from_slice(&payload_len.to_le_bytes());
+    if let Some(format) = rest.first_mut() {
+        *format = RECORD_FORMAT;
     }
     header
 }

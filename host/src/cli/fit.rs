@@ -6,14 +6,11 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use model_core::Model;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use swg_host::baselines::{lines_per_branch, three_segment};
-use swg_host::fit::{fit, rss, FitOptions, Stage};
-use swg_host::input::Dataset;
-use swg_host::output::write_atomically;
-use swg_host::paramsfile::read_params;
-use swg_host::plot::{loop_svg, LoopPlot};
-use swg_host::prepare::prepare;
-use swg_host::report::{ComparedReport, FitReport, InputSummary};
+use swg_host::fit::{fit_dataset, FitDatasetError, Stage};
+use swg_host::report::fit::{ComparedReport, FitReport, InputSummary};
+use swg_host::report::output::write_atomically;
+use swg_host::report::params::read_params;
+use swg_host::report::plot::{loop_svg, LoopPlot};
 
 #[derive(Args)]
 pub struct FitArgs {
@@ -45,35 +42,34 @@ pub fn run(args: FitArgs) -> Result<()> {
         }
     }
     let dataset = args.input_options.read_to_fit(&args.input)?;
-    let prepared = prepare(&dataset).with_context(|| args.input.display().to_string())?;
-    let compared_params = args.compare.iter().map(|path| Ok((path, read_params(path)?))).collect::<Result<Vec<_>>>()?;
+    let compare = args.compare.iter().map(|path| read_params(path)).collect::<Result<Vec<_>, _>>()?;
 
     let progress = DelayedProgress::new();
-    let options = FitOptions { seed: args.seed, noise: prepared.noise, ..FitOptions::default() };
-    let fitted = fit(&prepared.data, &options, |stage| progress.update(stage))
-        .with_context(|| format!("{}: fit failed", args.input.display()))?;
+    let outcome =
+        fit_dataset(&dataset, &compare, args.seed, |stage| progress.update(stage)).map_err(|error| match error {
+            FitDatasetError::Compared { index, source } => anyhow::Error::new(source).context(format!(
+                "{}: cannot evaluate on {}",
+                args.compare[index].display(),
+                args.input.display()
+            )),
+            other => anyhow::Error::new(other).context(args.input.display().to_string()),
+        })?;
     progress.finish();
 
-    let data = &prepared.data;
-    let lines = lines_per_branch(&data.theta, &data.torque, &prepared.branch);
-    let curve = three_segment(&data.theta, &data.torque);
-    let compared = compared_params
-        .into_iter()
-        .map(|(path, params)| {
-            let rss = rss(&Model::new(params)?, data)
-                .with_context(|| format!("{}: cannot evaluate on {}", path.display(), args.input.display()))?;
-            Ok(ComparedReport { path: path.display().to_string(), params, rss })
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let fitted = &outcome.fit;
+    let compared = args
+        .compare
+        .iter()
+        .zip(&compare)
+        .zip(&outcome.compared_rss)
+        .map(|((path, params), &rss)| ComparedReport { path: path.display().to_string(), params: *params, rss })
+        .collect();
     let summary = InputSummary {
         path: args.input.display().to_string(),
-        kind: match dataset {
-            Dataset::LoopTable(_) => "loop_table",
-            Dataset::Recording(_) => "recording",
-        },
-        turning_points: prepared.segmentation.as_ref().map(|s| s.turning_points.len()),
+        kind: dataset.kind(),
+        turning_points: outcome.prepared.segmentation.as_ref().map(|s| s.turning_points.len()),
     };
-    let report = FitReport::new(summary, &fitted, lines.clone(), curve.clone(), compared);
+    let report = FitReport::new(summary, fitted, outcome.lines.clone(), outcome.three_segment.clone(), compared);
     let json = serde_json::to_string_pretty(&report)?;
 
     // Render everything before writing anything.
@@ -81,18 +77,15 @@ pub fn run(args: FitArgs) -> Result<()> {
         Some(_) => {
             let model = Model::new(fitted.params)?;
             let title = format!("{} — genetic hysteresis fit, RMS {:.3} N·m", file_name(&args.input), fitted.rms);
-            Some(
-                loop_svg(&LoopPlot {
-                    title: &title,
-                    data,
-                    branch: &prepared.branch,
-                    model: &model,
-                    amplitude: fitted.reference_amplitude,
-                    lines: &lines,
-                    three_segment: curve.as_ref(),
-                })
-                .map_err(anyhow::Error::msg)?,
-            )
+            Some(loop_svg(&LoopPlot {
+                title: &title,
+                data: &outcome.prepared.data,
+                branch: &outcome.prepared.branch,
+                model: &model,
+                amplitude: fitted.reference_amplitude,
+                lines: &outcome.lines,
+                three_segment: outcome.three_segment.as_ref(),
+            })?)
         }
         None => None,
     };

@@ -1,6 +1,8 @@
 //! `swg-host flash`: write a firmware ELF to a joint board through a debug probe (probe-rs),
 //! then optionally push parameters, as the joint-board workflow needs.
-use anyhow::{bail, Context, Result};
+#[cfg(feature = "probe")]
+use anyhow::Context;
+use anyhow::{bail, Result};
 use clap::Args;
 use std::path::PathBuf;
 

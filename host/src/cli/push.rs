@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 use swg_host::link::push::{joint_params, push, JointSettings};
 use swg_host::link::Link;
-use swg_host::paramsfile::read_params;
+use swg_host::report::params::read_params;
 
 #[derive(Args)]
 pub struct PushArgs {

@@ -6,7 +6,7 @@ use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use swg_host::input::read_recording;
 use swg_host::link::replay::{device_params, replay, samples, widen};
-use swg_host::paramsfile::read_params;
+use swg_host::report::params::read_params;
 use swg_protocol::EvalPath;
 
 #[derive(Args)]

@@ -2,9 +2,9 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use std::path::PathBuf;
-use swg_host::effects::EffectValue;
-use swg_host::output::write_atomically;
-use swg_host::paramsfile::{parse_params, read_params};
+use swg_host::diagnose::effects::EffectValue;
+use swg_host::report::output::write_atomically;
+use swg_host::report::params::{parse_params, read_params};
 use swg_host::simulate::{simulate, Simulation};
 
 /// The fit of the paper's table that ships with the tool (`data/seed/lht-20-50-fit.json`).

@@ -46,14 +46,7 @@ pub fn joint_params(params: &Params<f64>, settings: &JointSettings) -> Result<Jo
     };
     let joint = JointParams {
         model_version: MODEL_VERSION,
-        model: Params {
-            c1: narrow("c1", params.c1)?,
-            c2: narrow("c2", params.c2)?,
-            c3: narrow("c3", params.c3)?,
-            alpha: narrow("alpha", params.alpha)?,
-            beta: narrow("beta", params.beta)?,
-            omega: narrow("omega", params.omega)?,
-        },
+        model: params.try_map(|name, value| narrow(name.as_str(), value))?,
         gear_ratio: narrow("gear ratio", settings.gear_ratio)?,
         torque_limit: narrow("torque limit", settings.torque_limit)?,
         direction_band: narrow("direction band", settings.direction_band)?,

@@ -1,14 +1,14 @@
 extern crate std;
 use super::verify::{check, check_fast_path};
 use super::*;
-use model_core::checks::{PAPER, SEED_FIT};
+use model_core::checks::{PAPER_TABLE_2, REFERENCE_SETS, SEED_AMPLITUDE, SEED_TABLE_FIT};
 use model_core::Model;
 
-const AMPLITUDES: [f32; 3] = [0.3e-3, 1.168e-3, 2.0e-3];
+const AMPLITUDES: [f32; 3] = [0.3e-3, SEED_AMPLITUDE as f32, 2.0e-3];
 
 #[test]
 fn fast_path_error_bound() {
-    for params in [PAPER, SEED_FIT] {
+    for (_, params) in REFERENCE_SETS {
         for amplitude in AMPLITUDES {
             assert_eq!(check_fast_path(&params, amplitude), Ok(()), "A = {amplitude}");
         }
@@ -17,7 +17,7 @@ fn fast_path_error_bound() {
 
 #[test]
 fn the_direct_f32_path_meets_the_same_bound() {
-    for params in [PAPER, SEED_FIT] {
+    for (_, params) in REFERENCE_SETS {
         let direct = Model::new(params.to_f32()).unwrap();
         for amplitude in AMPLITUDES {
             let result = check(&params, amplitude, |theta, direction, a| {
@@ -31,8 +31,8 @@ fn the_direct_f32_path_meets_the_same_bound() {
 #[test]
 fn the_bound_catches_a_small_error() {
     // A fast path off by 10⁻⁴ of the hysteresis term must fail the check.
-    let fast = FastModel::new(&SEED_FIT.to_f32()).unwrap();
-    let result = check(&SEED_FIT, 1.168e-3, |theta, direction, a| {
+    let fast = FastModel::new(&SEED_TABLE_FIT.to_f32()).unwrap();
+    let result = check(&SEED_TABLE_FIT, SEED_AMPLITUDE as f32, |theta, direction, a| {
         let mut e = fast.evaluate(theta, direction, a)?;
         e.torque *= 1.0 + 1.0e-4;
         Some(e)
@@ -55,7 +55,7 @@ fn elementary_functions_are_accurate() {
 
 #[test]
 fn out_of_range_sets_have_no_fast_path() {
-    let mut params = SEED_FIT.to_f32();
+    let mut params = SEED_TABLE_FIT.to_f32();
     params.beta = 20.0;
     assert_eq!(FastModel::new(&params), Err(FastPathError::DecayOutOfRange));
     params.beta = 1.0;
@@ -69,7 +69,7 @@ fn out_of_range_sets_have_no_fast_path() {
 
 #[test]
 fn invalid_inputs_give_none_not_nan() {
-    let fast = FastModel::new(&PAPER.to_f32()).unwrap();
+    let fast = FastModel::new(&PAPER_TABLE_2.to_f32()).unwrap();
     assert_eq!(fast.evaluate(f32::NAN, Direction::Rising, 1.0e-3), None);
     assert_eq!(fast.evaluate(0.0, Direction::Rising, 0.0), None);
     assert_eq!(fast.evaluate(0.0, Direction::Falling, f32::INFINITY), None);

@@ -204,3 +204,147 @@ fn a_write_that_does_not_land_is_an_error() {
 fn too_small_a_flash_is_refused() {
     assert!(matches!(ParamStore::new(RamFlash::<1024>::new()), Err(StorageError::Geometry)));
 }
+
+/// Every field a different value, so that a record with two fields swapped (say gear ratio
+/// and torque limit) differs from the golden bytes.
+fn golden_params() -> JointParams {
+    JointParams {
+        model_version: MODEL_VERSION,
+        model: Params { c1: 2.5e4, c2: 1.5e9, c3: -1.25e14, alpha: 2.75e6, beta: -420.5, omega: -225.25 },
+        gear_ratio: 80.0,
+        torque_limit: 35.5,
+        direction_band: 2.5e-6,
+    }
+}
+
+/// The record of [`golden_params`] as the first save writes it into slot 0, CRC block included.
+#[rustfmt::skip]
+const GOLDEN_RECORD: [u8; 64] = [
+    b'S', b'W', b'G', b'P', // magic
+    0x01, 0x00, 0x00, 0x00, // sequence 1
+    0x25, 0x00, // payload length 37
+    RECORD_FORMAT, // format 1
+    0xFF, // reserved
+    0x01, // model_version 1 (postcard varint)
+    0x00, 0x50, 0xC3, 0x46, // c1 2.5e4 (f32 LE)
+    0x5E, 0xD0, 0xB2, 0x4E, // c2 1.5e9
+    0xA9, 0x5F, 0xE3, 0xD6, // c3 -1.25e14
+    0xC0, 0xD8, 0x27, 0x4A, // alpha 2.75e6
+    0x00, 0x40, 0xD2, 0xC3, // beta -420.5
+    0x00, 0x40, 0x61, 0xC3, // omega -225.25
+    0x00, 0x00, 0xA0, 0x42, // gear_ratio 80
+    0x00, 0x00, 0x0E, 0x42, // torque_limit 35.5
+    0xAC, 0xC5, 0x27, 0x36, // direction_band 2.5e-6
+    0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, // padding to 56 bytes
+    0x66, 0xAF, 0xF0, 0x38, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..49, LE
+];
+
+/// The same parameters as firmware 0.1.0 stored them, before the format byte: byte 10 was
+/// reserved and left erased (0xFF), hence another CRC.
+const LEGACY_RECORD: [u8; 64] = {
+    let mut record = GOLDEN_RECORD;
+    record[10] = 0xFF;
+    record[56] = 0xC9;
+    record[57] = 0xF4;
+    record[58] = 0xA9;
+    record[59] = 0x81;
+    record
+};
+
+fn flash_with(slot_0: &[u8]) -> Flash {
+    let mut flash = Flash::new();
+    flash.write(0, slot_0).unwrap();
+    flash
+}
+
+#[test]
+fn golden_params_have_distinct_fields() {
+    let p = golden_params();
+    let m = p.model;
+    let fields = [m.c1, m.c2, m.c3, m.alpha, m.beta, m.omega, p.gear_ratio, p.torque_limit, p.direction_band];
+    for (i, a) in fields.iter().enumerate() {
+        for b in &fields[i + 1..] {
+            assert_ne!(a, b, "{fields:?}");
+        }
+    }
+    assert_eq!(MODEL_VERSION, 1, "the golden record holds model version 1");
+}
+
+#[test]
+fn a_saved_record_matches_the_golden_bytes() {
+    let mut store = ParamStore::new(Flash::new()).unwrap();
+    assert_eq!(store.save(&golden_params()), Ok(1));
+    let mut record = [0u8; 64];
+    store.into_flash().read(0, &mut record).unwrap();
+    assert_eq!(record, GOLDEN_RECORD);
+}
+
+#[test]
+fn the_golden_record_loads() {
+    let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD)).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_params(), sequence: 1 }));
+    let [first, second] = store.slots();
+    assert_eq!(first, Ok(Stored { params: golden_params(), sequence: 1 }));
+    assert_eq!(second, Err(SlotFault::Empty));
+}
+
+#[test]
+fn a_record_without_the_format_byte_reads_as_format_1() {
+    let mut store = ParamStore::new(flash_with(&LEGACY_RECORD)).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_params(), sequence: 1 }));
+    // The next commit goes to the other slot and wins; the old record stays as the fallback.
+    assert_eq!(store.save(&params(2.0e3)), Ok(2));
+    assert_eq!(store.load().map(|stored| stored.params), Some(params(2.0e3)));
+    assert_eq!(store.slots()[0], Ok(Stored { params: golden_params(), sequence: 1 }));
+}
+
+/// `record` with its format byte set to `format` and its CRC recomputed: valid but for that.
+fn with_format(record: [u8; 64], format: u8) -> [u8; 64] {
+    let mut record = record;
+    record[10] = format;
+    let crc = CRC.checksum(&record[..HEADER_LEN + 37]);
+    record[56..60].copy_from_slice(&crc.to_le_bytes());
+    record
+}
+
+#[test]
+fn a_record_of_an_unknown_format_is_ignored() {
+    assert_eq!(with_format(GOLDEN_RECORD, RECORD_FORMAT), GOLDEN_RECORD);
+    assert_eq!(with_format(GOLDEN_RECORD, 0xFF), LEGACY_RECORD);
+    for format in [0u8, 2, 0x7F, 0xFE] {
+        let newer = with_format(GOLDEN_RECORD, format);
+        let mut store = ParamStore::new(flash_with(&newer)).unwrap();
+        assert_eq!(store.slots()[0], Err(SlotFault::UnknownFormat(format)));
+        assert_eq!(store.load(), None);
+
+        // Next to a valid older record in slot 1, the older one is used.
+        let mut flash = flash_with(&newer);
+        let mut older = with_format(GOLDEN_RECORD, RECORD_FORMAT);
+        older[4] = 0; // sequence 0, below the unknown record's 1
+        let crc = CRC.checksum(&older[..HEADER_LEN + 37]);
+        older[56..60].copy_from_slice(&crc.to_le_bytes());
+        flash.write(2048, &older).unwrap();
+        let mut store = ParamStore::new(flash).unwrap();
+        assert_eq!(store.load(), Some(Stored { params: golden_params(), sequence: 0 }));
+    }
+}
+
+#[test]
+fn slots_say_why_a_record_is_not_used() {
+    let mut torn = GOLDEN_RECORD;
+    torn[56..60].fill(0xFF); // power lost before the CRC landed
+    let mut store = ParamStore::new(flash_with(&torn)).unwrap();
+    assert_eq!(store.slots(), [Err(SlotFault::Corrupt), Err(SlotFault::Empty)]);
+
+    // Forge the stored model version (payload byte 0, one varint byte) and fix the CRC.
+    let mut record = GOLDEN_RECORD;
+    record[12] = (MODEL_VERSION + 1) as u8;
+    let crc = CRC.checksum(&record[..HEADER_LEN + 37]);
+    record[56..60].copy_from_slice(&crc.to_le_bytes());
+    let mut store = ParamStore::new(flash_with(&record)).unwrap();
+    assert_eq!(
+        store.slots()[0],
+        Err(SlotFault::Invalid(ErrorReply::ModelVersion { got: MODEL_VERSION + 1, supported: MODEL_VERSION }))
+    );
+    assert_eq!(store.load(), None);
+}

@@ -70,6 +70,13 @@ impl fmt::Display for Effect {
     }
 }
 
+/// An effect is written by its name in reports.
+impl serde::Serialize for Effect {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
+    }
+}
+
 impl FromStr for Effect {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, Self::Err> {

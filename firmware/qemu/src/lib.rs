@@ -20,6 +20,7 @@ pub const STACK_PAINT_BYTES: usize = 16 * 1024;
 /// Fills the stack's unused part, down to [`STACK_PAINT_BYTES`] below its start, with
 /// [`STACK_PAINT`]. Call once at boot, before interrupts are enabled.
 #[inline(never)]
+#[allow(unsafe_code)]
 pub fn paint_stack() {
     extern "C" {
         // cortex-m-rt's initial stack pointer: the top of RAM.

@@ -1,6 +1,7 @@
 //! What `fit` reports: the JSON document (also the parameter file) and the human summary.
-use crate::baselines::{BranchLine, ThreeSegment};
-use crate::fit::{Fit, NoiseModel, SearchSummary};
+use crate::fit::baselines::{BranchLine, ThreeSegment};
+use crate::fit::{Fit, SearchSummary};
+use crate::prepare::NoiseModel;
 use model_core::{Params, MODEL_NAME, MODEL_VERSION};
 use serde::Serialize;
 use std::fmt::Write;

@@ -1,12 +1,33 @@
 //! SVG pictures of a fit: the torque–deflection loop with the data, the fitted model and the
 //! baselines, and the model's residuals below it.
-use crate::baselines::{BranchLine, ThreeSegment};
 use crate::diagnose::{Diagnosis, ExtendedFit, Observed};
-use crate::fit::FitData;
+use crate::fit::baselines::{BranchLine, ThreeSegment};
 use crate::input::Branch;
+use crate::prepare::FitData;
 use model_core::{Direction, Model};
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
+
+/// Why a picture could not be drawn.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlotError {
+    #[error("the model cannot be evaluated for the {picture}: {source}")]
+    Model {
+        picture: &'static str,
+        #[source]
+        source: model_core::Error,
+    },
+    /// plotters' own error, as text: its error type borrows the drawing backend.
+    #[error("drawing the {picture} failed: {message}")]
+    Draw { picture: &'static str, message: String },
+}
+
+type DrawResult = Result<(), Box<dyn std::error::Error>>;
+
+fn drawn(picture: &'static str, result: DrawResult) -> Result<(), PlotError> {
+    result.map_err(|e| PlotError::Draw { picture, message: e.to_string() })
+}
 
 pub struct LoopPlot<'a> {
     pub title: &'a str,
@@ -32,7 +53,7 @@ fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 type LoopChart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// The legend of a loop chart, in its upper left corner.
-fn draw_legend<'a, 'b: 'a>(chart: &mut LoopChart<'a, 'b>) -> Result<(), Box<dyn std::error::Error>> {
+fn draw_legend<'a, 'b: 'a>(chart: &mut LoopChart<'a, 'b>) -> DrawResult {
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperLeft)
@@ -43,17 +64,19 @@ fn draw_legend<'a, 'b: 'a>(chart: &mut LoopChart<'a, 'b>) -> Result<(), Box<dyn 
 }
 
 /// Renders the picture as an SVG document.
-pub fn loop_svg(plot: &LoopPlot) -> Result<String, String> {
+pub fn loop_svg(plot: &LoopPlot) -> Result<String, PlotError> {
+    const PICTURE: &str = "loop picture";
+    let residuals =
+        crate::fit::residuals(plot.model, plot.data).map_err(|source| PlotError::Model { picture: PICTURE, source })?;
     let mut svg = String::new();
-    draw(plot, &mut svg).map_err(|e| format!("drawing the plot failed: {e}"))?;
+    drawn(PICTURE, draw(plot, &residuals, &mut svg))?;
     Ok(svg)
 }
 
-fn draw(plot: &LoopPlot, svg: &mut String) -> Result<(), Box<dyn std::error::Error>> {
+fn draw(plot: &LoopPlot, residuals: &[f64], svg: &mut String) -> DrawResult {
     let data = plot.data;
     let n = data.theta.len();
     let stride = n.div_ceil(MAX_POINTS).max(1);
-    let residuals = crate::fit::residuals(plot.model, data)?;
 
     let root = SVGBackend::with_string(svg, (960, 820)).into_drawing_area();
     root.fill(&WHITE)?;
@@ -166,18 +189,13 @@ fn draw(plot: &LoopPlot, svg: &mut String) -> Result<(), Box<dyn std::error::Err
 
 /// Residuals of the baseline (grey) and of the final model (blue) against deflection, time,
 /// deflection rate and input angle: the pictures `diagnose --plot` writes.
-pub fn residuals_svg(observed: &Observed, before: &[f64], after: &[f64]) -> Result<String, String> {
+pub fn residuals_svg(observed: &Observed, before: &[f64], after: &[f64]) -> Result<String, PlotError> {
     let mut svg = String::new();
-    draw_residuals(observed, before, after, &mut svg).map_err(|e| format!("drawing the residuals failed: {e}"))?;
+    drawn("residual picture", draw_residuals(observed, before, after, &mut svg))?;
     Ok(svg)
 }
 
-fn draw_residuals(
-    observed: &Observed,
-    before: &[f64],
-    after: &[f64],
-    svg: &mut String,
-) -> Result<(), Box<dyn std::error::Error>> {
+fn draw_residuals(observed: &Observed, before: &[f64], after: &[f64], svg: &mut String) -> DrawResult {
     let n = before.len();
     let stride = n.div_ceil(MAX_POINTS).max(1);
     let root = SVGBackend::with_string(svg, (1200, 860)).into_drawing_area();
@@ -223,32 +241,38 @@ fn draw_residuals(
 }
 
 /// The loop with the baseline model's and the final model's torque at every sample.
-pub fn diagnosis_loop_svg(observed: &Observed, diagnosis: &Diagnosis) -> Result<String, String> {
+pub fn diagnosis_loop_svg(observed: &Observed, diagnosis: &Diagnosis) -> Result<String, PlotError> {
+    const PICTURE: &str = "diagnosis loop picture";
+    let d = &observed.data;
+    let stride = d.theta.len().div_ceil(MAX_POINTS).max(1);
+    let shown: Vec<usize> = (0..d.theta.len()).step_by(stride).collect();
+    let predicted = |fit: &ExtendedFit| -> Result<Vec<f64>, PlotError> {
+        let residuals =
+            fit.residuals(observed, &shown).map_err(|source| PlotError::Model { picture: PICTURE, source })?;
+        Ok(shown.iter().zip(residuals).map(|(&i, r)| d.torque[i] - r).collect())
+    };
+    let (baseline, final_model) = (predicted(&diagnosis.baseline)?, predicted(&diagnosis.final_fit)?);
     let mut svg = String::new();
-    draw_diagnosis_loop(observed, diagnosis, &mut svg).map_err(|e| format!("drawing the loop failed: {e}"))?;
+    drawn(PICTURE, draw_diagnosis_loop(observed, diagnosis, &shown, baseline, final_model, &mut svg))?;
     Ok(svg)
 }
 
 fn draw_diagnosis_loop(
     observed: &Observed,
     diagnosis: &Diagnosis,
+    all: &[usize],
+    baseline: Vec<f64>,
+    final_model: Vec<f64>,
     svg: &mut String,
-) -> Result<(), Box<dyn std::error::Error>> {
+) -> DrawResult {
     let d = &observed.data;
-    let n = d.theta.len();
-    let stride = n.div_ceil(MAX_POINTS).max(1);
-    let all: Vec<usize> = (0..n).step_by(stride).collect();
-    let predicted = |fit: &ExtendedFit| -> Result<Vec<f64>, String> {
-        let residuals = fit.residuals(observed, &all).ok_or("the model cannot be evaluated")?;
-        Ok(all.iter().zip(residuals).map(|(&i, r)| d.torque[i] - r).collect())
-    };
     // The loop is nearly a straight line; removing its mean stiffness shows the hysteresis.
     let mean_stiffness = d.theta.iter().zip(&d.torque).map(|(t, q)| t * q).sum::<f64>()
         / d.theta.iter().map(|t| t * t).sum::<f64>().max(f64::MIN_POSITIVE);
     let detrend = |values: Vec<f64>| -> Vec<f64> {
         all.iter().zip(values).map(|(&i, v)| v - mean_stiffness * d.theta[i]).collect()
     };
-    let (baseline, final_model) = (detrend(predicted(&diagnosis.baseline)?), detrend(predicted(&diagnosis.final_fit)?));
+    let (baseline, final_model) = (detrend(baseline), detrend(final_model));
     let measured = detrend(all.iter().map(|&i| d.torque[i]).collect());
     let root = SVGBackend::with_string(svg, (960, 640)).into_drawing_area();
     root.fill(&WHITE)?;

@@ -5,7 +5,7 @@
 
 use cortex_m_rt::entry;
 use embedded_io::{Read, Write};
-use swg_firmware::uart::Uart0;
+use swg_firmware_qemu::uart::Uart0;
 use swg_joint::{flash::RamFlash, storage::ParamStore, Server};
 use swg_protocol::MAX_FRAME_LEN;
 
@@ -15,14 +15,14 @@ type BoardFlash = RamFlash<2048>;
 
 #[entry]
 fn main() -> ! {
-    swg_firmware::paint_stack();
-    let Some(mut uart) = Uart0::take() else { swg_firmware::exit(false) };
+    swg_firmware_qemu::paint_stack();
+    let Some(mut uart) = Uart0::take() else { swg_firmware_qemu::exit(false) };
     // Both in statics, built in place: `size` accounts for them, and the 2 KiB of flash never
     // pass through the stack.
-    let Some(flash) = cortex_m::singleton!(: BoardFlash = BoardFlash::new()) else { swg_firmware::exit(false) };
-    let Ok(store) = ParamStore::new(flash) else { swg_firmware::exit(false) };
+    let Some(flash) = cortex_m::singleton!(: BoardFlash = BoardFlash::new()) else { swg_firmware_qemu::exit(false) };
+    let Ok(store) = ParamStore::new(flash) else { swg_firmware_qemu::exit(false) };
     let Some(server) = cortex_m::singleton!(: Server<&'static mut BoardFlash> = Server::new(store)) else {
-        swg_firmware::exit(false)
+        swg_firmware_qemu::exit(false)
     };
     defmt::info!(
         "joint firmware {} on mps2-an386: protocol {}, model {}",

@@ -8,7 +8,7 @@ use core::hint::black_box;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use model_core::{checks::SEED_FIT, Direction, Model};
+use model_core::{checks::SEED_TABLE_FIT, Direction, Model};
 use swg_joint::FastModel;
 use swg_protocol::{EvalPath, JointParams, MODEL_VERSION};
 
@@ -37,14 +37,14 @@ fn per_run(total_ticks: u32, baseline_ticks: u32) -> f32 {
 
 #[entry]
 fn main() -> ! {
-    let Some(mut core) = cortex_m::Peripherals::take() else { swg_firmware::exit(false) };
+    let Some(mut core) = cortex_m::Peripherals::take() else { swg_firmware_qemu::exit(false) };
     core.SYST.set_clock_source(SystClkSource::Core);
     core.SYST.set_reload(0x00FF_FFFF);
     core.SYST.clear_current();
     core.SYST.enable_counter();
 
-    let params = SEED_FIT.to_f32();
-    let (Ok(model), Ok(fast)) = (Model::new(params), FastModel::new(&params)) else { swg_firmware::exit(false) };
+    let params = SEED_TABLE_FIT.to_f32();
+    let (Ok(model), Ok(fast)) = (Model::new(params), FastModel::new(&params)) else { swg_firmware_qemu::exit(false) };
     let mut compensator = swg_joint::Compensator::new();
     let joint = JointParams {
         model_version: MODEL_VERSION,
@@ -54,7 +54,7 @@ fn main() -> ! {
         direction_band: 1.0e-6,
     };
     if compensator.stage(joint).is_err() {
-        swg_firmware::exit(false)
+        swg_firmware_qemu::exit(false)
     }
 
     // The loop and the black boxes alone, subtracted from every measurement.
@@ -90,5 +90,5 @@ fn main() -> ! {
         "instructions per full control tick (deflection, tracking, fast path, clamp): {}",
         per_run(tick, baseline)
     );
-    swg_firmware::exit(true)
+    swg_firmware_qemu::exit(true)
 }

@@ -240,7 +240,7 @@ fn fit_vertex(time: &[f64], x: &[f64], is_maximum: bool) -> Option<(f64, f64)> {
             }
         }
         let m = [[s[0], s[1], s[2]], [s[1], s[2], s[3]], [s[2], s[3], s[4]]];
-        let [a, b, c] = crate::linalg::solve_spd(m, r)?;
+        let [a, b, c] = crate::numeric::linalg::solve_spd(m, r)?;
         let cap = if is_maximum { c < 0.0 } else { c > 0.0 };
         let vertex_tau = -b / (2.0 * c);
         if !(cap && (-1.0..=1.0).contains(&vertex_tau)) {

@@ -17,6 +17,8 @@ pub struct Uart0 {
     _private: (),
 }
 
+// The register accesses: the only unsafe code of this board besides `paint_stack`.
+#[allow(unsafe_code)]
 impl Uart0 {
     /// Enables the UART; `None` when it was taken before.
     pub fn take() -> Option<Self> {

@@ -1,5 +1,7 @@
-//! The small dense solves the fits need. Four or five unknowns at a time: a hand-written
-//! Cholesky on stack arrays beats pulling a linear-algebra crate into the build.
+//! The small dense solves the fits need: four to ten unknowns at a time (the model's columns
+//! and the diagnosis' effects), in a flat `Vec`. Hand-written because the fits need what a
+//! library Cholesky does not do: equilibrated columns and dropping a column whose pivot
+//! vanishes (collinear data), instead of failing or returning garbage.
 
 /// Solves the symmetric positive (semi-)definite system `m·x = r`. Columns are equilibrated
 /// first (the fit's columns differ by many orders of magnitude); a column whose pivot

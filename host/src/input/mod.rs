@@ -1,8 +1,11 @@
 //! The two input formats: the paper's loop table and the bench recording (format v1).
-use crate::table::{read_text, InputError, Table};
+pub mod table;
+
 use model_core::Direction;
 use std::fmt;
 use std::path::Path;
+pub use table::InputError;
+use table::{read_text, Table};
 
 /// The four branches of a loading cycle, as named in loop tables.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -99,6 +102,14 @@ impl Dataset {
 
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// `loop_table` or `recording`, as reports name the kind of input.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Dataset::LoopTable(_) => "loop_table",
+            Dataset::Recording(_) => "recording",
+        }
     }
 }
 

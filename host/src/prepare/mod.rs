@@ -1,7 +1,27 @@
 //! From what was read to what the fit needs: direction, amplitude and noise per sample.
-use crate::fit::{FitData, NoiseModel};
+pub mod segment;
+
 use crate::input::{Branch, Dataset, LoopTable, Recording};
-use crate::segment::{noise_from_second_differences, segment, SegmentError, Segmentation};
+use model_core::Direction;
+pub use segment::{noise_from_second_differences, segment, SegmentError, Segmentation, TurningPoint};
+
+/// Deflection samples with what the model needs to evaluate them.
+#[derive(Clone, Debug, Default)]
+pub struct FitData {
+    pub theta: Vec<f64>,
+    pub torque: Vec<f64>,
+    pub direction: Vec<Direction>,
+    pub amplitude: Vec<f64>,
+}
+
+/// Standard deviations of the measurement noise.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct NoiseModel {
+    /// Torque sensor noise, N·m.
+    pub torque_nm: f64,
+    /// Deflection noise (encoders), rad.
+    pub deflection_rad: f64,
+}
 
 /// A dataset ready to fit.
 #[derive(Clone, Debug)]

@@ -1,6 +1,6 @@
 //! The models a gear engineer would otherwise use, fitted to the same data.
 use crate::input::Branch;
-use crate::linalg::solve_spd;
+use crate::numeric::linalg::solve_spd;
 
 /// One straight line T = intercept + stiffness·θ on one branch.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]

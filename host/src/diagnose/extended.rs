@@ -1,0 +1,318 @@
+//! The model with a set of effects, fitted by Gauss–Newton on the effects' magnitudes and r.
+use super::effects::{backlash, Effect};
+use super::observed::Observed;
+use crate::fit::basis::Basis;
+use crate::fit::R_LIMIT;
+use crate::numeric::median;
+use crate::prepare::FitData;
+use model_core::{Direction, Libm, Model, Params, Phase};
+
+const GAUSS_NEWTON_ITERATIONS: usize = 10;
+
+/// Magnitudes of the effects in a model, in the fit's own terms.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EffectState {
+    /// Dead band width w, rad.
+    pub backlash: f64,
+    /// e(θ_in) = a·cos 2θ_in + b·sin 2θ_in + c·cos 4θ_in + d·sin 4θ_in, rad.
+    pub kinematic: [f64; 4],
+    pub coulomb: f64,
+    pub viscous: f64,
+    /// c1·k, N·m/(rad·K).
+    pub thermal_gain: f64,
+    pub offset: f64,
+}
+
+/// The model with a set of effects, fitted.
+#[derive(Clone, Debug)]
+pub struct ExtendedFit {
+    pub params: Params<f64>,
+    pub r: f64,
+    pub state: EffectState,
+    pub active: Vec<Effect>,
+    /// Σ w·residual² with the diagnosis' fixed weights.
+    pub chi2: f64,
+    pub n: usize,
+    /// Standard error of each extra column's coefficient.
+    column_errors: Vec<f64>,
+}
+
+/// Why [`fit_extended`] could not fit.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ExtendedFitError {
+    #[error("the data do not determine the model and the effects' columns (they are collinear)")]
+    Degenerate,
+    #[error(transparent)]
+    Model(#[from] model_core::Error),
+    #[error("the data have no variable that could show {0}")]
+    Unrevealable(Effect),
+}
+
+impl From<crate::fit::FitError> for ExtendedFitError {
+    fn from(error: crate::fit::FitError) -> Self {
+        match error {
+            crate::fit::FitError::Model(e) => ExtendedFitError::Model(e),
+            _ => ExtendedFitError::Degenerate,
+        }
+    }
+}
+
+/// Coefficients an effect adds to the fit.
+pub(super) fn columns(effect: Effect) -> usize {
+    if effect == Effect::KinematicError {
+        4
+    } else {
+        1
+    }
+}
+
+impl ExtendedFit {
+    /// The baseline model, no effects, not yet fitted: where [`fit_extended`] starts.
+    pub fn start(params: Params<f64>, r: f64, n: usize) -> ExtendedFit {
+        ExtendedFit {
+            params,
+            r,
+            state: EffectState::default(),
+            active: Vec::new(),
+            chi2: f64::INFINITY,
+            n,
+            column_errors: Vec::new(),
+        }
+    }
+
+    /// Free parameters: c1, c2, c3, h, r and the effects' columns.
+    pub fn degrees_of_freedom(&self) -> usize {
+        5 + self.active.iter().map(|&e| columns(e)).sum::<usize>()
+    }
+
+    /// The effect's magnitude in SI units (see [`Effect::unit`]).
+    pub fn magnitude(&self, effect: Effect) -> f64 {
+        let s = &self.state;
+        match effect {
+            Effect::Backlash => s.backlash,
+            Effect::CoulombFriction => s.coulomb,
+            Effect::ViscousDamping => s.viscous,
+            Effect::KinematicError => s.kinematic[0].hypot(s.kinematic[1]),
+            Effect::ThermalDrift => s.thermal_gain / self.params.c1,
+            Effect::TorqueOffset => s.offset,
+        }
+    }
+
+    /// Standard error of [`Self::magnitude`].
+    pub fn magnitude_error(&self, effect: Effect) -> f64 {
+        let mut column = 0;
+        for &e in &self.active {
+            if e == effect {
+                let se = |k: usize| self.column_errors.get(column + k).copied().unwrap_or(f64::INFINITY);
+                return match effect {
+                    Effect::KinematicError => {
+                        let [a, b, ..] = self.state.kinematic;
+                        let m = a.hypot(b).max(f64::MIN_POSITIVE);
+                        ((a * se(0)).powi(2) + (b * se(1)).powi(2)).sqrt() / m
+                    }
+                    Effect::ThermalDrift => se(0) / self.params.c1.abs(),
+                    _ => se(0),
+                };
+            }
+            column += columns(e);
+        }
+        f64::INFINITY
+    }
+
+    /// The 2nd-order kinematic error as a vector, for comparing halves by phase too.
+    pub(super) fn kinematic_vector(&self) -> (f64, f64) {
+        (self.state.kinematic[0], self.state.kinematic[1])
+    }
+
+    /// Torque the extended model predicts for sample `i`.
+    pub fn predict(&self, observed: &Observed, model: &Model<f64>, i: usize) -> Result<f64, model_core::Error> {
+        let d = &observed.data;
+        let s = &self.state;
+        let x = d.theta[i] + kinematic_at(s, observed, i);
+        let elastic = backlash(x, s.backlash);
+        let amplitude = observed.elastic_amplitude(s, i);
+        let sign = direction_sign(d.direction[i]);
+        let rate = observed.rate.as_ref().map_or(0.0, |r| r[i]);
+        let warming = observed.warming.as_ref().map_or(0.0, |w| w[i]);
+        Ok(model.torque(elastic, d.direction[i], amplitude)?
+            + s.coulomb * sign
+            + s.viscous * rate
+            + s.thermal_gain * warming * elastic
+            + s.offset)
+    }
+
+    /// Measured minus predicted torque on `subset`.
+    pub fn residuals(&self, observed: &Observed, subset: &[usize]) -> Result<Vec<f64>, model_core::Error> {
+        let model = Model::new(self.params)?;
+        subset.iter().map(|&i| Ok(observed.data.torque[i] - self.predict(observed, &model, i)?)).collect()
+    }
+}
+
+fn direction_sign(direction: Direction) -> f64 {
+    match direction {
+        Direction::Rising => 1.0,
+        Direction::Falling => -1.0,
+    }
+}
+
+pub(super) fn kinematic_at(state: &EffectState, observed: &Observed, i: usize) -> f64 {
+    match &observed.input_angle {
+        Some(angle) => {
+            let [a, b, c, d] = state.kinematic;
+            let psi = angle[i];
+            a * (2.0 * psi).cos() + b * (2.0 * psi).sin() + c * (4.0 * psi).cos() + d * (4.0 * psi).sin()
+        }
+        None => 0.0,
+    }
+}
+
+/// Fits the model with the `active` effects on `subset` by Gauss–Newton on the nonlinear
+/// magnitudes and r, starting from `start`.
+pub fn fit_extended(
+    observed: &Observed,
+    subset: &[usize],
+    weights: &[f64],
+    active: &[Effect],
+    start: &ExtendedFit,
+) -> Result<ExtendedFit, ExtendedFitError> {
+    let d = &observed.data;
+    let reference_amplitude = median(&d.amplitude);
+    let scale = subset.iter().map(|&i| d.amplitude[i]).fold(0.0, f64::max);
+    let (mut params, mut r, mut state) = (start.params, start.r, start.state.clone());
+    for effect in Effect::ALL.iter().filter(|e| !active.contains(e)) {
+        clear(&mut state, *effect);
+    }
+    // The effects' columns, then one for r: a Gauss–Newton step on r instead of a line search
+    // keeps each trial a few solves, so r follows every effect tried.
+    let width: usize = active.iter().map(|&e| columns(e)).sum::<usize>() + 1;
+    let m = subset.len();
+    for effect in active {
+        let variable = match effect {
+            Effect::KinematicError => observed.input_angle.is_some(),
+            Effect::ViscousDamping => observed.rate.is_some(),
+            Effect::ThermalDrift => observed.warming.is_some(),
+            Effect::Backlash | Effect::CoulombFriction | Effect::TorqueOffset => true,
+        };
+        if !variable {
+            return Err(ExtendedFitError::Unrevealable(*effect));
+        }
+    }
+    let mut iteration = 0;
+    loop {
+        iteration += 1;
+        let model = Model::new(params)?;
+        let k = model.k();
+        let mut sub = FitData {
+            theta: Vec::with_capacity(m),
+            torque: Vec::with_capacity(m),
+            direction: Vec::with_capacity(m),
+            amplitude: Vec::with_capacity(m),
+        };
+        let mut extra = vec![Vec::with_capacity(m); width];
+        for &i in subset {
+            let x = d.theta[i] + kinematic_at(&state, observed, i);
+            let elastic = backlash(x, state.backlash);
+            let amplitude = observed.elastic_amplitude(&state, i);
+            let (spring, hysteresis) = model
+                .at_amplitude(amplitude)
+                .and_then(|l| l.evaluate_parts(elastic, d.direction[i]))
+                .unwrap_or_default();
+            let stiffness = spring.stiffness + hysteresis.stiffness;
+            sub.theta.push(elastic);
+            sub.torque.push(d.torque[i]);
+            sub.direction.push(d.direction[i]);
+            sub.amplitude.push(amplitude);
+            // The effects' columns fill `extra` in order; `width` counted them.
+            let mut column = 0;
+            let mut push = |value: f64| {
+                extra[column].push(value);
+                column += 1;
+            };
+            for &effect in active {
+                match effect {
+                    Effect::Backlash => {
+                        // w shifts the elastic deflection by ∓w/2 and narrows the loop by w/2:
+                        // ∂T/∂A at fixed θ is z/A − (θ/A)·dz/dθ, z the hysteresis term.
+                        let by_amplitude = hysteresis.torque / amplitude - elastic / amplitude * hysteresis.stiffness;
+                        let inside = x.abs() <= state.backlash / 2.0;
+                        let shift = if inside { 0.0 } else { -stiffness * x.signum() / 2.0 };
+                        push(shift - by_amplitude / 2.0);
+                    }
+                    Effect::KinematicError => {
+                        let psi = observed.input_angle.as_ref().map_or(0.0, |angle| angle[i]);
+                        for value in [(2.0 * psi).cos(), (2.0 * psi).sin(), (4.0 * psi).cos(), (4.0 * psi).sin()] {
+                            push(stiffness * value);
+                        }
+                    }
+                    Effect::CoulombFriction => push(direction_sign(d.direction[i])),
+                    Effect::ViscousDamping => push(observed.rate.as_ref().map_or(0.0, |rate| rate[i])),
+                    Effect::ThermalDrift => push(observed.warming.as_ref().map_or(0.0, |w| w[i]) * elastic),
+                    Effect::TorqueOffset => push(1.0),
+                };
+            }
+            // ∂T/∂r = k·A·|cos φ|·∂p/∂r, ∂p/∂r = sin φ − φ·e^(−rφ).
+            let phase = Phase::new::<Libm>(elastic / amplitude, d.direction[i]);
+            push(k * amplitude * phase.abs_cos * (phase.sin - phase.angle * (-r * phase.angle).exp()));
+        }
+        let sub_weights = subset.iter().map(|&i| weights[i]).collect();
+        let basis = Basis::weighted(&sub, scale, sub_weights, extra);
+        let solution = basis.solve(r).ok_or(ExtendedFitError::Degenerate)?;
+        params = basis.params(r, &solution, reference_amplitude)?;
+        let dof = (m as f64 - (4 + width) as f64).max(1.0);
+        let variance = solution.weighted_rss / dof;
+        let column_errors: Vec<f64> =
+            (0..width).map(|k| (variance * solution.factor.inverse_diagonal(4 + k)).max(0.0).sqrt()).collect();
+        let mut converged = true;
+        let mut k = 4;
+        for &effect in active {
+            let c = &solution.coef[k..k + columns(effect)];
+            match effect {
+                Effect::Backlash => {
+                    let next = (state.backlash + c[0]).max(0.0);
+                    converged &= (next - state.backlash).abs() <= 1e-4 * next + 1e-12;
+                    state.backlash = next;
+                }
+                Effect::KinematicError => {
+                    let step = c.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    let size = state.kinematic.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    for (value, delta) in state.kinematic.iter_mut().zip(c) {
+                        *value += delta;
+                    }
+                    converged &= step <= 1e-4 * size + 1e-12;
+                }
+                Effect::CoulombFriction => state.coulomb = c[0],
+                Effect::ViscousDamping => state.viscous = c[0],
+                Effect::ThermalDrift => state.thermal_gain = c[0],
+                Effect::TorqueOffset => state.offset = c[0],
+            }
+            k += columns(effect);
+        }
+        let step = solution.coef[k];
+        converged &= step.abs() <= 1e-6 * (1.0 + r.abs());
+        let fitted_r = r;
+        r = (r + step).clamp(-R_LIMIT, R_LIMIT);
+        if converged || iteration == GAUSS_NEWTON_ITERATIONS {
+            return Ok(ExtendedFit {
+                params,
+                r: fitted_r,
+                state,
+                active: active.to_vec(),
+                chi2: solution.weighted_rss,
+                n: m,
+                column_errors,
+            });
+        }
+    }
+}
+
+fn clear(state: &mut EffectState, effect: Effect) {
+    match effect {
+        Effect::Backlash => state.backlash = 0.0,
+        Effect::KinematicError => state.kinematic = [0.0; 4],
+        Effect::CoulombFriction => state.coulomb = 0.0,
+        Effect::ViscousDamping => state.viscous = 0.0,
+        Effect::ThermalDrift => state.thermal_gain = 0.0,
+        Effect::TorqueOffset => state.offset = 0.0,
+    }
+}

@@ -1,0 +1,150 @@
+//! Where the fitted model and a recording disagree, which physics the model leaves out, and
+//! how much better the model gets with it.
+//!
+//! Every effect of [`Effect`] enters the fit as extra linear columns beside the model's own:
+//! torque effects directly (friction ±1 by direction, damping the deflection rate, drift the
+//! warming times θ, an offset 1), deflection effects (backlash, kinematic error) as
+//! Gauss–Newton columns K·∂θ_elastic/∂magnitude, iterated to convergence. So an effect costs
+//! a few weighted least-squares solves, and a greedy search can try each one.
+//!
+//! An effect is accepted only on strong evidence: the Bayesian information criterion must
+//! drop by more than 10 (Kass & Raftery's "very strong"), the effect must explain at least
+//! 5 % of the remaining weighted residual (a concealed effect at half the noise explains
+//! 20 %: smaller gains are what model mismatch and noise structure produce), and the two
+//! independent halves of the recording, fitted alone, must each show it clearly (|z| > 3)
+//! with magnitudes within ±25 % of their mean.
+pub mod effects;
+mod extended;
+mod locate;
+mod observed;
+mod search;
+
+pub use effects::Effect;
+pub use extended::{fit_extended, EffectState, ExtendedFit, ExtendedFitError};
+pub use locate::{locate, Observation};
+pub use observed::{local_slope, Observed};
+pub use search::diagnose;
+
+use crate::fit::{fit, FitError, FitOptions};
+use crate::input::Dataset;
+use crate::prepare::{prepare, SegmentError};
+use model_core::Params;
+use serde::Serialize;
+
+/// ΔBIC an effect must reach.
+pub const MIN_BIC_DROP: f64 = 10.0;
+/// Share of the weighted residual an effect must explain.
+pub const MIN_EXPLAINED: f64 = 0.05;
+/// Significance each half must show.
+pub const MIN_HALF_Z: f64 = 3.0;
+/// Largest difference of the halves' magnitudes, relative to their mean.
+pub const MAX_HALF_SPREAD: f64 = 0.5;
+
+/// The numbers behind accepting or rejecting an effect.
+#[derive(Clone, Debug, Serialize)]
+pub struct Evidence {
+    /// Drop of the Bayesian information criterion, Δχ²/s² − p·ln n.
+    pub delta_bic: f64,
+    /// Share of the weighted residual the effect explains.
+    pub explained: f64,
+    /// Magnitude over its standard error on the whole recording.
+    pub z: f64,
+    /// Magnitudes fitted on each independent half alone.
+    pub halves: Option<[f64; 2]>,
+    pub halves_z: Option<[f64; 2]>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Finding {
+    pub effect: Effect,
+    pub magnitude: f64,
+    pub unit: &'static str,
+    pub meaning: &'static str,
+    #[serde(rename = "where")]
+    pub location: String,
+    /// Unweighted RSS, (N·m)², before and after adding this effect.
+    pub rss_before: f64,
+    pub rss_after: f64,
+    pub evidence: Evidence,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Rejection {
+    pub effect: Effect,
+    pub reason: String,
+    pub magnitude: f64,
+    pub evidence: Evidence,
+}
+
+/// The result of [`diagnose`].
+#[derive(Clone, Debug)]
+pub struct Diagnosis {
+    pub baseline: ExtendedFit,
+    pub findings: Vec<Finding>,
+    pub rejected: Vec<Rejection>,
+    pub final_fit: ExtendedFit,
+    pub weights: Vec<f64>,
+    /// RMS on the held-out part, N·m, of the baseline and the final model fitted without it.
+    pub held_out_rms: Option<(f64, f64)>,
+}
+
+/// Why a diagnosis could not be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DiagnoseError {
+    #[error(transparent)]
+    Segment(#[from] SegmentError),
+    #[error("baseline fit failed: {0}")]
+    Fit(#[from] FitError),
+    #[error("the baseline parameters cannot be evaluated on this data: {0}")]
+    Baseline(#[source] model_core::Error),
+    #[error("the baseline model cannot be refitted with the effects' columns: {0}")]
+    BaselineRefit(#[source] ExtendedFitError),
+    #[error("the model (baseline{effects}) cannot be refitted: {source}")]
+    Refit {
+        effects: String,
+        #[source]
+        source: ExtendedFitError,
+    },
+}
+
+/// Everything `swg-host diagnose` computes: what the data offer, the diagnosis, and the
+/// residuals of the baseline and of the final model at every sample.
+#[derive(Clone, Debug)]
+pub struct DiagnoseOutcome {
+    pub observed: Observed,
+    pub diagnosis: Diagnosis,
+    /// Measured minus baseline torque, N·m, every sample.
+    pub before: Vec<f64>,
+    /// Measured minus final-model torque, N·m, every sample.
+    pub after: Vec<f64>,
+    /// Where the baseline's residual concentrates.
+    pub locate: Vec<Observation>,
+}
+
+/// The `diagnose` pipeline: prepare the data, fit the baseline (unless `baseline` is given),
+/// search for missing physics, and say where the baseline's residual concentrates.
+pub fn diagnose_dataset(
+    dataset: &Dataset,
+    baseline: Option<Params<f64>>,
+    seed: u64,
+) -> Result<DiagnoseOutcome, DiagnoseError> {
+    let prepared = prepare(dataset)?;
+    let baseline = match baseline {
+        Some(params) => params,
+        None => {
+            let options = FitOptions { seed, noise: prepared.noise, ..Default::default() };
+            fit(&prepared.data, &options, |_| {})?.params
+        }
+    };
+    let observed = Observed::new(dataset, &prepared);
+    let diagnosis = diagnose(&observed, baseline)?;
+    let all: Vec<usize> = (0..observed.data.theta.len()).collect();
+    let before = diagnosis.baseline.residuals(&observed, &all).map_err(DiagnoseError::Baseline)?;
+    let after = diagnosis.final_fit.residuals(&observed, &all).map_err(|source| DiagnoseError::Refit {
+        effects: diagnosis.final_fit.active.iter().map(|e| format!(" + {}", e.name())).collect(),
+        source: source.into(),
+    })?;
+    let locate = locate(&observed, &before);
+    Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate })
+}

@@ -1,0 +1,193 @@
+//! What a recording offers the diagnosis, sample by sample: rate, input angle, warming, the
+//! parts for the consistency check and the held-out samples, and what it cannot reveal.
+use super::effects::Effect;
+use super::extended::{kinematic_at, EffectState};
+use crate::input::{Dataset, Recording};
+use crate::prepare::{FitData, NoiseModel, Prepared};
+use model_core::Direction;
+
+/// What the recording offers the diagnosis, sample by sample.
+#[derive(Clone, Debug)]
+pub struct Observed {
+    pub data: FitData,
+    pub noise: Option<NoiseModel>,
+    pub time: Option<Vec<f64>>,
+    /// Deflection rate, rad/s (local slope).
+    pub rate: Option<Vec<f64>>,
+    /// Input (wave generator) angle, rad, when the input turns at least once.
+    pub input_angle: Option<Vec<f64>>,
+    /// Temperature minus the temperature at the start, K, when it changes.
+    pub warming: Option<Vec<f64>>,
+    /// Two independent parts of the data, for the consistency check.
+    pub parts: [Vec<usize>; 2],
+    /// Fit on `training`, judge on `held_out`.
+    pub training: Vec<usize>,
+    pub held_out: Vec<usize>,
+    /// Effects this data cannot reveal, with why.
+    pub cannot_reveal: Vec<(Effect, String)>,
+    /// For each sample of a recording, the two ends of its leg as (deflection, sample index):
+    /// the kinematic error moves the elastic turning points, and with them the amplitude.
+    leg_ends: Option<Vec<[(f64, usize); 2]>>,
+}
+
+impl Observed {
+    pub fn new(dataset: &Dataset, prepared: &Prepared) -> Observed {
+        let data = prepared.data.clone();
+        let n = data.theta.len();
+        let mut observed = Observed {
+            noise: prepared.noise,
+            time: None,
+            rate: None,
+            input_angle: None,
+            warming: None,
+            parts: [Vec::new(), Vec::new()],
+            training: Vec::new(),
+            held_out: Vec::new(),
+            cannot_reveal: Vec::new(),
+            leg_ends: None,
+            data,
+        };
+        match dataset {
+            Dataset::Recording(recording) => observed.add_recording(recording, prepared),
+            Dataset::LoopTable(_) => {
+                // Alternate points of each branch: both parts see every branch.
+                let mut seen = std::collections::HashMap::new();
+                for i in 0..n {
+                    let k: &mut usize = seen.entry(prepared.branch[i]).or_default();
+                    observed.parts[*k % 2].push(i);
+                    if *k % 4 == 3 {
+                        observed.held_out.push(i)
+                    } else {
+                        observed.training.push(i)
+                    }
+                    *k += 1;
+                }
+                for (effect, why) in [
+                    (Effect::ViscousDamping, "a loop table has no time, so no deflection rate"),
+                    (Effect::KinematicError, "a loop table has no input angle"),
+                    (Effect::ThermalDrift, "a loop table has no temperature"),
+                ] {
+                    observed.cannot_reveal.push((effect, why.into()));
+                }
+            }
+        }
+        observed.check_coverage();
+        observed
+    }
+
+    fn add_recording(&mut self, recording: &Recording, prepared: &Prepared) {
+        let n = recording.time.len();
+        self.parts = [(0..n / 2).collect(), (n / 2..n).collect()];
+        let split = n * 3 / 4;
+        self.training = (0..split).collect();
+        self.held_out = (split..n).collect();
+        let legs = prepared.segmentation.as_ref().map_or(n, |s| n / (s.turning_points.len() + 1).max(1));
+        self.rate = Some(local_slope(&recording.time, &recording.deflection, (legs / 50).max(2)));
+        self.time = Some(recording.time.clone());
+        if let Some(segmentation) = &prepared.segmentation {
+            let theta = &recording.deflection;
+            let mut ends = Vec::with_capacity(n);
+            let mut start = (theta[0], 0);
+            for tp in &segmentation.turning_points {
+                ends.resize(tp.index + 1, [start, (tp.deflection, tp.index)]);
+                start = (tp.deflection, tp.index);
+            }
+            ends.resize(n, [start, (theta[n - 1], n - 1)]);
+            self.leg_ends = Some(ends);
+        }
+        match &recording.angles {
+            Some(angles) => {
+                let (lo, hi) = min_max(&angles.input);
+                if hi - lo >= std::f64::consts::TAU {
+                    self.input_angle = Some(angles.input.clone());
+                } else {
+                    self.cannot_reveal.push((
+                        Effect::KinematicError,
+                        format!("the input turned {:.2} rad, less than one revolution", hi - lo),
+                    ));
+                }
+            }
+            None => self.cannot_reveal.push((Effect::KinematicError, "the recording has no input angle".into())),
+        }
+        match &recording.temperature {
+            Some(temps) => {
+                let (lo, hi) = min_max(temps);
+                if hi - lo >= 0.5 {
+                    self.warming = Some(temps.iter().map(|t| t - temps[0]).collect());
+                } else {
+                    self.cannot_reveal
+                        .push((Effect::ThermalDrift, format!("the temperature changed by only {:.2} K", hi - lo)));
+                }
+            }
+            None => self.cannot_reveal.push((Effect::ThermalDrift, "the recording has no temperature column".into())),
+        }
+    }
+
+    /// Effects whose signature the data cannot show at all.
+    fn check_coverage(&mut self) {
+        let rising = self.data.direction.iter().filter(|d| **d == Direction::Rising).count();
+        if rising == 0 || rising == self.data.direction.len() {
+            self.cannot_reveal.push((Effect::CoulombFriction, "the deflection moves in one direction only".into()));
+        }
+        let closest = self.data.theta.iter().map(|t| t.abs()).fold(f64::INFINITY, f64::min);
+        let amplitude = self.data.amplitude.iter().copied().fold(0.0, f64::max);
+        if closest > 0.25 * amplitude {
+            self.cannot_reveal
+                .push((Effect::Backlash, format!("the deflection never comes near zero (closest {closest:.3e} rad)")));
+        }
+    }
+
+    /// The effects this data can reveal.
+    pub fn revealable(&self) -> Vec<Effect> {
+        Effect::ALL.into_iter().filter(|e| self.cannot_reveal.iter().all(|(c, _)| c != e)).collect()
+    }
+}
+
+impl Observed {
+    /// Amplitude of the elastic loop through sample `i`: the larger magnitude of its leg's
+    /// ends after the kinematic error, less half the backlash.
+    pub(super) fn elastic_amplitude(&self, state: &EffectState, i: usize) -> f64 {
+        let measured = match &self.leg_ends {
+            Some(ends) if state.kinematic != [0.0; 4] => {
+                ends[i].iter().map(|&(theta, j)| (theta + kinematic_at(state, self, j)).abs()).fold(0.0, f64::max)
+            }
+            _ => self.data.amplitude[i],
+        };
+        (measured - state.backlash / 2.0).max(f64::MIN_POSITIVE)
+    }
+}
+
+fn min_max(values: &[f64]) -> (f64, f64) {
+    values.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+}
+
+/// Slope of a least-squares line through the `half` samples either side of each sample, in
+/// O(n) from running sums: the deflection rate without the encoder's quantisation steps.
+pub fn local_slope(time: &[f64], x: &[f64], half: usize) -> Vec<f64> {
+    let n = x.len();
+    let prefix = |f: &dyn Fn(usize) -> f64| {
+        let mut p = Vec::with_capacity(n + 1);
+        p.push(0.0);
+        for i in 0..n {
+            p.push(p[i] + f(i));
+        }
+        p
+    };
+    // Times relative to the first sample keep the sums well conditioned.
+    let t = |i: usize| time[i] - time[0];
+    let (st, sx, stt, stx) = (prefix(&|i| t(i)), prefix(&|i| x[i]), prefix(&|i| t(i) * t(i)), prefix(&|i| t(i) * x[i]));
+    (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(half), (i + half + 1).min(n));
+            let m = (b - a) as f64;
+            let (mt, mx) = ((st[b] - st[a]) / m, (sx[b] - sx[a]) / m);
+            let var = (stt[b] - stt[a]) / m - mt * mt;
+            let cov = (stx[b] - stx[a]) / m - mt * mx;
+            if var > 0.0 {
+                cov / var
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}

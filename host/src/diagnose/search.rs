@@ -1,0 +1,190 @@
+//! The greedy search: try every revealable effect, accept the one that explains most if the
+//! evidence is strong, repeat.
+use super::effects::Effect;
+use super::extended::{columns, fit_extended, ExtendedFit, ExtendedFitError};
+use super::locate::torque;
+use super::observed::Observed;
+use super::{DiagnoseError, Diagnosis, Evidence, Finding, Rejection};
+use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
+use crate::fit::total_noise_weights;
+use model_core::{Model, Params};
+use rayon::prelude::*;
+
+/// Runs the greedy search for missing physics from the `baseline` parameters.
+pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Diagnosis, DiagnoseError> {
+    let n = observed.data.theta.len();
+    let all: Vec<usize> = (0..n).collect();
+    let baseline_model = Model::new(baseline_params).map_err(DiagnoseError::Baseline)?;
+    let weights = match &observed.noise {
+        Some(noise) => total_noise_weights(&observed.data, &baseline_model, noise).map_err(DiagnoseError::Baseline)?,
+        None => vec![1.0; n],
+    };
+    let seed = ExtendedFit::start(baseline_params, baseline_model.r(), n);
+    let baseline = fit_extended(observed, &all, &weights, &[], &seed).map_err(DiagnoseError::BaselineRefit)?;
+    let mut current = baseline.clone();
+    let mut findings = Vec::new();
+    let mut rejected = Vec::new();
+    let ln_n = (n as f64).ln();
+    loop {
+        let candidates: Vec<Effect> =
+            observed.revealable().into_iter().filter(|e| !current.active.contains(e)).collect();
+        let variance = current.chi2 / (n as f64 - current.degrees_of_freedom() as f64).max(1.0);
+        let mut trials: Vec<(Effect, ExtendedFit, Evidence)> = candidates
+            .par_iter()
+            .filter_map(|&effect| {
+                let mut active = current.active.clone();
+                active.push(effect);
+                // An effect whose columns cannot be fitted is no candidate.
+                let fit = fit_extended(observed, &all, &weights, &active, &current).ok()?;
+                let drop = (current.chi2 - fit.chi2).max(0.0);
+                let evidence = Evidence {
+                    delta_bic: drop / variance - columns(effect) as f64 * ln_n,
+                    explained: drop / current.chi2,
+                    z: fit.magnitude(effect) / fit.magnitude_error(effect),
+                    halves: None,
+                    halves_z: None,
+                };
+                Some((effect, fit, evidence))
+            })
+            .collect();
+        trials.sort_by(|a, b| b.2.explained.total_cmp(&a.2.explained));
+        let mut accepted = None;
+        rejected.clear();
+        for (effect, fit, mut evidence) in trials {
+            let magnitude = fit.magnitude(effect);
+            let reason = if evidence.delta_bic < MIN_BIC_DROP {
+                Some(format!("information criterion drops by {:.1}, less than {MIN_BIC_DROP}", evidence.delta_bic))
+            } else if evidence.explained < MIN_EXPLAINED {
+                Some(format!(
+                    "explains {:.1} % of the residual, less than {:.0} %",
+                    100.0 * evidence.explained,
+                    100.0 * MIN_EXPLAINED
+                ))
+            } else if accepted.is_some() {
+                Some("weaker than the effect accepted in this round; tried again next round".into())
+            } else {
+                halves_check(observed, &weights, &current, &fit, effect, &mut evidence)
+            };
+            match reason {
+                Some(reason) => rejected.push(Rejection { effect, reason, magnitude, evidence }),
+                None => accepted = Some((effect, fit, evidence)),
+            }
+        }
+        let Some((effect, fit, evidence)) = accepted else { break };
+        let rss_before =
+            unweighted_rss(observed, &current, &all).map_err(|source| refit_error(&current.active, source.into()))?;
+        let rss_after =
+            unweighted_rss(observed, &fit, &all).map_err(|source| refit_error(&fit.active, source.into()))?;
+        findings.push(Finding {
+            effect,
+            magnitude: fit.magnitude(effect),
+            unit: effect.unit(),
+            meaning: effect.magnitude_meaning(),
+            location: location_words(effect, &fit),
+            rss_before,
+            rss_after,
+            evidence,
+        });
+        current = fit;
+    }
+    let final_fit = fit_extended(observed, &all, &weights, &current.active, &current)
+        .map_err(|source| refit_error(&current.active, source))?;
+    for finding in &mut findings {
+        finding.magnitude = final_fit.magnitude(finding.effect);
+    }
+    let held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
+    Ok(Diagnosis { baseline, findings, rejected, final_fit, weights, held_out_rms })
+}
+
+fn refit_error(active: &[Effect], source: ExtendedFitError) -> DiagnoseError {
+    let effects = active.iter().map(|e| format!(" + {}", e.name())).collect();
+    DiagnoseError::Refit { effects, source }
+}
+
+/// Fits each half alone; `None` when both show the effect clearly and agree.
+fn halves_check(
+    observed: &Observed,
+    weights: &[f64],
+    current: &ExtendedFit,
+    fit: &ExtendedFit,
+    effect: Effect,
+    evidence: &mut Evidence,
+) -> Option<String> {
+    let halves: Vec<Result<ExtendedFit, ExtendedFitError>> =
+        observed.parts.par_iter().map(|part| fit_extended(observed, part, weights, &fit.active, current)).collect();
+    let (Ok(a), Ok(b)) = (&halves[0], &halves[1]) else {
+        return Some("could not be fitted on each half alone".into());
+    };
+    let (ma, mb) = (a.magnitude(effect), b.magnitude(effect));
+    let (za, zb) = (ma / a.magnitude_error(effect), mb / b.magnitude_error(effect));
+    evidence.halves = Some([ma, mb]);
+    evidence.halves_z = Some([za, zb]);
+    let full = fit.magnitude(effect);
+    let spread = if effect == Effect::KinematicError {
+        let ((xa, ya), (xb, yb)) = (a.kinematic_vector(), b.kinematic_vector());
+        (xa - xb).hypot(ya - yb)
+    } else {
+        (ma - mb).abs()
+    };
+    if effect == Effect::Backlash && full <= 0.0 {
+        Some("the dead band width fits to zero".into())
+    } else if za.abs() < MIN_HALF_Z || zb.abs() < MIN_HALF_Z {
+        Some(format!("not clear in both halves alone (z = {za:.1} and {zb:.1})"))
+    } else if ma.signum() != mb.signum() || spread > MAX_HALF_SPREAD * (ma + mb).abs() / 2.0 {
+        Some(format!("the halves disagree: {ma:.4e} and {mb:.4e} {}", effect.unit()))
+    } else {
+        None
+    }
+}
+
+fn unweighted_rss(observed: &Observed, fit: &ExtendedFit, subset: &[usize]) -> Result<f64, model_core::Error> {
+    Ok(fit.residuals(observed, subset)?.iter().map(|r| r * r).sum())
+}
+
+/// RMS on the held-out samples of each model refitted on the training samples only; `None`
+/// when the data are too few to hold any out.
+fn held_out(
+    observed: &Observed,
+    weights: &[f64],
+    baseline: &ExtendedFit,
+    final_fit: &ExtendedFit,
+) -> Result<Option<(f64, f64)>, DiagnoseError> {
+    if observed.held_out.is_empty() || observed.training.len() < 10 {
+        return Ok(None);
+    }
+    let rms = |fit: &ExtendedFit| -> Result<f64, DiagnoseError> {
+        let trained = fit_extended(observed, &observed.training, weights, &fit.active, fit)
+            .map_err(|source| refit_error(&fit.active, source))?;
+        let residuals = trained
+            .residuals(observed, &observed.held_out)
+            .map_err(|source| refit_error(&fit.active, source.into()))?;
+        Ok((residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64).sqrt())
+    };
+    Ok(Some((rms(baseline)?, rms(final_fit)?)))
+}
+
+fn location_words(effect: Effect, fit: &ExtendedFit) -> String {
+    let s = &fit.state;
+    match effect {
+        Effect::Backlash => format!(
+            "around zero torque: the deflection jumps by {:.3e} rad while the torque crosses zero",
+            s.backlash
+        ),
+        Effect::CoulombFriction => format!(
+            "on both directions, the whole loop: the torque is {} N·m higher while the deflection rises than while it falls",
+            torque(2.0 * s.coulomb)
+        ),
+        Effect::ViscousDamping => {
+            "grows with the deflection rate: largest where the loop crosses zero deflection, zero at the turning points".into()
+        }
+        Effect::KinematicError => format!(
+            "periodic in the input angle: 2 cycles per input revolution ({:.3e} rad), 4 per revolution {:.3e} rad",
+            s.kinematic[0].hypot(s.kinematic[1]),
+            s.kinematic[2].hypot(s.kinematic[3])
+        ),
+        Effect::ThermalDrift => {
+            "drifts with temperature: the loop's slope changes as the gear warms".into()
+        }
+        Effect::TorqueOffset => "everywhere: the whole loop is shifted in torque".into(),
+    }
+}

@@ -1,0 +1,285 @@
+//! Identification of the model from (θ, T, direction, A) samples.
+//!
+//! For a fixed r = β/ω the model is linear in c1, c2, c3 and k = α/(ω(1 + r²)):
+//! `T = c1·θ + c2·θ³ + c3·θ⁵ + k·A·|cos φ|·(e^(−rφ) + r·sin φ − cos φ)`. So the search is
+//! over r alone, each r answered exactly by a 4×4 weighted least-squares solve (variable
+//! projection). The paper's particle swarm searches r globally (in asinh-scaled space, on a
+//! subsample of long recordings); Brent's method then polishes r on every sample.
+//!
+//! Errors in θ: near |θ| = A the model's slope is unbounded, so deflection noise becomes
+//! large torque residuals there. With a noise model, residuals are weighted by their total
+//! noise 1/(σ_T² + σ_θ²·K²), K the model's stiffness at the sample, refitted a few times.
+pub mod baselines;
+pub mod basis;
+
+use crate::input::Dataset;
+use crate::numeric::median;
+use crate::numeric::optimize::{brent, pso, PsoOptions};
+use crate::prepare::{prepare, FitData, NoiseModel, Prepared, SegmentError};
+use baselines::{lines_per_branch, three_segment, BranchLine, ThreeSegment};
+use basis::Basis;
+use model_core::{Identifiable, Model, Params};
+
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    pub seed: u64,
+    pub particles: usize,
+    pub max_iterations: usize,
+    /// Weight residuals by total noise; `None` fits plain least squares (loop tables).
+    pub noise: Option<NoiseModel>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None }
+    }
+}
+
+/// The identifiable parameters (c1, c2, c3, h, r).
+pub const IDENTIFIABLE_PARAMETERS: usize = 5;
+/// Fewest samples `fit` accepts: one more than the identifiable parameters.
+pub const MIN_POINTS: usize = IDENTIFIABLE_PARAMETERS + 1;
+/// Search range of r = β/ω. Beyond it e^(−rφ) spans more than 10²⁰⁰ over one loop.
+pub const R_LIMIT: f64 = 50.0;
+/// PSO runs on at most this many samples; the polish always uses all of them.
+const PSO_SAMPLES: usize = 1024;
+/// Reweighting rounds for the total-noise weights.
+const REWEIGHTINGS: usize = 2;
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SearchSummary {
+    pub method: &'static str,
+    pub seed: u64,
+    pub particles: usize,
+    pub pso_iterations: usize,
+    pub pso_samples: usize,
+    pub evaluations: usize,
+    pub reweightings: usize,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fit {
+    /// Canonical parameters: ω = 1, β = r, α = h·(1 + r²)/A.
+    pub params: Params<f64>,
+    pub identifiable: Identifiable<f64>,
+    /// The amplitude A that `identifiable.h` refers to, rad.
+    pub reference_amplitude: f64,
+    /// Unweighted residual sum of squares, (N·m)².
+    pub rss: f64,
+    /// Unweighted RMS residual, N·m.
+    pub rms: f64,
+    pub n: usize,
+    pub noise: Option<NoiseModel>,
+    pub search: SearchSummary,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FitError {
+    #[error("{n} points, fewer than the {need} needed to fit {IDENTIFIABLE_PARAMETERS} parameters (c1, c2, c3, h, r) with a residual left")]
+    TooFewPoints { n: usize, need: usize },
+    #[error("the deflection is zero everywhere: nothing to fit")]
+    NoDeflection,
+    #[error("the data do not determine the model (all columns collinear)")]
+    Degenerate,
+    #[error("the fitted model cannot be evaluated: {0}")]
+    Model(#[from] model_core::Error),
+}
+
+/// Where a long fit is, for a progress bar.
+#[derive(Clone, Copy, Debug)]
+pub enum Stage {
+    Swarm { iteration: usize, of: usize },
+    Polish { round: usize, of: usize },
+}
+
+/// Everything `swg-host fit` computes: the prepared data, the fit, the baselines beside it,
+/// and the RSS of other parameter sets on the same data.
+#[derive(Clone, Debug)]
+pub struct FitOutcome {
+    pub prepared: Prepared,
+    pub fit: Fit,
+    pub lines: Vec<BranchLine>,
+    pub three_segment: Option<ThreeSegment>,
+    /// RSS of each set given to compare, (N·m)², in order.
+    pub compared_rss: Vec<f64>,
+}
+
+/// Why [`fit_dataset`] failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FitDatasetError {
+    #[error(transparent)]
+    Segment(#[from] SegmentError),
+    #[error("fit failed: {0}")]
+    Fit(#[from] FitError),
+    #[error("parameter set {index} to compare cannot be evaluated on this data: {source}")]
+    Compared {
+        index: usize,
+        #[source]
+        source: model_core::Error,
+    },
+}
+
+/// The `fit` pipeline: prepare `dataset`, fit the model, fit the baselines, and evaluate the
+/// `compare` sets on the same samples.
+pub fn fit_dataset(
+    dataset: &Dataset,
+    compare: &[Params<f64>],
+    seed: u64,
+    progress: impl FnMut(Stage),
+) -> Result<FitOutcome, FitDatasetError> {
+    let prepared = prepare(dataset)?;
+    let options = FitOptions { seed, noise: prepared.noise, ..FitOptions::default() };
+    let fit = fit(&prepared.data, &options, progress)?;
+    let data = &prepared.data;
+    let lines = lines_per_branch(&data.theta, &data.torque, &prepared.branch);
+    let three_segment = three_segment(&data.theta, &data.torque);
+    let compared_rss = compare
+        .iter()
+        .enumerate()
+        .map(|(index, params)| {
+            Model::new(*params)
+                .and_then(|model| rss(&model, data))
+                .map_err(|source| FitDatasetError::Compared { index, source })
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(FitOutcome { prepared, fit, lines, three_segment, compared_rss })
+}
+
+/// Fits the model to `data`.
+pub fn fit(data: &FitData, options: &FitOptions, mut progress: impl FnMut(Stage)) -> Result<Fit, FitError> {
+    let n = data.theta.len();
+    if n < MIN_POINTS {
+        return Err(FitError::TooFewPoints { n, need: MIN_POINTS });
+    }
+    let scale = data.amplitude.iter().copied().fold(0.0, f64::max);
+    if !(scale > 0.0) || data.theta.iter().all(|&t| t == 0.0) {
+        return Err(FitError::NoDeflection);
+    }
+    let reference_amplitude = median(&data.amplitude);
+
+    // Global search on an evenly strided subsample.
+    let stride = n.div_ceil(PSO_SAMPLES);
+    let sample = Basis::new(data, (0..n).step_by(stride), scale);
+    let s_limit = R_LIMIT.asinh();
+    let pso_options = PsoOptions {
+        particles: options.particles,
+        max_iterations: options.max_iterations,
+        stall_iterations: 12,
+        seed: options.seed,
+    };
+    let swarm = pso(
+        |x| sample.objective(x[0]),
+        &[(-s_limit, s_limit)],
+        &pso_options,
+        |iteration, _| progress(Stage::Swarm { iteration, of: options.max_iterations }),
+    );
+    let mut evaluations = swarm.evaluations;
+
+    let mut full = Basis::new(data, 0..n, scale);
+    let rounds = if options.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
+    let mut s = swarm.best[0];
+    // The bracket widens by itself when the minimum lies on its edge.
+    let half_width = (3.0 * swarm.spread[0]).clamp(0.02, 0.1);
+    let solve = |full: &Basis, s: f64| -> Result<Params<f64>, FitError> {
+        let r = s.sinh();
+        let solution = full.solve(r).ok_or(FitError::Degenerate)?;
+        full.params(r, &solution, reference_amplitude)
+    };
+    progress(Stage::Polish { round: 1, of: rounds });
+    let mut params = match &options.noise {
+        // With weights to come, the swarm's point is close enough to set them: polishing the
+        // unweighted fit first would cost a third of a 20k-sample fit and change nothing.
+        Some(_) => solve(&full, s)?,
+        None => {
+            let (polished, polish_evaluations) = polish(&full, s, half_width, s_limit);
+            evaluations += polish_evaluations;
+            s = polished;
+            solve(&full, s)?
+        }
+    };
+    if let Some(noise) = &options.noise {
+        for round in 2..=rounds {
+            progress(Stage::Polish { round, of: rounds });
+            reweight(&mut full, data, &Model::new(params)?, noise)?;
+            let (polished, polish_evaluations) = polish(&full, s, if round == 2 { half_width } else { 0.05 }, s_limit);
+            evaluations += polish_evaluations;
+            s = polished;
+            params = solve(&full, s)?;
+        }
+    }
+    let rss = rss(&Model::new(params)?, data)?;
+    Ok(Fit {
+        params,
+        identifiable: params.identifiable(reference_amplitude)?,
+        reference_amplitude,
+        rss,
+        rms: (rss / n as f64).sqrt(),
+        n,
+        noise: options.noise,
+        search: SearchSummary {
+            method: "pso over r = beta/omega with c1, c2, c3, h by exact least squares; brent polish",
+            seed: options.seed,
+            particles: options.particles,
+            pso_iterations: swarm.iterations,
+            pso_samples: sample.len(),
+            evaluations,
+            reweightings: rounds - 1,
+        },
+    })
+}
+
+/// Brent on s = asinh(r) around `s`, widening the bracket while the minimum sits on its edge.
+pub fn polish(basis: &Basis, s: f64, half_width: f64, s_limit: f64) -> (f64, usize) {
+    let mut evaluations = 0;
+    let (mut center, mut half) = (s, half_width);
+    loop {
+        let lo = (center - half).max(-s_limit);
+        let hi = (center + half).min(s_limit);
+        let (x, _, used) = brent(|s| basis.objective(s), lo, hi, 1e-8);
+        evaluations += used;
+        let on_edge = (x - lo < 1e-3 * half && lo > -s_limit) || (hi - x < 1e-3 * half && hi < s_limit);
+        if !on_edge || half > 2.0 * s_limit {
+            return (x, evaluations);
+        }
+        center = x;
+        half *= 4.0;
+    }
+}
+
+/// Total-noise weights 1/(σ_T² + σ_θ²·K²), normalised to a mean of 1.
+fn reweight(basis: &mut Basis, data: &FitData, model: &Model<f64>, noise: &NoiseModel) -> Result<(), FitError> {
+    let mut weights = total_noise_weights(data, model, noise)?;
+    let mean = weights.iter().sum::<f64>() / weights.len() as f64;
+    weights.iter_mut().for_each(|w| *w /= mean);
+    basis.set_weights(weights);
+    Ok(())
+}
+
+/// 1/(σ_T² + σ_θ²·K²) for every sample, K the model's stiffness there: the inverse variance
+/// of a torque residual when both torque and deflection are noisy.
+pub fn total_noise_weights(
+    data: &FitData,
+    model: &Model<f64>,
+    noise: &NoiseModel,
+) -> Result<Vec<f64>, model_core::Error> {
+    let (var_t, var_theta) = (noise.torque_nm.powi(2), noise.deflection_rad.powi(2));
+    (0..data.theta.len())
+        .map(|i| {
+            let stiffness = model.stiffness(data.theta[i], data.direction[i], data.amplitude[i])?;
+            Ok(1.0 / (var_t + var_theta * stiffness * stiffness).max(f64::MIN_POSITIVE))
+        })
+        .collect()
+}
+
+/// Unweighted residual sum of squares of `model` on `data`, (N·m)².
+pub fn rss(model: &Model<f64>, data: &FitData) -> Result<f64, model_core::Error> {
+    residuals(model, data).map(|r| r.iter().map(|e| e * e).sum())
+}
+
+/// Measured minus modelled torque for every sample, N·m.
+pub fn residuals(model: &Model<f64>, data: &FitData) -> Result<Vec<f64>, model_core::Error> {
+    (0..data.theta.len())
+        .map(|i| Ok(data.torque[i] - model.torque(data.theta[i], data.direction[i], data.amplitude[i])?))
+        .collect()
+}

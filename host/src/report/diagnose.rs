@@ -1,0 +1,170 @@
+//! What `diagnose` reports: the JSON document and the text for a person.
+use crate::diagnose::{
+    DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, MAX_HALF_SPREAD, MIN_BIC_DROP,
+    MIN_EXPLAINED, MIN_HALF_Z,
+};
+use crate::prepare::NoiseModel;
+use model_core::Params;
+use serde::Serialize;
+use std::fmt::Write;
+
+#[derive(Clone, Debug, Serialize)]
+pub struct DiagnoseReport {
+    pub input: String,
+    pub kind: &'static str,
+    pub baseline: ModelSummary,
+    pub noise: Option<NoiseModel>,
+    pub locate: Vec<Observation>,
+    pub revealable: Vec<Effect>,
+    pub not_revealable: Vec<NotRevealable>,
+    pub findings: Vec<Finding>,
+    pub rejected: Vec<Rejection>,
+    #[serde(rename = "final")]
+    pub final_model: ModelSummary,
+    pub held_out: Option<HeldOut>,
+    pub criteria: Criteria,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ModelSummary {
+    pub rss: f64,
+    pub rms: f64,
+    pub n: usize,
+    pub params: Params<f64>,
+    pub effects: Vec<Effect>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct NotRevealable {
+    pub effect: Effect,
+    pub why: String,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct HeldOut {
+    /// RMS residual, N·m, on the held-out samples of the baseline and of the final model, each
+    /// refitted without them.
+    pub rms_before: f64,
+    pub rms_after: f64,
+    pub samples: usize,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Criteria {
+    pub min_bic_drop: f64,
+    pub min_explained: f64,
+    pub min_half_z: f64,
+    pub max_half_spread: f64,
+}
+
+impl ModelSummary {
+    fn new(fit: &ExtendedFit, residuals: &[f64]) -> ModelSummary {
+        let rss: f64 = residuals.iter().map(|r| r * r).sum();
+        ModelSummary {
+            rss,
+            rms: (rss / residuals.len() as f64).sqrt(),
+            n: residuals.len(),
+            params: fit.params,
+            effects: fit.active.clone(),
+        }
+    }
+}
+
+impl DiagnoseReport {
+    /// The report for `outcome` of the file `input`.
+    pub fn new(input: String, kind: &'static str, outcome: &DiagnoseOutcome) -> DiagnoseReport {
+        let DiagnoseOutcome { observed, diagnosis, before, after, locate } = outcome;
+        DiagnoseReport {
+            input,
+            kind,
+            baseline: ModelSummary::new(&diagnosis.baseline, before),
+            noise: observed.noise,
+            locate: locate.clone(),
+            revealable: observed.revealable(),
+            not_revealable: observed
+                .cannot_reveal
+                .iter()
+                .map(|(effect, why)| NotRevealable { effect: *effect, why: why.clone() })
+                .collect(),
+            findings: diagnosis.findings.clone(),
+            rejected: diagnosis.rejected.clone(),
+            final_model: ModelSummary::new(&diagnosis.final_fit, after),
+            held_out: diagnosis.held_out_rms.map(|(rms_before, rms_after)| HeldOut {
+                rms_before,
+                rms_after,
+                samples: observed.held_out.len(),
+            }),
+            criteria: Criteria {
+                min_bic_drop: MIN_BIC_DROP,
+                min_explained: MIN_EXPLAINED,
+                min_half_z: MIN_HALF_Z,
+                max_half_spread: MAX_HALF_SPREAD,
+            },
+        }
+    }
+
+    /// The report printed for a person.
+    pub fn human(&self) -> String {
+        let report = self;
+        let mut s = String::new();
+        let b = &report.baseline;
+        let _ = writeln!(s, "{} ({}, {} samples)", report.input, report.kind.replace('_', " "), b.n);
+        if let Some(noise) = &report.noise {
+            let _ = writeln!(
+                s,
+                "measurement noise: torque {:.3e} N·m, deflection {:.3e} rad",
+                noise.torque_nm, noise.deflection_rad
+            );
+        }
+        let _ = writeln!(s, "baseline model: RSS {:.5} (N·m)², RMS {:.4} N·m", b.rss, b.rms);
+        let _ = writeln!(s, "\nwhere the residual concentrates");
+        for o in &report.locate {
+            let _ = writeln!(s, "  - {}", o.words);
+        }
+        if report.findings.is_empty() {
+            let _ = writeln!(s, "\nno missing physics found: no effect passed the evidence tests");
+        } else {
+            let _ = writeln!(s, "\nmissing physics, most important first");
+            for (k, f) in report.findings.iter().enumerate() {
+                let _ = writeln!(s, "  {}. {}: {:.4e} {} ({})", k + 1, f.effect, f.magnitude, f.unit, f.meaning);
+                let _ = writeln!(s, "     where: {}", f.location);
+                let halves = f.evidence.halves.map_or(String::new(), |[a, b]| format!(", halves {a:.4e} / {b:.4e}"));
+                let _ = writeln!(
+                    s,
+                    "     RSS {:.5} → {:.5} (N·m)²; ΔBIC {:.0}, explains {:.0} % of the residual{halves}",
+                    f.rss_before,
+                    f.rss_after,
+                    f.evidence.delta_bic,
+                    100.0 * f.evidence.explained
+                );
+            }
+        }
+        let fm = &report.final_model;
+        let effects = if fm.effects.is_empty() {
+            "no effects".to_string()
+        } else {
+            fm.effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(" + ")
+        };
+        let _ = writeln!(s, "\nfinal model (baseline + {effects}): RSS {:.5} (N·m)², RMS {:.4} N·m", fm.rss, fm.rms);
+        if let Some(h) = &report.held_out {
+            let _ = writeln!(
+                s,
+                "held-out error ({} samples not used in the fit): RMS {:.4} → {:.4} N·m",
+                h.samples, h.rms_before, h.rms_after
+            );
+        }
+        if !report.rejected.is_empty() {
+            let _ = writeln!(s, "\nnot accepted");
+            for r in &report.rejected {
+                let _ = writeln!(s, "  - {}: {}", r.effect, r.reason);
+            }
+        }
+        if !report.not_revealable.is_empty() {
+            let _ = writeln!(s, "\ncannot be told from this data");
+            for r in &report.not_revealable {
+                let _ = writeln!(s, "  - {}: {}", r.effect, r.why);
+            }
+        }
+        s
+    }
+}

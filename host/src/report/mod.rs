@@ -1,0 +1,7 @@
+//! What the commands hand to people and to the next step: the fit's JSON (also the parameter
+//! file `push` reads), the diagnosis' JSON and text, the pictures, and files written whole.
+pub mod diagnose;
+pub mod fit;
+pub mod output;
+pub mod params;
+pub mod plot;

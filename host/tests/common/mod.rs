@@ -1,0 +1,52 @@
+//! Helpers shared by the integration tests that run the `swg-host` binary.
+// Each test binary compiles this module and uses its own subset of it.
+#![allow(dead_code)]
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs the `swg-host` binary built for these tests.
+pub fn swg_host(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_swg-host")).args(args).output().expect("swg-host runs")
+}
+
+/// Runs `swg-host` and echoes the command and what it printed (shown with `--nocapture`).
+pub fn swg_host_echoed(args: &[&str]) -> Output {
+    let output = swg_host(args);
+    println!(
+        "$ swg-host {}\n{}{}",
+        args.join(" "),
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    output
+}
+
+/// A path inside the repository.
+pub fn repo(path: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path).display().to_string()
+}
+
+/// The stdout of a successful run.
+pub fn ok(output: Output) -> String {
+    assert!(output.status.success(), "stderr: {}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8(output.stdout).expect("UTF-8 on stdout")
+}
+
+/// The JSON on stdout of a successful run.
+pub fn json(output: &Output) -> serde_json::Value {
+    assert!(output.status.success(), "stderr: {}", String::from_utf8_lossy(&output.stderr));
+    serde_json::from_slice(&output.stdout).expect("valid JSON on stdout")
+}
+
+/// A parameter file for `params` in `dir`.
+pub fn write_params_file(dir: &Path, params: &model_core::Params<f64>) -> PathBuf {
+    let path = dir.join("params.json");
+    let json = serde_json::json!({ "model": model_core::MODEL_NAME, "params": params });
+    std::fs::write(&path, json.to_string()).expect("params file written");
+    path
+}
+
+/// The model's parameter names, as files write them.
+pub fn param_names() -> [&'static str; 6] {
+    model_core::ParamName::ALL.map(|name| name.as_str())
+}
