@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Figures of the joint firmware on the emulated Cortex-M4F (QEMU mps2-an386); not a test.
-#   1. instructions per T_ff + K evaluation, direct path (model-core f32) and fast path:
+#   1. instructions per T_ff + K evaluation on a symmetric loop (direct and fast path), and per
+#      control tick of each stateful kind at its worst (genetic with 16 turning points stored,
+#      fast and direct path; micro-slip with 16 elements):
 #      QEMU -icount shift=0 makes one instruction 1 ns of virtual time and SysTick run at
 #      25 MHz, so SysTick ticks × 40 = instructions, exactly repeatable (shared/TOOLCHAIN.md).
 #      Instruction counts depend on the compiler version: the toolchain is printed below.

@@ -392,7 +392,8 @@ def children_cpu():
 
 
 def swg_json(swg, args):
-    out = subprocess.run([swg, "fit", *args, "--json"], check=True, capture_output=True, text=True)
+    # The peers fit the symmetric-loop rule on each leg: so does `--model genetic-loop`.
+    out = subprocess.run([swg, "fit", *args, "--model", "genetic-loop", "--json"], check=True, capture_output=True, text=True)
     return json.loads(out.stdout)
 
 

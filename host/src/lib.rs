@@ -7,9 +7,11 @@
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 pub mod diagnose;
 pub mod fit;
+pub mod gear;
 pub mod input;
 pub mod link;
 pub mod numeric;
+pub mod predict;
 pub mod prepare;
 pub mod report;
 pub mod simulate;

@@ -9,11 +9,13 @@ const ALLOWED: &[(&str, &[&str], &[&str])] = &[
     ("numeric", &[], &[]),
     ("input", &[], &[]),
     ("prepare", &["input", "numeric"], &[]),
-    ("fit", &["prepare", "input", "numeric"], &[]),
-    ("diagnose", &["fit", "prepare", "input", "numeric"], &[]),
+    ("fit", &["gear", "prepare", "input", "numeric"], &[]),
+    ("diagnose", &["fit", "gear", "prepare", "input", "numeric"], &[]),
+    ("gear", &[], &[]),
+    ("predict", &["gear", "prepare", "input"], &[]),
     ("simulate", &["input", "diagnose::effects"], &[]),
-    ("report", &["diagnose", "fit", "prepare", "input", "numeric"], &[]),
-    ("link", &["input"], &["simulate"]),
+    ("report", &["diagnose", "fit", "gear", "predict", "prepare", "input", "numeric"], &[]),
+    ("link", &["gear", "input"], &["simulate"]),
 ];
 
 /// The `crate::x` or `crate::diagnose::effects` paths a file names, outside and inside its

@@ -119,7 +119,7 @@ fn simulate_then_fit_recovers_the_seed_gear() {
     let text = std::fs::read_to_string(&recording).unwrap();
     assert!(text.starts_with("# swg-recording v1\n# ratio: 50\n"));
     assert!(text.contains("time_s,theta_in_rad,theta_out_rad,torque_nm,temperature_c\n"));
-    let report = json(&swg_host(&["fit", recording.to_str().unwrap(), "--json"]));
+    let report = json(&swg_host(&["fit", recording.to_str().unwrap(), "--json", "--model", "genetic"]));
     assert_eq!(report["input"]["kind"], "recording");
     assert_eq!(report["input"]["turning_points"], 6);
     assert!((report["identifiable"]["r"].as_f64().unwrap() + 2.298).abs() < 0.05, "{}", report["identifiable"]);

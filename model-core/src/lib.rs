@@ -116,6 +116,10 @@ pub enum Error {
     NonFiniteDeflection,
     /// The result does not fit in the float type (parameters far outside any real gear).
     Overflow,
+    /// A micro-slip element's stiffness k_i (its index i) is negative or not finite.
+    InvalidSlipStiffness(usize),
+    /// The micro-slip deflections need 0 < d_min < d_max, both finite.
+    InvalidSlipRange,
 }
 
 impl fmt::Display for Error {
@@ -128,6 +132,12 @@ impl fmt::Display for Error {
             Error::InvalidAmplitude => f.write_str("loop amplitude A must be a finite deflection > 0 rad"),
             Error::NonFiniteDeflection => f.write_str("deflection is not a finite number"),
             Error::Overflow => f.write_str("model result overflows the float type"),
+            Error::InvalidSlipStiffness(index) => {
+                write!(f, "micro-slip element {index}: stiffness must be a finite number >= 0 N·m/rad")
+            }
+            Error::InvalidSlipRange => {
+                f.write_str("micro-slip deflections must satisfy 0 < d_min < d_max, both finite rad")
+            }
         }
     }
 }
@@ -280,9 +290,15 @@ impl<F: Real> Model<F> {
 
     /// The model on a loop of amplitude `amplitude` (rad), ready for per-sample evaluation.
     pub fn at_amplitude(&self, amplitude: F) -> Result<Loop<F>, Error> {
+        self.at_amplitude_with::<Libm>(amplitude)
+    }
+
+    /// [`Model::at_amplitude`] with the elementary functions of `E` (ln and exp of h).
+    #[inline(always)]
+    pub fn at_amplitude_with<E: Elementary<F>>(&self, amplitude: F) -> Result<Loop<F>, Error> {
         check_amplitude(amplitude)?;
-        let ln_abs_h = self.ln_abs_k + amplitude.ln();
-        let h = self.sign_k * ln_abs_h.exp();
+        let ln_abs_h = self.ln_abs_k + E::ln(amplitude);
+        let h = self.sign_k * E::exp(ln_abs_h);
         if !h.is_finite() {
             return Err(Error::Overflow);
         }
@@ -372,14 +388,25 @@ impl<F: Real> Loop<F> {
     /// sum is [`Loop::evaluate`]. Each part is finite where that is.
     #[inline]
     pub fn evaluate_parts(&self, theta: F, direction: Direction) -> Result<(Evaluation<F>, Evaluation<F>), Error> {
+        self.evaluate_parts_with::<Libm>(theta, direction)
+    }
+
+    /// [`Loop::evaluate_parts`] with the elementary functions of `E`: the firmware's fast path
+    /// runs this same formula with its polynomial approximations.
+    #[inline(always)]
+    pub fn evaluate_parts_with<E: Elementary<F>>(
+        &self,
+        theta: F,
+        direction: Direction,
+    ) -> Result<(Evaluation<F>, Evaluation<F>), Error> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);
         }
         let m = &self.model;
-        let phase = Phase::new::<Libm>(theta * self.inv_amplitude, direction);
+        let phase = Phase::new::<E>(theta * self.inv_amplitude, direction);
         // h·e^(−rφ), in the log domain so that huge r with tiny α stays finite.
         let h_decay =
-            if m.sign_k == F::zero() { F::zero() } else { m.sign_k * (self.ln_abs_h - m.r * phase.angle).exp() };
+            if m.sign_k == F::zero() { F::zero() } else { m.sign_k * E::exp(self.ln_abs_h - m.r * phase.angle) };
         let hysteresis = phase.hysteresis(m.r, self.h, h_decay, self.inv_amplitude);
         let spring = m.polynomial.evaluate(theta);
         let finite = |e: &Evaluation<F>| e.torque.is_finite() && e.stiffness.is_finite();
@@ -399,6 +426,11 @@ pub trait Elementary<F> {
     fn sqrt(v: F) -> F;
     /// asin x for x ∈ [−1, 1].
     fn asin(x: F) -> F;
+    /// e^y; e^y of a y that overflows may be large and finite instead of ∞ (the callers
+    /// check their results' range).
+    fn exp(y: F) -> F;
+    /// ln v for a finite v > 0.
+    fn ln(v: F) -> F;
 }
 
 /// The elementary functions of libm (through `num_traits::Float`).
@@ -413,6 +445,14 @@ impl<F: Real> Elementary<F> for Libm {
     #[inline(always)]
     fn asin(x: F) -> F {
         x.asin()
+    }
+    #[inline(always)]
+    fn exp(y: F) -> F {
+        y.exp()
+    }
+    #[inline(always)]
+    fn ln(v: F) -> F {
+        v.ln()
     }
 }
 
@@ -529,6 +569,8 @@ impl<F: Real> Evaluation<F> {
 
 #[cfg(any(test, feature = "checks"))]
 pub mod checks;
+pub mod memory;
+pub use memory::{GeneticMemory, Hysteretic, MicroSlip, SlipElements, SlipParams, TurningPoint};
 pub mod tolerance;
 
 #[cfg(test)]

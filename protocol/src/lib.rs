@@ -15,13 +15,18 @@
 extern crate std;
 
 use core::fmt;
+use model_core::SlipParams;
 pub use model_core::{Direction, ParamName, Params, MODEL_VERSION};
 use serde::{Deserialize, Serialize};
 
-/// Version of this message set; bumped on any change to the encoding.
-pub const PROTOCOL_VERSION: u16 = 1;
+/// Version of this message set; bumped on any change to the encoding. Version 2: the model's
+/// kind in [`JointParams::model`] (genetic or micro-slip), the evaluator's memory in
+/// [`Feedforward`].
+pub const PROTOCOL_VERSION: u16 = 2;
 
-/// Largest encoded frame, delimiter included. Every message fits with room to spare.
+/// Largest encoded frame, delimiter included: the longest message (a micro-slip
+/// [`Response::Params`] with every varint at its maximum) takes 109 bytes (tested), with room
+/// to spare.
 pub const MAX_FRAME_LEN: usize = 128;
 
 /// Largest payload (version, message and CRC) before COBS encoding.
@@ -55,19 +60,75 @@ pub struct DeviceInfo {
     pub model_version: u16,
 }
 
+/// Elasto-slip elements of the micro-slip model on the joint (and in `swg-host`'s fit).
+pub const SLIP_ELEMENTS: usize = 16;
+
+/// The micro-slip (Maxwell-slip) model as the joint holds it: model-core's
+/// [`SlipParams`]`<f32, `[`SLIP_ELEMENTS`]`>` (T = c1·θ + c2·θ³ + c3·θ⁵ + Σ k_i·e_i, the
+/// elements' slip deflections on the log grid from `slip_min` to `slip_max`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SlipModel {
+    /// N·m/rad.
+    pub c1: f32,
+    /// N·m/rad³.
+    pub c2: f32,
+    /// N·m/rad⁵.
+    pub c3: f32,
+    /// k_i ≥ 0 of each element, N·m/rad.
+    pub stiffness: [f32; SLIP_ELEMENTS],
+    /// d_min, rad.
+    pub slip_min: f32,
+    /// d_max, rad.
+    pub slip_max: f32,
+}
+
+impl SlipModel {
+    /// model-core's parameters.
+    pub fn params(&self) -> SlipParams<f32, SLIP_ELEMENTS> {
+        SlipParams {
+            c1: self.c1,
+            c2: self.c2,
+            c3: self.c3,
+            stiffness: self.stiffness,
+            slip_min: self.slip_min,
+            slip_max: self.slip_max,
+        }
+    }
+}
+
+impl From<SlipParams<f32, SLIP_ELEMENTS>> for SlipModel {
+    fn from(p: SlipParams<f32, SLIP_ELEMENTS>) -> Self {
+        SlipModel { c1: p.c1, c2: p.c2, c3: p.c3, stiffness: p.stiffness, slip_min: p.slip_min, slip_max: p.slip_max }
+    }
+}
+
+/// The model the joint runs, of either kind; each is evaluated from rest with its memory
+/// (model-core's `memory`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum JointModel {
+    /// The paper's genetic model, generalised to any motion by Madelung's rules
+    /// (`GeneticMemory`, reversal band = [`JointParams::direction_band`]).
+    Genetic(Params<f32>),
+    /// Maxwell-slip with [`SLIP_ELEMENTS`] elements (`MicroSlip`).
+    MicroSlip(SlipModel),
+}
+
 /// Everything the joint needs for feed-forward: the model and how to apply it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct JointParams {
     /// [`MODEL_VERSION`] the parameters were fitted for.
     pub model_version: u16,
-    pub model: Params<f32>,
+    pub model: JointModel,
     /// Reduction ratio N of the gear: deflection θ = θ_in/N − θ_out.
     pub gear_ratio: f32,
     /// |T_ff| is clamped to this, N·m.
     pub torque_limit: f32,
-    /// θ must move back this far from its extreme before the direction flips, rad; keeps
-    /// encoder noise from chattering the branch at the turning points.
+    /// θ must move back this far from its extreme before the genetic model records a
+    /// turning point, rad; keeps encoder noise from chattering the branch at the turning
+    /// points. (The micro-slip kind needs no band: noise makes only tiny reversible loops.)
     pub direction_band: f32,
 }
 
@@ -82,21 +143,41 @@ impl JointParams {
         if self.model_version != MODEL_VERSION {
             return Err(ErrorReply::ModelVersion { got: self.model_version, supported: MODEL_VERSION });
         }
-        let model = &self.model;
         let joint = [
             (ParamField::GearRatio, self.gear_ratio),
             (ParamField::TorqueLimit, self.torque_limit),
             (ParamField::DirectionBand, self.direction_band),
         ];
-        let model_fields = model.fields().into_iter().map(|(name, value)| (ParamField::from(name), value));
-        for (field, value) in model_fields.chain(joint) {
-            if !value.is_finite() {
-                return Err(ErrorReply::InvalidParam { field, fault: ParamFault::NotFinite });
-            }
-        }
+        let not_finite = |field| ErrorReply::InvalidParam { field, fault: ParamFault::NotFinite };
         let out_of_range = |field| ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange };
-        if model.omega == 0.0 {
-            return Err(out_of_range(ParamField::Omega));
+        match &self.model {
+            JointModel::Genetic(model) => {
+                let model_fields = model.fields().into_iter().map(|(name, value)| (ParamField::from(name), value));
+                if let Some((field, _)) = model_fields.chain(joint).find(|(_, value)| !value.is_finite()) {
+                    return Err(not_finite(field));
+                }
+                if model.omega == 0.0 {
+                    return Err(out_of_range(ParamField::Omega));
+                }
+            }
+            JointModel::MicroSlip(model) => {
+                let spring = [(ParamField::C1, model.c1), (ParamField::C2, model.c2), (ParamField::C3, model.c3)];
+                let elements = (0u8..).zip(model.stiffness).map(|(i, k)| (ParamField::SlipStiffness(i), k));
+                let range = [(ParamField::SlipMin, model.slip_min), (ParamField::SlipMax, model.slip_max)];
+                let mut fields = spring.into_iter().chain(elements).chain(range).chain(joint);
+                if let Some((field, _)) = fields.find(|(_, value)| !value.is_finite()) {
+                    return Err(not_finite(field));
+                }
+                if let Some(i) = (0u8..).zip(model.stiffness).find_map(|(i, k)| (k < 0.0).then_some(i)) {
+                    return Err(out_of_range(ParamField::SlipStiffness(i)));
+                }
+                if model.slip_min <= 0.0 {
+                    return Err(out_of_range(ParamField::SlipMin));
+                }
+                if model.slip_max <= model.slip_min {
+                    return Err(out_of_range(ParamField::SlipMax));
+                }
+            }
         }
         if !GEAR_RATIO_RANGE.contains(&self.gear_ratio) {
             return Err(out_of_range(ParamField::GearRatio));
@@ -145,21 +226,25 @@ pub enum Compensation {
     Off,
 }
 
-/// The firmware's feed-forward for one sample, with the inputs it used, so that the host
-/// can evaluate its f64 model at exactly the same point.
+/// The firmware's feed-forward for one sample, with the deflection it used and the state of
+/// its model's memory, so that the host can run its f64 model through exactly the same
+/// deflections and check that both memories agree.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Feedforward {
     /// θ = θ_in/N − θ_out, rad.
     pub deflection: f32,
-    pub direction: Direction,
-    /// Loop amplitude A from the turning points, rad.
-    pub amplitude: f32,
     /// T_ff, N·m.
     pub torque: f32,
     /// K = dT/dθ, N·m/rad.
     pub stiffness: f32,
     pub compensation: Compensation,
+    /// The model's memory after this tick: the genetic kind's direction of motion (`None` at
+    /// rest, before θ has left ±band); `None` for the micro-slip kind.
+    pub direction: Option<Direction>,
+    /// The genetic kind's stored turning points; the micro-slip kind's elements that slip (at
+    /// their limit). 0 at rest.
+    pub memory: u8,
 }
 
 /// Host → device.
@@ -193,8 +278,9 @@ pub enum Response {
     Error(ErrorReply),
 }
 
-/// A parameter named in an error reply: the model's six (in [`ParamName`] order; the
-/// variant indices are the wire format, so the two lists stay separate) and the joint's three.
+/// A parameter named in an error reply: the genetic model's six (in [`ParamName`] order; the
+/// variant indices are the wire format, so the two lists stay separate), the joint's three,
+/// then the micro-slip model's own (its c1, c2, c3 are `C1`, `C2`, `C3`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ParamField {
@@ -207,6 +293,10 @@ pub enum ParamField {
     GearRatio,
     TorqueLimit,
     DirectionBand,
+    /// k_i of micro-slip element i.
+    SlipStiffness(u8),
+    SlipMin,
+    SlipMax,
 }
 
 impl From<ParamName> for ParamField {
@@ -235,6 +325,19 @@ impl ParamField {
             ParamField::GearRatio => "gear_ratio",
             ParamField::TorqueLimit => "torque_limit",
             ParamField::DirectionBand => "direction_band",
+            ParamField::SlipStiffness(_) => "stiffness",
+            ParamField::SlipMin => "slip_min",
+            ParamField::SlipMax => "slip_max",
+        }
+    }
+}
+
+impl fmt::Display for ParamField {
+    /// The name as in files; an element's stiffness with its index, `stiffness[3]`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamField::SlipStiffness(i) => write!(f, "stiffness[{i}]"),
+            field => f.write_str(field.as_str()),
         }
     }
 }
@@ -296,8 +399,8 @@ impl fmt::Display for ErrorReply {
                 write!(f, "model version {got} not supported (device runs {supported})")
             }
             ErrorReply::InvalidParam { field, fault } => match fault {
-                ParamFault::NotFinite => write!(f, "parameter {} is not finite", field.as_str()),
-                ParamFault::OutOfRange => write!(f, "parameter {} is out of range", field.as_str()),
+                ParamFault::NotFinite => write!(f, "parameter {field} is not finite"),
+                ParamFault::OutOfRange => write!(f, "parameter {field} is out of range"),
             },
             ErrorReply::ModelOverflow => f.write_str("model overflows f32 with these parameters"),
             ErrorReply::NoParams => f.write_str("no valid parameters on the device"),

@@ -4,7 +4,7 @@ use std::{vec, vec::Vec};
 
 const PARAMS: JointParams = JointParams {
     model_version: MODEL_VERSION,
-    model: Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.298, omega: 1.0 },
+    model: JointModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.298, omega: 1.0 }),
     gear_ratio: 100.0,
     torque_limit: 50.0,
     direction_band: 2.0e-5,
@@ -28,11 +28,56 @@ fn decode_sent<T: for<'a> Deserialize<'a>>(sent: &[u8]) -> Result<T, FrameError>
 /// fields trade places (or encodings). All values are exact in f32.
 const DISTINCT_PARAMS: JointParams = JointParams {
     model_version: 1,
-    model: Params { c1: 9000.0, c2: 1.25e10, c3: -3.0e14, alpha: 48.5, beta: -2.25, omega: 1.0 },
+    model: JointModel::Genetic(Params { c1: 9000.0, c2: 1.25e10, c3: -3.0e14, alpha: 48.5, beta: -2.25, omega: 1.0 }),
     gear_ratio: 100.0,
     torque_limit: 50.0,
     direction_band: 2.0e-5,
 };
+
+/// k_i = 100·(i + 1) + 0.25 N·m/rad: every element different, all exact in f32.
+const DISTINCT_STIFFNESS: [f32; SLIP_ELEMENTS] = {
+    let mut k = [0.0f32; SLIP_ELEMENTS];
+    let mut i = 0;
+    while i < SLIP_ELEMENTS {
+        k[i] = 100.0 * (i + 1) as f32 + 0.25;
+        i += 1;
+    }
+    k
+};
+
+/// A micro-slip set with every field different from every other (and from the genetic set's
+/// joint fields), exact in f32.
+const DISTINCT_SLIP_PARAMS: JointParams = JointParams {
+    model_version: 1,
+    model: JointModel::MicroSlip(SlipModel {
+        c1: 6000.0,
+        c2: 2.5e9,
+        c3: -5.0e13,
+        stiffness: DISTINCT_STIFFNESS,
+        slip_min: 1.0 / 65536.0,
+        slip_max: 1.0 / 512.0,
+    }),
+    gear_ratio: 80.0,
+    torque_limit: 35.5,
+    direction_band: 2.5e-6,
+};
+
+#[test]
+fn the_distinct_sets_have_distinct_fields() {
+    let JointModel::MicroSlip(slip) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
+    let mut fields = vec![slip.c1, slip.c2, slip.c3, slip.slip_min, slip.slip_max];
+    fields.extend(slip.stiffness);
+    fields.extend([
+        DISTINCT_SLIP_PARAMS.gear_ratio,
+        DISTINCT_SLIP_PARAMS.torque_limit,
+        DISTINCT_SLIP_PARAMS.direction_band,
+    ]);
+    for (i, a) in fields.iter().enumerate() {
+        assert!(fields[i + 1..].iter().all(|b| a != b), "{fields:?}");
+    }
+    assert_eq!(DISTINCT_SLIP_PARAMS.validate(), Ok(()));
+    assert_eq!(DISTINCT_PARAMS.validate(), Ok(()));
+}
 
 /// Encodes `message` and compares the frame with `golden`, then decodes `golden` back.
 fn assert_golden<T>(message: T, golden: &[u8])
@@ -98,31 +143,59 @@ fn covers_every_variant<T>(cases: &[(T, &[u8])], variant: fn(&T) -> usize, n: us
 // The comments give the payload; COBS replaces each 0x00 by the distance to the next one and
 // leads with the distance to the first.
 
+// The encoding is the contract with deployed firmware: these bytes must not change without a
+// new PROTOCOL_VERSION. Each frame is COBS(payload ++ CRC-32 LE) 0x00, where the payload is
+// postcard: varint protocol version (2), varint variant index, then the fields in order
+// (u16/u32 as varints, f32 as 4 bytes little-endian, enums as varint index followed by their
+// fields, Option as 0/1, arrays element by element without a length). The comments give the
+// payload; COBS replaces each 0x00 by the distance to the next one and leads with the distance
+// to the first.
+//
+// The genetic set's payload (DISTINCT_PARAMS):
+//   model_version 01 | Genetic 00 | c1 9e3 = 460ca000 | c2 1.25e10 = 503a43b7 |
+//   c3 -3e14 = d7886c99 | alpha 48.5 = 42420000 | beta -2.25 = c0100000 | omega 1 = 3f800000 |
+//   gear_ratio 100 = 42c80000 | torque_limit 50 = 42480000 | direction_band 2e-5 = 37a7c5ac
+// The micro-slip set's (DISTINCT_SLIP_PARAMS):
+//   model_version 01 | MicroSlip 01 | c1 6e3 = 45bb8000 | c2 2.5e9 = 4f1502f9 |
+//   c3 -5e13 = d635e621 | stiffness 100.25 = 42c88000, 200.25 = 43484000, … 1600.25 = 44c80800 |
+//   slip_min 2⁻¹⁶ = 37800000 | slip_max 2⁻⁹ = 3b000000 | gear_ratio 80 = 42a00000 |
+//   torque_limit 35.5 = 420e0000 | direction_band 2.5e-6 = 3627c5ac
+
 #[test]
 fn golden_requests() {
-    let cases: [(Request, &[u8]); 5] = [
-        // 01 | 00
-        (Request::GetDeviceInfo, &[0x02, 0x01, 0x05, 0xbe, 0x23, 0xc2, 0x58, 0x00]),
+    let cases: [(Request, &[u8]); 6] = [
+        // 02 | 00
+        (Request::GetDeviceInfo, &[0x02, 0x02, 0x05, 0x7d, 0x70, 0xef, 0x73, 0x00]),
         (
+            // 02 | 01 | the genetic set
             Request::WriteParams(DISTINCT_PARAMS),
             &[
-                // 01 | 01 | model_version 01 | c1 9e3 = 460ca000 | c2 1.25e10 = 503a43b7 |
-                // c3 -3e14 = d7886c99 | alpha 48.5 = 42420000 | beta -2.25 = c0100000 |
-                // omega 1 = 3f800000 | gear_ratio 100 = 42c80000 | torque_limit 50 = 42480000 |
-                // direction_band 2e-5 = 37a7c5ac
-                0x04, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7, 0x01,
-                0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42, 0x01, 0x0b,
-                0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xbc, 0x60, 0xe2, 0xf6, 0x00,
+                0x04, 0x02, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7,
+                0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42, 0x01,
+                0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xfd, 0x9c, 0xf4, 0x9a, 0x00,
             ],
         ),
-        // 01 | 02
-        (Request::ReadParams, &[0x07, 0x01, 0x02, 0x92, 0x42, 0xcc, 0xb6, 0x00]),
-        // 01 | 03
-        (Request::Commit, &[0x07, 0x01, 0x03, 0x04, 0x72, 0xcb, 0xc1, 0x00]),
+        (
+            // 02 | 01 | the micro-slip set
+            Request::WriteParams(DISTINCT_SLIP_PARAMS),
+            &[
+                0x05, 0x02, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35, 0xd6,
+                0x04, 0x80, 0xc8, 0x42, 0x04, 0x40, 0x48, 0x43, 0x04, 0x20, 0x96, 0x43, 0x04, 0x20, 0xc8, 0x43, 0x04,
+                0x20, 0xfa, 0x43, 0x04, 0x10, 0x16, 0x44, 0x04, 0x10, 0x2f, 0x44, 0x04, 0x10, 0x48, 0x44, 0x04, 0x10,
+                0x61, 0x44, 0x04, 0x10, 0x7a, 0x44, 0x04, 0x88, 0x89, 0x44, 0x04, 0x08, 0x96, 0x44, 0x04, 0x88, 0xa2,
+                0x44, 0x04, 0x08, 0xaf, 0x44, 0x04, 0x88, 0xbb, 0x44, 0x04, 0x08, 0xc8, 0x44, 0x01, 0x03, 0x80, 0x37,
+                0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36, 0x41,
+                0x8e, 0x38, 0x92, 0x00,
+            ],
+        ),
+        // 02 | 02
+        (Request::ReadParams, &[0x07, 0x02, 0x02, 0x51, 0x11, 0xe1, 0x9d, 0x00]),
+        // 02 | 03
+        (Request::Commit, &[0x07, 0x02, 0x03, 0xc7, 0x21, 0xe6, 0xea, 0x00]),
         (
             Request::Replay(EncoderSample { input_angle: 1.0, output_angle: -0.5, path: EvalPath::Fast }),
-            // 01 | 04 | input_angle 1 = 3f800000 | output_angle -0.5 = bf000000 | Fast 01
-            &[0x03, 0x01, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x3d, 0x13, 0x82, 0xca, 0x00],
+            // 02 | 04 | input_angle 1 = 3f800000 | output_angle -0.5 = bf000000 | Fast 01
+            &[0x03, 0x02, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x3c, 0x75, 0x60, 0x53, 0x00],
         ),
     ];
     covers_every_variant(&cases, request_variant, 5);
@@ -133,54 +206,83 @@ fn golden_requests() {
 
 #[test]
 fn golden_responses() {
-    let cases: [(Response, &[u8]); 7] = [
+    let cases: [(Response, &[u8]); 9] = [
         (
             Response::DeviceInfo(DeviceInfo {
                 firmware_version: Version { major: 0, minor: 1, patch: 2 },
                 protocol_version: 300,
                 model_version: 7,
             }),
-            // 01 | 00 | 0.1.2 = 00 01 02 | protocol_version 300 = ac 02 | model_version 07
-            &[0x02, 0x01, 0x01, 0x0a, 0x01, 0x02, 0xac, 0x02, 0x07, 0xe9, 0x6d, 0xd1, 0x42, 0x00],
+            // 02 | 00 | 0.1.2 = 00 01 02 | protocol_version 300 = ac 02 | model_version 07
+            &[0x02, 0x02, 0x01, 0x0a, 0x01, 0x02, 0xac, 0x02, 0x07, 0x0a, 0x6a, 0x5e, 0xcc, 0x00],
         ),
-        // 01 | 01
-        (Response::ParamsAccepted, &[0x07, 0x01, 0x01, 0x28, 0x13, 0xc5, 0x2f, 0x00]),
+        // 02 | 01
+        (Response::ParamsAccepted, &[0x07, 0x02, 0x01, 0xeb, 0x40, 0xe8, 0x04, 0x00]),
         (
             Response::Params(Some(DISTINCT_PARAMS)),
-            // 01 | 02 | Some 01 | the parameters as in golden_requests' WriteParams
+            // 02 | 02 | Some 01 | the genetic set
             &[
-                0x05, 0x01, 0x02, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7,
-                0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42, 0x01,
-                0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0x91, 0x27, 0x23, 0xe3, 0x00,
+                0x05, 0x02, 0x02, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88,
+                0xd7, 0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42,
+                0x01, 0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xe5, 0x06, 0xcb, 0x16, 0x00,
             ],
         ),
-        // 01 | 02 | None 00
-        (Response::Params(None), &[0x03, 0x01, 0x02, 0x05, 0xa7, 0xd1, 0xb5, 0xcc, 0x00]),
+        (
+            Response::Params(Some(DISTINCT_SLIP_PARAMS)),
+            // 02 | 02 | Some 01 | the micro-slip set
+            &[
+                0x06, 0x02, 0x02, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35,
+                0xd6, 0x04, 0x80, 0xc8, 0x42, 0x04, 0x40, 0x48, 0x43, 0x04, 0x20, 0x96, 0x43, 0x04, 0x20, 0xc8, 0x43,
+                0x04, 0x20, 0xfa, 0x43, 0x04, 0x10, 0x16, 0x44, 0x04, 0x10, 0x2f, 0x44, 0x04, 0x10, 0x48, 0x44, 0x04,
+                0x10, 0x61, 0x44, 0x04, 0x10, 0x7a, 0x44, 0x04, 0x88, 0x89, 0x44, 0x04, 0x08, 0x96, 0x44, 0x04, 0x88,
+                0xa2, 0x44, 0x04, 0x08, 0xaf, 0x44, 0x04, 0x88, 0xbb, 0x44, 0x04, 0x08, 0xc8, 0x44, 0x01, 0x03, 0x80,
+                0x37, 0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36,
+                0x51, 0xe2, 0x7d, 0x64, 0x00,
+            ],
+        ),
+        // 02 | 02 | None 00
+        (Response::Params(None), &[0x03, 0x02, 0x02, 0x05, 0xfe, 0x6f, 0xf3, 0xce, 0x00]),
         (
             Response::Committed { sequence: 0x1234_5678 },
-            // 01 | 03 | sequence 0x12345678 = f8 ac d1 91 01
-            &[0x0c, 0x01, 0x03, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x8f, 0xcf, 0x60, 0x51, 0x00],
+            // 02 | 03 | sequence 0x12345678 = f8 ac d1 91 01
+            &[0x0c, 0x02, 0x03, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x12, 0xd5, 0x88, 0x60, 0x00],
         ),
         (
             Response::Feedforward(Feedforward {
                 deflection: -0.0009765625,
-                direction: Direction::Falling,
-                amplitude: 0.001953125,
                 torque: -12.5,
                 stiffness: 40000.0,
                 compensation: Compensation::Clamped,
+                direction: Some(Direction::Falling),
+                memory: 3,
             }),
-            // 01 | 04 | deflection -2⁻¹⁰ = ba800000 | Falling 01 | amplitude 2⁻⁹ = 3b000000 |
-            // torque -12.5 = c1480000 | stiffness 4e4 = 471c4000 | Clamped 01
+            // 02 | 04 | deflection -2⁻¹⁰ = ba800000 | torque -12.5 = c1480000 |
+            // stiffness 4e4 = 471c4000 | Clamped 01 | Some 01 Falling 01 | memory 03
             &[
-                0x03, 0x01, 0x04, 0x01, 0x04, 0x80, 0xba, 0x01, 0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0x48, 0xc1, 0x09,
-                0x40, 0x1c, 0x47, 0x01, 0x6a, 0xe9, 0x53, 0xdc, 0x00,
+                0x03, 0x02, 0x04, 0x01, 0x03, 0x80, 0xba, 0x01, 0x03, 0x48, 0xc1, 0x0c, 0x40, 0x1c, 0x47, 0x01, 0x01,
+                0x01, 0x03, 0xcb, 0xcc, 0x89, 0xce, 0x00,
             ],
         ),
         (
-            Response::Error(ErrorReply::UnsupportedProtocol { got: 7, supported: 1 }),
-            // 01 | 05 | UnsupportedProtocol 03 | got 07 | supported 01
-            &[0x0a, 0x01, 0x05, 0x03, 0x07, 0x01, 0x97, 0x36, 0x9c, 0xf6, 0x00],
+            Response::Feedforward(Feedforward {
+                deflection: 0.00048828125,
+                torque: 6.75,
+                stiffness: 12000.0,
+                compensation: Compensation::Active,
+                direction: None,
+                memory: 11,
+            }),
+            // 02 | 04 | deflection 2⁻¹¹ = 3a000000 | torque 6.75 = 40d80000 |
+            // stiffness 1.2e4 = 463b8000 | Active 00 | None 00 | memory 0b
+            &[
+                0x03, 0x02, 0x04, 0x01, 0x01, 0x02, 0x3a, 0x01, 0x03, 0xd8, 0x40, 0x04, 0x80, 0x3b, 0x46, 0x01, 0x06,
+                0x0b, 0x72, 0x91, 0x52, 0x50, 0x00,
+            ],
+        ),
+        (
+            Response::Error(ErrorReply::UnsupportedProtocol { got: 7, supported: 2 }),
+            // 02 | 05 | UnsupportedProtocol 03 | got 07 | supported 02
+            &[0x0a, 0x02, 0x05, 0x03, 0x07, 0x02, 0xfd, 0x1d, 0x35, 0x28, 0x00],
         ),
     ];
     covers_every_variant(&cases, response_variant, 6);
@@ -191,31 +293,36 @@ fn golden_responses() {
 
 #[test]
 fn golden_error_replies() {
-    let cases: [(ErrorReply, &[u8]); 11] = [
-        // Each is 01 | 05 (Response::Error) | variant index | fields.
-        (ErrorReply::BadFrame, &[0x03, 0x01, 0x05, 0x05, 0x60, 0x47, 0xf4, 0x83, 0x00]),
-        (ErrorReply::BadCrc, &[0x08, 0x01, 0x05, 0x01, 0xf6, 0x77, 0xf3, 0xf4, 0x00]),
-        (ErrorReply::FrameTooLong, &[0x08, 0x01, 0x05, 0x02, 0x4c, 0x26, 0xfa, 0x6d, 0x00]),
+    let cases: [(ErrorReply, &[u8]); 12] = [
+        // Each is 02 | 05 (Response::Error) | variant index | fields.
+        (ErrorReply::BadFrame, &[0x03, 0x02, 0x05, 0x05, 0x39, 0xf9, 0xb2, 0x81, 0x00]),
+        (ErrorReply::BadCrc, &[0x08, 0x02, 0x05, 0x01, 0xaf, 0xc9, 0xb5, 0xf6, 0x00]),
+        (ErrorReply::FrameTooLong, &[0x08, 0x02, 0x05, 0x02, 0x15, 0x98, 0xbc, 0x6f, 0x00]),
         (
-            // got 07, supported 01
-            ErrorReply::UnsupportedProtocol { got: 7, supported: 1 },
-            &[0x0a, 0x01, 0x05, 0x03, 0x07, 0x01, 0x97, 0x36, 0x9c, 0xf6, 0x00],
+            // got 07, supported 02
+            ErrorReply::UnsupportedProtocol { got: 7, supported: 2 },
+            &[0x0a, 0x02, 0x05, 0x03, 0x07, 0x02, 0xfd, 0x1d, 0x35, 0x28, 0x00],
         ),
-        (ErrorReply::UndecodableRequest, &[0x08, 0x01, 0x05, 0x04, 0x79, 0x83, 0x99, 0x84, 0x00]),
+        (ErrorReply::UndecodableRequest, &[0x08, 0x02, 0x05, 0x04, 0x20, 0x3d, 0xdf, 0x86, 0x00]),
         (
             // got 02, supported 01
             ErrorReply::ModelVersion { got: 2, supported: 1 },
-            &[0x0a, 0x01, 0x05, 0x05, 0x02, 0x01, 0x60, 0xbe, 0x66, 0x8f, 0x00],
+            &[0x0a, 0x02, 0x05, 0x05, 0x02, 0x01, 0xb0, 0xc4, 0xc6, 0xc8, 0x00],
         ),
         (
             // field TorqueLimit 07, fault OutOfRange 01
             ErrorReply::InvalidParam { field: ParamField::TorqueLimit, fault: ParamFault::OutOfRange },
-            &[0x0a, 0x01, 0x05, 0x06, 0x07, 0x01, 0x7c, 0xf4, 0x57, 0xf0, 0x00],
+            &[0x0a, 0x02, 0x05, 0x06, 0x07, 0x01, 0xac, 0x8e, 0xf7, 0xb7, 0x00],
         ),
-        (ErrorReply::ModelOverflow, &[0x08, 0x01, 0x05, 0x07, 0xc3, 0xd2, 0x90, 0x1d, 0x00]),
-        (ErrorReply::NoParams, &[0x08, 0x01, 0x05, 0x08, 0x52, 0xcf, 0x2f, 0x8d, 0x00]),
-        (ErrorReply::Storage, &[0x08, 0x01, 0x05, 0x09, 0xc4, 0xff, 0x28, 0xfa, 0x00]),
-        (ErrorReply::NonFiniteSample, &[0x08, 0x01, 0x05, 0x0a, 0x7e, 0xae, 0x21, 0x63, 0x00]),
+        (
+            // field SlipStiffness 09 with element 0d, fault NotFinite 00
+            ErrorReply::InvalidParam { field: ParamField::SlipStiffness(13), fault: ParamFault::NotFinite },
+            &[0x06, 0x02, 0x05, 0x06, 0x09, 0x0d, 0x05, 0xc6, 0x95, 0xfe, 0xab, 0x00],
+        ),
+        (ErrorReply::ModelOverflow, &[0x08, 0x02, 0x05, 0x07, 0x9a, 0x6c, 0xd6, 0x1f, 0x00]),
+        (ErrorReply::NoParams, &[0x08, 0x02, 0x05, 0x08, 0x0b, 0x71, 0x69, 0x8f, 0x00]),
+        (ErrorReply::Storage, &[0x08, 0x02, 0x05, 0x09, 0x9d, 0x41, 0x6e, 0xf8, 0x00]),
+        (ErrorReply::NonFiniteSample, &[0x08, 0x02, 0x05, 0x0a, 0x27, 0x10, 0x67, 0x61, 0x00]),
     ];
     covers_every_variant(&cases, error_variant, 11);
     for (error, golden) in cases {
@@ -245,6 +352,14 @@ fn golden_enum_indices() {
     for (index, field) in (0u8..).zip(fields) {
         assert_eq!(index_of(field), [index], "{field:?}");
     }
+    assert_eq!(index_of(ParamField::SlipStiffness(5)), [9, 5]);
+    assert_eq!(index_of(ParamField::SlipMin), [10]);
+    assert_eq!(index_of(ParamField::SlipMax), [11]);
+    let JointModel::MicroSlip(slip) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
+    let mut buffer = [0u8; 128];
+    let zero = Params { c1: 0.0, c2: 0.0, c3: 0.0, alpha: 0.0, beta: 0.0, omega: 0.0 };
+    assert_eq!(postcard::to_slice(&JointModel::Genetic(zero), &mut buffer).unwrap()[0], 0);
+    assert_eq!(postcard::to_slice(&JointModel::MicroSlip(slip), &mut buffer).unwrap()[0], 1);
     assert_eq!(index_of(ParamFault::NotFinite), [0]);
     assert_eq!(index_of(ParamFault::OutOfRange), [1]);
     assert_eq!(index_of(EvalPath::Direct), [0]);
@@ -260,26 +375,45 @@ fn golden_enum_indices() {
 /// reuse), fits MAX_FRAME_LEN, the buffer both ends encode into and receive with.
 #[test]
 fn the_longest_message_of_each_kind_fits_a_frame() {
-    let widest = JointParams {
+    let widest_genetic = JointParams {
         model_version: u16::MAX,
-        model: Params { c1: f32::MIN, c2: f32::MIN, c3: f32::MIN, alpha: f32::MIN, beta: f32::MIN, omega: f32::MIN },
+        model: JointModel::Genetic(Params {
+            c1: f32::MIN,
+            c2: f32::MIN,
+            c3: f32::MIN,
+            alpha: f32::MIN,
+            beta: f32::MIN,
+            omega: f32::MIN,
+        }),
         gear_ratio: f32::MIN,
         torque_limit: f32::MIN,
         direction_band: f32::MIN,
+    };
+    let widest = JointParams {
+        model: JointModel::MicroSlip(SlipModel {
+            c1: f32::MIN,
+            c2: f32::MIN,
+            c3: f32::MIN,
+            stiffness: [f32::MIN; SLIP_ELEMENTS],
+            slip_min: f32::MIN,
+            slip_max: f32::MIN,
+        }),
+        ..widest_genetic
     };
     let sample = EncoderSample { input_angle: f32::MIN, output_angle: f32::MIN, path: EvalPath::Fast };
     let version = Version { major: u16::MAX, minor: u16::MAX, patch: u16::MAX };
     let feedforward = Feedforward {
         deflection: f32::MIN,
-        direction: Direction::Falling,
-        amplitude: f32::MIN,
         torque: f32::MIN,
         stiffness: f32::MIN,
         compensation: Compensation::Off,
+        direction: Some(Direction::Falling),
+        memory: u8::MAX,
     };
     let big = u16::MAX;
     let requests = [
         Request::GetDeviceInfo,
+        Request::WriteParams(widest_genetic),
         Request::WriteParams(widest),
         Request::ReadParams,
         Request::Commit,
@@ -288,12 +422,17 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
     let responses = [
         Response::DeviceInfo(DeviceInfo { firmware_version: version, protocol_version: big, model_version: big }),
         Response::ParamsAccepted,
+        Response::Params(Some(widest_genetic)),
         Response::Params(Some(widest)),
         Response::Committed { sequence: u32::MAX },
         Response::Feedforward(feedforward),
         Response::Error(ErrorReply::UnsupportedProtocol { got: big, supported: big }),
         Response::Error(ErrorReply::ModelVersion { got: big, supported: big }),
         Response::Error(ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
+        Response::Error(ErrorReply::InvalidParam {
+            field: ParamField::SlipStiffness(u8::MAX),
+            fault: ParamFault::OutOfRange,
+        }),
     ];
     // A message too long for a frame fails here already (encode's payload buffer is sized
     // for MAX_FRAME_LEN); the larger output buffer only keeps that buffer the one limit.
@@ -305,9 +444,10 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
     let mut frames: Vec<Vec<u8>> = requests.iter().map(encoded).collect();
     frames.extend(responses.iter().map(encoded));
     let longest = frames.iter().map(Vec::len).max().unwrap();
-    // Params(Some(widest)): version 1 + variant 1 + Some 1 + u16::MAX 3 + 9 × f32 36 = 42 bytes,
-    // + CRC 4, + 1 COBS code byte, + the delimiter. A message that grows fails here first.
-    assert_eq!(longest, 42 + 4 + 1 + 1);
+    // Params(Some(widest)), micro-slip: version 1 + variant 1 + Some 1 + u16::MAX 3 + kind 1 +
+    // (3 + 16 + 2 + 3) × f32 96 = 103 bytes, + CRC 4, + 1 COBS code byte (no zero byte to
+    // reuse; under 254 bytes), + the delimiter. A message that grows fails here first.
+    assert_eq!(longest, 103 + 4 + 1 + 1);
     assert!(longest <= MAX_FRAME_LEN, "{longest} > {MAX_FRAME_LEN}");
     // And a receiver with a MAX_FRAME_LEN buffer takes every one of them.
     let mut reader = FrameReader::<MAX_FRAME_LEN>::new();
@@ -323,6 +463,7 @@ fn every_message_round_trips() {
     let requests = [
         Request::GetDeviceInfo,
         Request::WriteParams(PARAMS),
+        Request::WriteParams(DISTINCT_SLIP_PARAMS),
         Request::ReadParams,
         Request::Commit,
         Request::Replay(EncoderSample { input_angle: 12.5, output_angle: 0.125, path: EvalPath::Direct }),
@@ -339,15 +480,16 @@ fn every_message_round_trips() {
         }),
         Response::ParamsAccepted,
         Response::Params(Some(PARAMS)),
+        Response::Params(Some(DISTINCT_SLIP_PARAMS)),
         Response::Params(None),
         Response::Committed { sequence: u32::MAX },
         Response::Feedforward(Feedforward {
             deflection: -1.0e-3,
-            direction: Direction::Falling,
-            amplitude: 1.2e-3,
             torque: -f32::MAX,
             stiffness: 1.0e6,
             compensation: Compensation::Clamped,
+            direction: Some(Direction::Rising),
+            memory: 16,
         }),
         Response::Error(ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
     ];
@@ -436,9 +578,15 @@ fn validation_names_the_field() {
         params.validate()
     };
     let invalid = |field, fault| Err(ErrorReply::InvalidParam { field, fault });
-    assert_eq!(with(|p| p.model.c2 = f32::NAN), invalid(ParamField::C2, ParamFault::NotFinite));
-    assert_eq!(with(|p| p.model.beta = f32::INFINITY), invalid(ParamField::Beta, ParamFault::NotFinite));
-    assert_eq!(with(|p| p.model.omega = 0.0), invalid(ParamField::Omega, ParamFault::OutOfRange));
+    fn genetic(p: &mut JointParams) -> &mut Params<f32> {
+        match &mut p.model {
+            JointModel::Genetic(model) => model,
+            JointModel::MicroSlip(_) => unreachable!(),
+        }
+    }
+    assert_eq!(with(|p| genetic(p).c2 = f32::NAN), invalid(ParamField::C2, ParamFault::NotFinite));
+    assert_eq!(with(|p| genetic(p).beta = f32::INFINITY), invalid(ParamField::Beta, ParamFault::NotFinite));
+    assert_eq!(with(|p| genetic(p).omega = 0.0), invalid(ParamField::Omega, ParamFault::OutOfRange));
     assert_eq!(with(|p| p.gear_ratio = 0.5), invalid(ParamField::GearRatio, ParamFault::OutOfRange));
     assert_eq!(with(|p| p.torque_limit = 0.0), invalid(ParamField::TorqueLimit, ParamFault::OutOfRange));
     assert_eq!(with(|p| p.direction_band = -1.0), invalid(ParamField::DirectionBand, ParamFault::OutOfRange));
@@ -446,4 +594,38 @@ fn validation_names_the_field() {
         with(|p| p.model_version = MODEL_VERSION + 1),
         Err(ErrorReply::ModelVersion { got: MODEL_VERSION + 1, supported: MODEL_VERSION })
     );
+}
+
+#[test]
+fn micro_slip_validation_names_the_field() {
+    let with = |edit: fn(&mut SlipModel)| {
+        let mut params = DISTINCT_SLIP_PARAMS;
+        let JointModel::MicroSlip(model) = &mut params.model else { unreachable!() };
+        edit(model);
+        params.validate()
+    };
+    let invalid = |field, fault| Err(ErrorReply::InvalidParam { field, fault });
+    assert_eq!(with(|_| ()), Ok(()));
+    assert_eq!(with(|m| m.c1 = f32::NAN), invalid(ParamField::C1, ParamFault::NotFinite));
+    assert_eq!(with(|m| m.c3 = f32::NEG_INFINITY), invalid(ParamField::C3, ParamFault::NotFinite));
+    assert_eq!(with(|m| m.stiffness[7] = f32::INFINITY), invalid(ParamField::SlipStiffness(7), ParamFault::NotFinite));
+    assert_eq!(with(|m| m.stiffness[15] = -1.0), invalid(ParamField::SlipStiffness(15), ParamFault::OutOfRange));
+    // k = 0 is an element that is not there: allowed (the fit's non-negative least squares gives it).
+    assert_eq!(with(|m| m.stiffness = [0.0; SLIP_ELEMENTS]), Ok(()));
+    assert_eq!(with(|m| m.slip_min = f32::NAN), invalid(ParamField::SlipMin, ParamFault::NotFinite));
+    assert_eq!(with(|m| m.slip_max = f32::INFINITY), invalid(ParamField::SlipMax, ParamFault::NotFinite));
+    assert_eq!(with(|m| m.slip_min = 0.0), invalid(ParamField::SlipMin, ParamFault::OutOfRange));
+    assert_eq!(with(|m| m.slip_min = -1.0e-5), invalid(ParamField::SlipMin, ParamFault::OutOfRange));
+    assert_eq!(with(|m| m.slip_max = m.slip_min), invalid(ParamField::SlipMax, ParamFault::OutOfRange));
+    // The joint's own fields as for the genetic kind.
+    let mut params = DISTINCT_SLIP_PARAMS;
+    params.direction_band = 0.5;
+    assert_eq!(params.validate(), invalid(ParamField::DirectionBand, ParamFault::OutOfRange));
+    // Every set the protocol accepts, model-core accepts too.
+    let JointModel::MicroSlip(model) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
+    assert_eq!(model.params().validate(), Ok(()));
+    assert_eq!(SlipModel::from(model.params()), model);
+    // The error names the element.
+    let error = ErrorReply::InvalidParam { field: ParamField::SlipStiffness(3), fault: ParamFault::OutOfRange };
+    assert_eq!(std::format!("{error}"), "parameter stiffness[3] is out of range");
 }

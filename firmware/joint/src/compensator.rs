@@ -1,46 +1,109 @@
-use crate::{fast::FastModel, tracker::DirectionTracker};
-use model_core::{Direction, Model};
-use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams};
+use crate::fast::{FastMath, FastModel};
+use model_core::{Evaluation, GeneticMemory, Hysteretic, MicroSlip, Model};
+use swg_protocol::{
+    Compensation, Direction, ErrorReply, EvalPath, Feedforward, JointModel, JointParams, SLIP_ELEMENTS,
+};
 
 /// Largest plausible torsional deflection, rad (≈ 5.7°; strain wave gears deflect a few mrad).
-/// Beyond it a reading is an encoder fault: the tick is skipped without touching the loop
-/// tracking, so one glitch cannot inflate the amplitude for the loops after it.
+/// Beyond it a reading is an encoder fault: the tick is skipped without touching the model's
+/// memory, so one glitch cannot leave a false turning point behind.
 pub const MAX_DEFLECTION: f32 = 0.1;
 
-/// A validated parameter set with everything a tick needs prepared.
+/// Turning points the genetic model remembers on the joint (as `swg-host`'s
+/// `gear::TURNING_POINTS`): deeper nested excursions retrace reversibly.
+pub const TURNING_POINTS: usize = 16;
+
+/// The installed model's stateful evaluator (model-core's `memory`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Evaluator {
+    /// `fast`: the set is inside the fast path's range ([`FastModel::new`] accepts it), so
+    /// [`EvalPath::Fast`] runs the same evaluator with [`FastMath`].
+    Genetic {
+        memory: GeneticMemory<f32, TURNING_POINTS>,
+        fast: bool,
+    },
+    MicroSlip(MicroSlip<f32, SLIP_ELEMENTS>),
+}
+
+impl Evaluator {
+    /// One sample: the same state whichever `path` runs it.
+    #[inline(always)]
+    fn step(&mut self, theta: f32, path: EvalPath) -> Option<Evaluation<f32>> {
+        match self {
+            Evaluator::Genetic { memory, fast: true } if path == EvalPath::Fast => {
+                memory.step_with::<FastMath>(theta).ok()
+            }
+            Evaluator::Genetic { memory, .. } => memory.step(theta).ok(),
+            // No transcendental functions: both paths are the same code.
+            Evaluator::MicroSlip(slip) => slip.step(theta).ok(),
+        }
+    }
+
+    /// What [`Feedforward`] reports of the memory: the genetic kind's direction and stored
+    /// turning points, the micro-slip kind's slipping elements.
+    #[inline(always)]
+    fn memory(&self) -> (Option<Direction>, u8) {
+        match self {
+            Evaluator::Genetic { memory, .. } => (memory.direction(), memory.depth() as u8),
+            Evaluator::MicroSlip(slip) => {
+                let elements = slip.elements();
+                let slipping = elements.elastic().iter().zip(elements.slip()).filter(|(e, d)| e.abs() >= **d).count();
+                (None, slipping as u8)
+            }
+        }
+    }
+}
+
+/// A validated parameter set with its evaluator, prepared at rest.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Installed {
     params: JointParams,
-    model: Model<f32>,
-    /// `None` when the set is outside the fast path's range: ticks then use `model`.
-    fast: Option<FastModel>,
+    evaluator: Evaluator,
 }
 
-/// The feed-forward of one joint: parameters, direction tracking, evaluation, clamping.
+/// The feed-forward of one joint: parameters, the model's memory, evaluation, clamping.
 ///
 /// A new set is validated and prepared completely by [`Compensator::stage`] and takes effect
 /// at the start of the next [`Compensator::tick`], so no tick ever sees half of it; a
-/// refused set leaves the previous one active.
+/// refused set leaves the previous one (and its memory) active.
+///
+/// **Memory and parameter changes.** The installed model runs stateful from rest
+/// (model-core's `GeneticMemory` with [`TURNING_POINTS`] turning points and the set's
+/// direction band as its reversal band, or `MicroSlip` with [`SLIP_ELEMENTS`] elements). A
+/// staged set is prepared at rest, and the memory is reset at exactly one moment: when that
+/// set is activated, at the start of the first tick after [`Compensator::stage`], before that
+/// tick's sample is evaluated. That tick therefore starts from rest (the virgin curve) with the
+/// new set, whatever the old one had remembered, as after a reboot; writing the same set again
+/// resets too. A history recorded under other parameters has no meaning for the new ones
+/// (turning points hold torques of the old model), so none is carried over. Between two ticks
+/// nothing else touches the memory: refused sets, reads and commits leave it as it is.
 #[derive(Clone, Debug, Default)]
 pub struct Compensator {
     active: Option<Installed>,
     staged: Option<Installed>,
-    tracker: Option<DirectionTracker>,
 }
 
 impl Compensator {
     pub const fn new() -> Self {
-        Compensator { active: None, staged: None, tracker: None }
+        Compensator { active: None, staged: None }
     }
 
-    /// Validates `params` and prepares them for the next tick.
+    /// Validates `params` and prepares them, at rest, for the next tick.
     pub fn stage(&mut self, params: JointParams) -> Result<(), ErrorReply> {
         params.validate()?;
-        let model = Model::new(params.model).map_err(|_| ErrorReply::ModelOverflow)?;
-        // The model must be evaluable on the loops it will see.
-        model.at_amplitude(1.0).map_err(|_| ErrorReply::ModelOverflow)?;
-        let fast = FastModel::new(&params.model).ok();
-        self.staged = Some(Installed { params, model, fast });
+        let evaluator = match params.model {
+            JointModel::Genetic(genetic) => {
+                let model = Model::new(genetic).map_err(|_| ErrorReply::ModelOverflow)?;
+                // The model must be evaluable on the loops it will see.
+                model.at_amplitude(1.0).map_err(|_| ErrorReply::ModelOverflow)?;
+                let fast = FastModel::new(&genetic).is_ok();
+                Evaluator::Genetic { memory: GeneticMemory::new(model, params.direction_band), fast }
+            }
+            JointModel::MicroSlip(slip) => {
+                Evaluator::MicroSlip(MicroSlip::new(slip.params()).map_err(|_| ErrorReply::ModelOverflow)?)
+            }
+        };
+        self.staged = Some(Installed { params, evaluator });
         Ok(())
     }
 
@@ -51,38 +114,30 @@ impl Compensator {
 
     /// One control tick on the two encoder angles (rad; the input side multi-turn).
     /// Never NaN: without valid parameters, with a deflection that is not finite or beyond
-    /// [`MAX_DEFLECTION`], or when the model cannot be evaluated, the compensation is off and
-    /// T_ff = K = 0.
+    /// [`MAX_DEFLECTION`], or when the model cannot be evaluated, the compensation is off,
+    /// T_ff = K = 0, and the model's memory is left as it was.
     pub fn tick(&mut self, input_angle: f32, output_angle: f32, path: EvalPath) -> Feedforward {
-        // Copies the set only when one is staged: the tick works on references otherwise.
+        // Activation of a staged set, at rest: the one moment the memory is reset.
         if self.staged.is_some() {
             self.active = self.staged.take();
         }
         let off = Feedforward {
             deflection: 0.0,
-            direction: Direction::Rising,
-            amplitude: 0.0,
             torque: 0.0,
             stiffness: 0.0,
             compensation: Compensation::Off,
+            direction: None,
+            memory: 0,
         };
-        let Some(installed) = self.active.as_ref() else { return off };
+        let Some(installed) = self.active.as_mut() else { return off };
         let deflection = input_angle / installed.params.gear_ratio - output_angle;
         if deflection.is_nan() || deflection.abs() > MAX_DEFLECTION {
             return off;
         }
-        let band = installed.params.direction_band;
-        let tracker = self.tracker.get_or_insert_with(|| DirectionTracker::new(band));
-        tracker.set_band(band);
-        let (direction, amplitude) = tracker.update(deflection);
-        let evaluation = match (path, &installed.fast) {
-            (EvalPath::Fast, Some(fast)) => fast.evaluate(deflection, direction, amplitude),
-            _ => {
-                installed.model.at_amplitude(amplitude).and_then(|on_loop| on_loop.evaluate(deflection, direction)).ok()
-            }
-        };
+        let evaluation = installed.evaluator.step(deflection, path);
+        let (direction, memory) = installed.evaluator.memory();
         let Some(evaluation) = evaluation else {
-            return Feedforward { deflection, direction, amplitude, ..off };
+            return Feedforward { deflection, direction, memory, ..off };
         };
         let limit = installed.params.torque_limit;
         let (torque, stiffness, compensation) = if evaluation.torque.abs() <= limit {
@@ -91,25 +146,97 @@ impl Compensator {
             // Saturated: the output no longer changes with θ.
             (limit.copysign(evaluation.torque), 0.0, Compensation::Clamped)
         };
-        Feedforward { deflection, direction, amplitude, torque, stiffness, compensation }
+        Feedforward { deflection, torque, stiffness, compensation, direction, memory }
     }
 }
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
-    use model_core::{checks::PAPER_TABLE_2, MODEL_VERSION};
-    use swg_protocol::{ParamFault, ParamField};
+    use model_core::{checks::PAPER_TABLE_2, Params, SlipParams, MODEL_VERSION};
+    use std::vec::Vec;
+    use swg_protocol::{ParamFault, ParamField, SlipModel};
+
+    const BAND: f32 = 1.0e-6;
 
     /// The paper's Table 2 on a 1:100 gear, |T_ff| ≤ 40 N·m.
     fn paper() -> JointParams {
         JointParams {
             model_version: MODEL_VERSION,
-            model: PAPER_TABLE_2.to_f32(),
+            model: JointModel::Genetic(PAPER_TABLE_2.to_f32()),
             gear_ratio: 100.0,
             torque_limit: 40.0,
-            direction_band: 1.0e-6,
+            direction_band: BAND,
         }
+    }
+
+    /// A micro-slip gear of about the paper's size: 6000 N·m/rad of spring, 16 elements of
+    /// 200 N·m/rad slipping between 20 µrad and 2 mrad.
+    fn slip() -> JointParams {
+        JointParams {
+            model: JointModel::MicroSlip(SlipModel {
+                c1: 6000.0,
+                c2: 1.2e10,
+                c3: 0.0,
+                stiffness: [200.0; SLIP_ELEMENTS],
+                slip_min: 2.0e-5,
+                slip_max: 2.0e-3,
+            }),
+            ..paper()
+        }
+    }
+
+    fn genetic(params: &mut JointParams) -> &mut Params<f32> {
+        match &mut params.model {
+            JointModel::Genetic(model) => model,
+            JointModel::MicroSlip(_) => unreachable!(),
+        }
+    }
+
+    /// model-core's own evaluator of `params`, at rest, in f32 with libm.
+    fn reference(params: &JointParams) -> std::boxed::Box<dyn Hysteretic<f32>> {
+        match params.model {
+            JointModel::Genetic(p) => std::boxed::Box::new(GeneticMemory::<f32, TURNING_POINTS>::new(
+                Model::new(p).unwrap(),
+                params.direction_band,
+            )),
+            JointModel::MicroSlip(p) => {
+                let p: SlipParams<f32, SLIP_ELEMENTS> = p.params();
+                std::boxed::Box::new(MicroSlip::new(p).unwrap())
+            }
+        }
+    }
+
+    /// θ = 0.6·A + 0.15·A·sin φ after a ramp from rest: a held load with an oscillation.
+    fn biased(amplitude: f32, n: usize) -> Vec<f32> {
+        let ramp = n / 4;
+        let bias = 0.6 * amplitude;
+        (0..n)
+            .map(|i| {
+                if i < ramp {
+                    bias * i as f32 / ramp as f32
+                } else {
+                    let phase = core::f32::consts::TAU * 3.0 * (i - ramp) as f32 / (n - ramp) as f32;
+                    bias + 0.15 * amplitude * libm::sinf(phase)
+                }
+            })
+            .collect()
+    }
+
+    /// θ = A·(0.75·sin φ + 0.25·sin 9φ): minor loops at many levels inside the big swing.
+    fn nested(amplitude: f32, n: usize) -> Vec<f32> {
+        (0..n)
+            .map(|i| {
+                let phase = core::f32::consts::TAU * 2.0 * i as f32 / n as f32;
+                amplitude * (0.75 * libm::sinf(phase) + 0.25 * libm::sinf(9.0 * phase))
+            })
+            .collect()
+    }
+
+    fn tick_theta(compensator: &mut Compensator, theta: f32, path: EvalPath) -> Feedforward {
+        // θ_in = N·θ with θ_out = 0, N = 100: exact for these θ up to f32 rounding of N·θ/N.
+        compensator.tick(100.0 * theta, 0.0, path)
     }
 
     #[test]
@@ -121,49 +248,220 @@ mod tests {
 
     #[test]
     fn deflection_is_input_over_ratio_minus_output() {
+        for params in [paper(), slip()] {
+            let mut compensator = Compensator::new();
+            compensator.stage(params).unwrap();
+            let out = compensator.tick(10.0, 0.0995, EvalPath::Direct);
+            assert!((out.deflection - 0.5e-3).abs() < 1e-8, "{}", out.deflection);
+            assert_eq!(out.compensation, Compensation::Active);
+            let expected = reference(&params).step(out.deflection).unwrap();
+            assert_eq!((out.torque, out.stiffness), (expected.torque, expected.stiffness));
+        }
+    }
+
+    /// Both kinds, both paths, through a biased and a nested motion: every tick equals
+    /// model-core's evaluator run from rest (bit for bit on the direct path; within the fast
+    /// path's error on the fast path), and the memory is reported.
+    #[test]
+    fn ticks_run_the_stateful_model_from_rest() {
+        for params in [paper(), slip()] {
+            for motion in [biased(1.0e-3, 2000), nested(1.0e-3, 4000)] {
+                for path in [EvalPath::Direct, EvalPath::Fast] {
+                    let mut compensator = Compensator::new();
+                    compensator.stage(JointParams { torque_limit: 1.0e3, ..params }).unwrap();
+                    let mut expected = reference(&params);
+                    let mut deepest = 0;
+                    for &theta in &motion {
+                        let out = tick_theta(&mut compensator, theta, path);
+                        let want = expected.step(out.deflection).unwrap();
+                        assert_eq!(out.compensation, Compensation::Active);
+                        deepest = deepest.max(out.memory);
+                        if path == EvalPath::Direct || matches!(params.model, JointModel::MicroSlip(_)) {
+                            assert_eq!((out.torque, out.stiffness), (want.torque, want.stiffness));
+                        } else {
+                            assert!(
+                                (out.torque - want.torque).abs() <= 1.0e-4 * (1.0 + want.torque.abs()),
+                                "{out:?} {want:?}"
+                            );
+                            let k_error = (out.stiffness - want.stiffness).abs();
+                            assert!(k_error <= 1.0e-3 * (1.0e3 + want.stiffness.abs()), "{out:?} {want:?}");
+                        }
+                    }
+                    assert!(deepest >= 2, "the motion leaves memory behind: {deepest}");
+                }
+            }
+        }
+    }
+
+    /// model-core's evaluator of `params` in f64, at rest.
+    fn exact(params: &JointParams) -> std::boxed::Box<dyn Hysteretic<f64>> {
+        match params.model {
+            JointModel::Genetic(p) => {
+                let p = p.try_map(|_, v| Ok::<f64, ()>(f64::from(v))).unwrap();
+                let band = f64::from(params.direction_band);
+                std::boxed::Box::new(GeneticMemory::<f64, TURNING_POINTS>::new(Model::new(p).unwrap(), band))
+            }
+            JointModel::MicroSlip(p) => std::boxed::Box::new(
+                MicroSlip::new(SlipParams {
+                    c1: f64::from(p.c1),
+                    c2: f64::from(p.c2),
+                    c3: f64::from(p.c3),
+                    stiffness: p.stiffness.map(f64::from),
+                    slip_min: f64::from(p.slip_min),
+                    slip_max: f64::from(p.slip_max),
+                })
+                .unwrap(),
+            ),
+        }
+    }
+
+    /// At a reversal the torque turns without a step: no tick moves T_ff by more than the
+    /// larger |K| of its two ends times |Δθ|, or, where that is larger, by more than the exact
+    /// (f64) model moves over the same Δθ, plus the f32 tolerance (2·10⁻⁵ of the torque scale).
+    ///
+    /// The second allowance is for the genetic kind's turning points: its branches start with
+    /// an infinite slope (z ∝ |cos ωt| ∝ √(distance from the turning point)), and K there is
+    /// the capped edge value, so |K|·|Δθ| underestimates the first step of a branch; model-core
+    /// proves the exact model continuous (`torque_is_continuous_on_any_motion`), and this test
+    /// shows that the joint adds no step of its own. The micro-slip kind is piecewise smooth
+    /// with finite K, so it meets the first bound alone (checked). With a reversal band b > 0
+    /// (the second pass) the tick that recognises a reversal, θ more than b back from the
+    /// extreme, changes branch at the turning point: T_ff moves by the two branches'
+    /// difference over about b, as in the exact model, which the second allowance takes in.
+    #[test]
+    fn the_torque_does_not_step_at_reversals() {
+        for band in [0.0, BAND] {
+            for params in [paper(), slip()] {
+                for motion in [biased(1.0e-3, 2000), nested(1.0e-3, 4000)] {
+                    for path in [EvalPath::Direct, EvalPath::Fast] {
+                        let mut compensator = Compensator::new();
+                        let params = JointParams { torque_limit: 1.0e3, direction_band: band, ..params };
+                        compensator.stage(params).unwrap();
+                        let mut exact = exact(&params);
+                        let mut outs = Vec::new();
+                        for &theta in &motion {
+                            let out = tick_theta(&mut compensator, theta, path);
+                            outs.push((out, exact.step(f64::from(out.deflection)).unwrap()));
+                        }
+                        let scale = outs.iter().map(|(o, _)| o.torque.abs()).fold(0.0f32, f32::max);
+                        let tolerance = 2.0e-5 * f64::from(scale);
+                        let mut reversals = 0;
+                        for (i, pair) in outs.windows(2).enumerate() {
+                            let ((a, exact_a), (b, exact_b)) = (pair[0], pair[1]);
+                            if i > 0 && (a.deflection - outs[i - 1].0.deflection) * (b.deflection - a.deflection) < 0.0
+                            {
+                                reversals += 1;
+                            }
+                            let step = f64::from((b.torque - a.torque).abs());
+                            let by_stiffness = f64::from(a.stiffness.abs().max(b.stiffness.abs()))
+                                * f64::from((b.deflection - a.deflection).abs());
+                            let exact_step = (exact_b.torque - exact_a.torque).abs();
+                            let allowed = match params.model {
+                                JointModel::MicroSlip(_) => by_stiffness,
+                                JointModel::Genetic(_) => by_stiffness.max(exact_step),
+                            } + tolerance;
+                            assert!(
+                                step <= allowed,
+                                "band {band} {path:?} sample {i}: step {step} > {allowed}: {a:?} → {b:?}"
+                            );
+                        }
+                        assert!(reversals >= 6, "{reversals}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_parameter_change_resets_the_memory_when_the_set_is_activated() {
+        for (first, second) in [(paper(), slip()), (slip(), paper()), (paper(), paper())] {
+            let mut compensator = Compensator::new();
+            compensator.stage(first).unwrap();
+            let motion = nested(1.0e-3, 1000);
+            let mut last = None;
+            for &theta in &motion[..700] {
+                last = Some(tick_theta(&mut compensator, theta, EvalPath::Fast));
+            }
+            assert!(last.unwrap().memory > 0, "{last:?}");
+            compensator.stage(second).unwrap();
+            // Staged, not active: reads show it, the memory is untouched until the next tick.
+            assert_eq!(compensator.params(), Some(second));
+            let theta = motion[700];
+            let out = tick_theta(&mut compensator, theta, EvalPath::Direct);
+            // That tick starts from rest with the new set: the evaluator's first step.
+            let want = reference(&second).step(out.deflection).unwrap();
+            assert_eq!((out.torque, out.stiffness), (want.torque, want.stiffness), "{out:?}");
+            assert!(out.memory == 0 || matches!(second.model, JointModel::MicroSlip(_)), "{out:?}");
+            // And the memory builds again from there, as the evaluator's from rest.
+            let mut expected = reference(&second);
+            expected.step(out.deflection).unwrap();
+            for &theta in &motion[701..] {
+                let out = tick_theta(&mut compensator, theta, EvalPath::Direct);
+                assert_eq!(out.torque, expected.step(out.deflection).unwrap().torque);
+            }
+        }
+    }
+
+    #[test]
+    fn a_refused_set_keeps_the_memory() {
         let mut compensator = Compensator::new();
         compensator.stage(paper()).unwrap();
-        let out = compensator.tick(10.0, 0.0995, EvalPath::Direct);
-        assert!((out.deflection - 0.5e-3).abs() < 1e-8, "{}", out.deflection);
-        assert_eq!(out.compensation, Compensation::Active);
-        let expected = Model::new(paper().model).unwrap().at_amplitude(out.amplitude).unwrap();
-        let expected = expected.evaluate(out.deflection, out.direction).unwrap();
-        assert_eq!((out.torque, out.stiffness), (expected.torque, expected.stiffness));
+        let mut twin = compensator.clone();
+        let motion = nested(1.0e-3, 1000);
+        for &theta in &motion[..500] {
+            tick_theta(&mut compensator, theta, EvalPath::Fast);
+            tick_theta(&mut twin, theta, EvalPath::Fast);
+        }
+        let mut bad = paper();
+        genetic(&mut bad).alpha = f32::NAN;
+        assert!(compensator.stage(bad).is_err());
+        for &theta in &motion[500..] {
+            assert_eq!(
+                tick_theta(&mut compensator, theta, EvalPath::Fast),
+                tick_theta(&mut twin, theta, EvalPath::Fast)
+            );
+        }
     }
 
     #[test]
     fn torque_is_clamped_and_never_nan() {
-        let mut compensator = Compensator::new();
-        compensator.stage(paper()).unwrap();
-        for output in [-0.5f32, -1.0e-2, 1.0e-2, 0.5, f32::NAN, f32::INFINITY, 1.0e30, -0.09] {
-            for path in [EvalPath::Direct, EvalPath::Fast] {
-                let out = compensator.tick(0.0, output, path);
-                assert!(out.torque.abs() <= paper().torque_limit, "{out:?}");
-                assert!(!out.torque.is_nan() && !out.stiffness.is_nan(), "{out:?}");
+        for params in [paper(), slip()] {
+            let mut compensator = Compensator::new();
+            compensator.stage(params).unwrap();
+            for output in [-0.5f32, -1.0e-2, 1.0e-2, 0.5, f32::NAN, f32::INFINITY, 1.0e30, -0.09] {
+                for path in [EvalPath::Direct, EvalPath::Fast] {
+                    let out = compensator.tick(0.0, output, path);
+                    assert!(out.torque.abs() <= params.torque_limit, "{out:?}");
+                    assert!(!out.torque.is_nan() && !out.stiffness.is_nan(), "{out:?}");
+                }
             }
         }
-        // θ = ±2 mrad, past the paper's loop: |T| ≈ 55 N·m > 40 N·m, with the sign of θ.
-        for (output, limit) in [(-2.0e-3, paper().torque_limit), (2.0e-3, -paper().torque_limit)] {
-            let mut compensator = Compensator::new();
-            compensator.stage(paper()).unwrap();
-            let out = compensator.tick(0.0, output, EvalPath::Fast);
-            assert_eq!((out.torque, out.stiffness, out.compensation), (limit, 0.0, Compensation::Clamped));
+        // θ = ±3 mrad from rest, past the loops: |T| > 40 N·m, with the sign of θ.
+        for params in [paper(), slip()] {
+            for (output, limit) in [(-3.0e-3, params.torque_limit), (3.0e-3, -params.torque_limit)] {
+                let mut compensator = Compensator::new();
+                compensator.stage(params).unwrap();
+                let out = compensator.tick(0.0, output, EvalPath::Fast);
+                assert_eq!((out.torque, out.stiffness, out.compensation), (limit, 0.0, Compensation::Clamped));
+            }
         }
     }
 
     #[test]
-    fn an_encoder_glitch_does_not_disturb_the_loop() {
-        let mut steady = Compensator::new();
-        steady.stage(paper()).unwrap();
-        let mut glitched = steady.clone();
-        let thetas = [0.2e-3f32, 0.6e-3, 1.0e-3, 0.7e-3, 0.1e-3];
-        for (i, theta) in thetas.into_iter().enumerate() {
-            if i == 2 {
-                let out = glitched.tick(0.0, -0.5, EvalPath::Fast);
-                assert_eq!((out.torque, out.compensation), (0.0, Compensation::Off));
+    fn an_encoder_glitch_does_not_disturb_the_memory() {
+        for params in [paper(), slip()] {
+            let mut steady = Compensator::new();
+            steady.stage(params).unwrap();
+            let mut glitched = steady.clone();
+            let thetas = [0.2e-3f32, 0.6e-3, 1.0e-3, 0.7e-3, 0.1e-3, 0.5e-3];
+            for (i, theta) in thetas.into_iter().enumerate() {
+                if i == 2 || i == 4 {
+                    let out = glitched.tick(0.0, -0.5, EvalPath::Fast);
+                    assert_eq!((out.torque, out.compensation), (0.0, Compensation::Off));
+                }
+                let expected = steady.tick(100.0 * theta, 0.0, EvalPath::Fast);
+                assert_eq!(glitched.tick(100.0 * theta, 0.0, EvalPath::Fast), expected);
             }
-            let expected = steady.tick(100.0 * theta, 0.0, EvalPath::Fast);
-            assert_eq!(glitched.tick(100.0 * theta, 0.0, EvalPath::Fast), expected);
         }
     }
 
@@ -173,15 +471,28 @@ mod tests {
         compensator.stage(paper()).unwrap();
         let before = compensator.tick(10.0, 0.0995, EvalPath::Direct);
         let mut bad = paper();
-        bad.model.alpha = f32::NAN;
+        genetic(&mut bad).alpha = f32::NAN;
         assert_eq!(
             compensator.stage(bad),
             Err(ErrorReply::InvalidParam { field: ParamField::Alpha, fault: ParamFault::NotFinite })
         );
         let mut huge = paper();
-        huge.model.alpha = f32::MAX;
-        huge.model.omega = f32::MIN_POSITIVE;
+        genetic(&mut huge).alpha = f32::MAX;
+        genetic(&mut huge).omega = f32::MIN_POSITIVE;
         assert_eq!(compensator.stage(huge), Err(ErrorReply::ModelOverflow));
+        let mut negative = slip();
+        if let JointModel::MicroSlip(model) = &mut negative.model {
+            model.stiffness[4] = -1.0;
+        }
+        assert_eq!(
+            compensator.stage(negative),
+            Err(ErrorReply::InvalidParam { field: ParamField::SlipStiffness(4), fault: ParamFault::OutOfRange })
+        );
+        let mut overflowing = slip();
+        if let JointModel::MicroSlip(model) = &mut overflowing.model {
+            model.c3 = f32::MAX;
+        }
+        assert_eq!(compensator.stage(overflowing), Err(ErrorReply::ModelOverflow));
         assert_eq!(compensator.params(), Some(paper()));
         assert_eq!(compensator.tick(10.0, 0.0995, EvalPath::Direct).torque, before.torque);
     }
@@ -192,14 +503,13 @@ mod tests {
         compensator.stage(paper()).unwrap();
         compensator.tick(10.0, 0.0995, EvalPath::Fast);
         let mut stiffer = paper();
-        stiffer.model.c1 *= 2.0;
+        genetic(&mut stiffer).c1 *= 2.0;
         stiffer.gear_ratio = 50.0;
         compensator.stage(stiffer).unwrap();
         assert_eq!(compensator.params(), Some(stiffer), "read-back shows the staged set");
         // Same deflection as before only under the new ratio: both fields changed together.
         let out = compensator.tick(5.0, 0.0995, EvalPath::Direct);
         assert!((out.deflection - 0.5e-3).abs() < 1e-8);
-        let expected = Model::new(stiffer.model).unwrap().at_amplitude(out.amplitude).unwrap();
-        assert_eq!(out.torque, expected.torque(out.deflection, out.direction).unwrap());
+        assert_eq!(out.torque, reference(&stiffer).step(out.deflection).unwrap().torque);
     }
 }

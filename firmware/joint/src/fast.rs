@@ -83,7 +83,10 @@ impl FastModel {
     }
 }
 
-/// The fast path's elementary functions: the FPU's square root and a polynomial arcsine.
+/// The fast path's elementary functions: the FPU's square root and polynomial arcsine,
+/// exponential and logarithm. model-core's formulas run with them: [`FastModel::evaluate`]
+/// (one symmetric loop) and the stateful genetic model on the joint
+/// (`GeneticMemory::step_with::<FastMath>`, each branch through `memory::branch_with`).
 #[derive(Clone, Copy, Debug)]
 pub struct FastMath;
 
@@ -95,6 +98,14 @@ impl Elementary<f32> for FastMath {
     #[inline(always)]
     fn asin(x: f32) -> f32 {
         asin(x)
+    }
+    #[inline(always)]
+    fn exp(y: f32) -> f32 {
+        exp(y)
+    }
+    #[inline(always)]
+    fn ln(v: f32) -> f32 {
+        ln(v)
     }
 }
 
@@ -173,6 +184,32 @@ pub fn exp(y: f32) -> f32 {
     let poly = 1.0 + f * (1.0 + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0))))));
     let scale = f32::from_bits(((n + 127) as u32) << 23);
     poly * scale
+}
+
+/// ln v for a finite v > 0: v = 2^e·m with m ∈ [√½, √2), ln m = 2·atanh s with
+/// s = (m − 1)/(m + 1), |s| ≤ 0.172, by its odd Taylor polynomial to s⁹ (|error| ≤ 2·s¹¹/11
+/// ≈ 7·10⁻¹⁰), e·ln 2 split as in [`exp`]. Zero, subnormal, negative and non-finite v go to
+/// libm (not on the fast path's inputs: the genetic model takes ln of a branch's half-width,
+/// whose reciprocal must be finite).
+#[inline(always)]
+pub fn ln(v: f32) -> f32 {
+    if !(f32::MIN_POSITIVE..=f32::MAX).contains(&v) {
+        return libm::logf(v);
+    }
+    let bits = v.to_bits();
+    let mut e = ((bits >> 23) & 0xFF) as i32 - 127;
+    let mut m = f32::from_bits((bits & 0x007F_FFFF) | 0x3F80_0000);
+    if m > core::f32::consts::SQRT_2 {
+        m *= 0.5;
+        e += 1;
+    }
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let atanh = s + s * s2 * (1.0 / 3.0 + s2 * (0.2 + s2 * (1.0 / 7.0 + s2 * (1.0 / 9.0))));
+    const LN_2_HIGH: f32 = 0.693_359_4;
+    const LN_2_LOW: f32 = LN_2 - LN_2_HIGH;
+    let e = e as f32;
+    e * LN_2_HIGH + (e * LN_2_LOW + 2.0 * atanh)
 }
 
 pub mod verify;

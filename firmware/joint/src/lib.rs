@@ -1,10 +1,11 @@
 //! Everything of the joint firmware that does not touch a register, so that it runs and is
 //! tested on the host: the boards only move bytes and encoder readings in and out.
 //!
-//! Per control tick ([`Compensator::tick`]): deflection θ = θ_in/N − θ_out, the direction of
-//! θ with a band against encoder noise and the loop amplitude from the turning points
-//! ([`DirectionTracker`]), then T_ff and K from model-core — directly, or by the fast path
-//! prepared when the parameters arrive ([`FastModel`]) — clamped to the torque limit.
+//! Per control tick ([`Compensator::tick`]): deflection θ = θ_in/N − θ_out, then one step of
+//! the installed model's stateful evaluator from model-core (`GeneticMemory`: the genetic model
+//! with Madelung's rules, a reversal band against encoder noise; or `MicroSlip`) giving T_ff
+//! and K — with libm, or for the genetic kind by the fast path's elementary functions
+//! ([`fast::FastMath`]) — clamped to the torque limit.
 //!
 //! Lints: the workspace's (firmware/Cargo.toml and firmware/clippy.toml).
 #![no_std]
@@ -15,30 +16,18 @@ pub mod fast;
 pub mod flash;
 mod server;
 pub mod storage;
-mod tracker;
 
-pub use compensator::{Compensator, MAX_DEFLECTION};
+pub use compensator::{Compensator, MAX_DEFLECTION, TURNING_POINTS};
 pub use fast::FastModel;
 pub use server::Server;
-pub use tracker::DirectionTracker;
 
 use swg_protocol::Version;
 
 /// This firmware's version, reported in [`swg_protocol::DeviceInfo`].
 pub const FIRMWARE_VERSION: Version = Version { major: 0, minor: 1, patch: 0 };
 
-/// The larger of `a` and `b` (`b` if either is NaN). `f32::max` becomes a call to `fmaxf`
-/// on the Cortex-M4F (no `vmaxnm` before Armv8); a comparison is two instructions.
-#[inline(always)]
-pub(crate) fn larger(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
-
-/// `value` limited to [`low`, `high`] by comparisons (see [`larger`]); NaN stays NaN.
+/// `value` limited to [`low`, `high`] by comparisons (`f32::max`/`min` become calls to
+/// `fmaxf`/`fminf` on the Cortex-M4F, which has no `vmaxnm` before Armv8); NaN stays NaN.
 #[inline(always)]
 pub(crate) fn limit(value: f32, low: f32, high: f32) -> f32 {
     if value < low {

@@ -86,12 +86,13 @@ mod tests {
     use model_core::Params;
     use std::vec::Vec;
     use swg_protocol::{
-        encode_with_version, Compensation, EncoderSample, EvalPath, JointParams, ParamFault, ParamField,
+        encode_with_version, Compensation, EncoderSample, EvalPath, JointModel, JointParams, ParamFault, ParamField,
+        SlipModel, SLIP_ELEMENTS,
     };
 
     const PARAMS: JointParams = JointParams {
         model_version: MODEL_VERSION,
-        model: Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 },
+        model: JointModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
         gear_ratio: 100.0,
         torque_limit: 50.0,
         direction_band: 2.0e-6,
@@ -153,13 +154,42 @@ mod tests {
     }
 
     #[test]
+    fn a_micro_slip_set_is_written_committed_and_survives_a_reboot() {
+        let slip = JointParams {
+            model: JointModel::MicroSlip(SlipModel {
+                c1: 6.0e3,
+                c2: 1.2e10,
+                c3: 0.0,
+                stiffness: [150.0; SLIP_ELEMENTS],
+                slip_min: 2.0e-5,
+                slip_max: 2.0e-3,
+            }),
+            ..PARAMS
+        };
+        let mut server = server();
+        assert_eq!(request(&mut server, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
+        assert_eq!(request(&mut server, &Request::Commit), Response::Committed { sequence: 1 });
+        assert_eq!(request(&mut server, &Request::WriteParams(slip)), Response::ParamsAccepted);
+        assert_eq!(request(&mut server, &Request::ReadParams), Response::Params(Some(slip)));
+        assert_eq!(request(&mut server, &Request::Commit), Response::Committed { sequence: 2 });
+        let mut rebooted = Server::new(server.into_store());
+        assert_eq!(request(&mut rebooted, &Request::ReadParams), Response::Params(Some(slip)));
+        let Response::Feedforward(out) = replay(&mut rebooted) else { panic!() };
+        assert_eq!((out.compensation, out.direction), (Compensation::Active, None));
+        // θ = 0.5 mrad from rest: the elements with d_i below it slip.
+        assert!(out.memory > 0 && usize::from(out.memory) < SLIP_ELEMENTS, "{out:?}");
+    }
+
+    #[test]
     fn bad_traffic_gets_a_reason_and_changes_nothing() {
         let mut server = server();
         request(&mut server, &Request::WriteParams(PARAMS));
         let before = replay(&mut server);
 
         let mut nan = PARAMS;
-        nan.model.c1 = f32::NAN;
+        if let JointModel::Genetic(model) = &mut nan.model {
+            model.c1 = f32::NAN;
+        }
         let mut huge_band = PARAMS;
         huge_band.direction_band = 1.0;
         let good = frame(&Request::WriteParams(huge_band));
@@ -190,7 +220,7 @@ mod tests {
         }
         let nan_sample = EncoderSample { input_angle: f32::NAN, output_angle: 0.0, path: EvalPath::Direct };
         assert_eq!(request(&mut server, &Request::Replay(nan_sample)), Response::Error(ErrorReply::NonFiniteSample));
-        // Same tick result as before: the tracker saw the same θ again.
+        // Same tick result as before: the model's memory saw the same θ again.
         assert_eq!(replay(&mut server), before);
     }
 }

@@ -11,25 +11,36 @@
 //! | --- | --- |
 //! | 0..4 | magic `SWGP` |
 //! | 4..8 | sequence number, u32 LE |
-//! | 8..10 | payload length n, u16 LE (≤ 64) |
+//! | 8..10 | payload length n, u16 LE (≤ 128) |
 //! | 10 | record format, [`RECORD_FORMAT`] |
 //! | 11 | reserved, 0xFF |
-//! | 12..12 + n | the [`JointParams`], postcard-encoded as on the link |
+//! | 12..12 + n | the parameter set, postcard-encoded (format 2: [`JointParams`] as on the link of protocol 2) |
 //! | then | 0xFF up to a multiple of 8 bytes, then the CRC-32 (ISO-HDLC, LE) of bytes 0..12 + n, in an 8-byte block |
 //!
-//! A slot whose format byte is neither [`RECORD_FORMAT`] nor 0xFF is not read
-//! ([`SlotFault::UnknownFormat`]). Firmware 0.1.0 wrote no format byte: it left byte 10
-//! (reserved then) at 0xFF, in the layout that became format 1, so a record with 0xFF there
-//! is read as format 1 and parameters stored before the format byte existed survive the
-//! update.
+//! The formats this firmware reads:
+//!
+//! - **2** (written now): the payload is [`JointParams`] with the model's kind
+//!   ([`swg_protocol::JointModel`], genetic or micro-slip). The longest, a micro-slip set, is
+//!   100 bytes at most (98 with model version 1): a record of 120 bytes with its CRC block.
+//! - **1**, and **0xFF** (firmware 0.1.0 wrote no format byte: it left byte 10, reserved then,
+//!   erased, in the layout that became format 1): the payload is protocol 1's parameter set,
+//!   genetic only ([`LegacyJointParams`]); it loads as [`JointModel::Genetic`] with the same
+//!   numbers, so parameters stored before an update survive it. The next commit writes
+//!   format 2.
+//!
+//! A slot whose format byte is another value is not read ([`SlotFault::UnknownFormat`]).
 use embedded_storage::nor_flash::NorFlash;
-use swg_protocol::{ErrorReply, JointParams};
+use model_core::Params;
+use serde::Deserialize;
+use swg_protocol::{ErrorReply, JointModel, JointParams};
 
 const MAGIC: [u8; 4] = *b"SWGP";
 /// The record format this firmware writes (header byte 10). A change of the record's layout
 /// or of the payload's encoding takes the next number; the loader then refuses records of
 /// formats it does not know instead of misreading them.
-pub const RECORD_FORMAT: u8 = 1;
+pub const RECORD_FORMAT: u8 = 2;
+/// Records of protocol 1's parameter set, genetic only ([`LegacyJointParams`]).
+pub const LEGACY_FORMAT: u8 = 1;
 /// Header byte 10 of records written before the format byte existed: read as format 1.
 const UNVERSIONED_FORMAT: u8 = 0xFF;
 /// Magic, sequence number (u32 LE), payload length (u16 LE), record format, 1 byte reserved.
@@ -37,7 +48,9 @@ const HEADER_LEN: usize = 12;
 const FORMAT_AT: usize = 10;
 /// Writes are padded to this; every supported flash's WRITE_SIZE divides it.
 const ALIGN: usize = 8;
-const MAX_PAYLOAD_LEN: usize = 64;
+/// Room for the longest payload of every format (100 bytes: a micro-slip set with a
+/// three-byte model version) and some growth. Changing it changes no record's bytes.
+const MAX_PAYLOAD_LEN: usize = 128;
 const MAX_BODY_LEN: usize = (HEADER_LEN + MAX_PAYLOAD_LEN).div_ceil(ALIGN) * ALIGN;
 /// The longest record: body and CRC block.
 const RECORD_LEN: usize = MAX_BODY_LEN + ALIGN;
@@ -99,6 +112,29 @@ impl core::fmt::Display for SlotFault {
             SlotFault::Corrupt => f.write_str("record length or CRC wrong"),
             SlotFault::Encoding => f.write_str("record payload is not a parameter set"),
             SlotFault::Invalid(error) => write!(f, "stored parameter set is refused: {error:?}"),
+        }
+    }
+}
+
+/// The parameter set of record format 1 (protocol 1's `JointParams`): the genetic model only.
+/// Kept to read records stored by firmware before format 2; never written.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+pub struct LegacyJointParams {
+    pub model_version: u16,
+    pub model: Params<f32>,
+    pub gear_ratio: f32,
+    pub torque_limit: f32,
+    pub direction_band: f32,
+}
+
+impl From<LegacyJointParams> for JointParams {
+    fn from(legacy: LegacyJointParams) -> Self {
+        JointParams {
+            model_version: legacy.model_version,
+            model: JointModel::Genetic(legacy.model),
+            gear_ratio: legacy.gear_ratio,
+            torque_limit: legacy.torque_limit,
+            direction_band: legacy.direction_band,
         }
     }
 }
@@ -210,11 +246,11 @@ fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
         return Err(SlotFault::Empty);
     }
     // Before anything else of the layout: another format may place it differently.
-    match header.get(FORMAT_AT).copied() {
-        Some(RECORD_FORMAT | UNVERSIONED_FORMAT) => {}
+    let format = match header.get(FORMAT_AT).copied() {
+        Some(format @ (RECORD_FORMAT | LEGACY_FORMAT | UNVERSIONED_FORMAT)) => format,
         Some(format) => return Err(SlotFault::UnknownFormat(format)),
         None => return Err(SlotFault::Corrupt),
-    }
+    };
     let field = |range: core::ops::Range<usize>| header.get(range).ok_or(SlotFault::Corrupt);
     let sequence = u32::from_le_bytes(field(4..8)?.try_into().map_err(|_| SlotFault::Corrupt)?);
     let payload_len = usize::from(u16::from_le_bytes(field(8..10)?.try_into().map_err(|_| SlotFault::Corrupt)?));
@@ -228,7 +264,11 @@ fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
         return Err(SlotFault::Corrupt);
     }
     let payload = rest.get(..payload_len).ok_or(SlotFault::Corrupt)?;
-    let params: JointParams = postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?;
+    let params: JointParams = if format == RECORD_FORMAT {
+        postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?
+    } else {
+        postcard::from_bytes::<LegacyJointParams>(payload).map_err(|_| SlotFault::Encoding)?.into()
+    };
     params.validate().map_err(SlotFault::Invalid)?;
     Ok(Stored { params, sequence })
 }

@@ -1,16 +1,17 @@
 //! `swg-host fit`: identify the model from a loop table or a recording.
 use super::InputOptions;
 use anyhow::{bail, Context, Result};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use model_core::Model;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use swg_host::fit::{fit_dataset, FitDatasetError, Stage};
+use swg_host::fit::{fit_dataset, FitDatasetError, Identified, ModelChoice, Stage};
+use swg_host::gear::ModelKind;
 use swg_host::report::fit::{ComparedReport, FitReport, InputSummary};
 use swg_host::report::output::write_atomically;
-use swg_host::report::params::read_params;
-use swg_host::report::plot::{loop_svg, LoopPlot};
+use swg_host::report::params::read_model;
+use swg_host::report::plot::{loop_svg, motion_svg, LoopPlot, MotionSeries};
 
 #[derive(Args)]
 pub struct FitArgs {
@@ -31,8 +32,37 @@ pub struct FitArgs {
     /// Also evaluate this parameter file on the same data (repeatable).
     #[arg(long, value_name = "PARAMS.json")]
     compare: Vec<PathBuf>,
+    /// The model to identify. `auto` fits every kind on the first three quarters of a
+    /// recording and keeps the one with the lowest error on the last quarter. Default: `auto`
+    /// on a recording, `genetic` on a loop table (one loop: no quarter to spare).
+    #[arg(long, value_enum)]
+    model: Option<ModelArg>,
     #[command(flatten)]
     input_options: InputOptions,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ModelArg {
+    /// The paper's genetic model, with Madelung's rules on a recording.
+    Genetic,
+    /// Maxwell-slip: an odd polynomial spring and 16 elasto-slip elements (recordings).
+    MicroSlip,
+    /// Every kind; the lowest error on the held-out last quarter wins.
+    Auto,
+    /// The paper's symmetric-loop rule on each leg of a recording (the fit before the stateful
+    /// models; for comparison only, it assumes symmetric loops).
+    GeneticLoop,
+}
+
+impl From<ModelArg> for ModelChoice {
+    fn from(arg: ModelArg) -> Self {
+        match arg {
+            ModelArg::Genetic => ModelChoice::Kind(ModelKind::Genetic),
+            ModelArg::MicroSlip => ModelChoice::Kind(ModelKind::MicroSlip),
+            ModelArg::Auto => ModelChoice::Auto,
+            ModelArg::GeneticLoop => ModelChoice::Loop,
+        }
+    }
 }
 
 pub fn run(args: FitArgs) -> Result<()> {
@@ -42,39 +72,47 @@ pub fn run(args: FitArgs) -> Result<()> {
         }
     }
     let dataset = args.input_options.read_to_fit(&args.input)?;
-    let compare = args.compare.iter().map(|path| read_params(path)).collect::<Result<Vec<_>, _>>()?;
+    let compare = args.compare.iter().map(|path| read_model(path)).collect::<Result<Vec<_>, _>>()?;
+    let choice = args.model.map_or(ModelChoice::Auto, ModelChoice::from);
 
     let progress = DelayedProgress::new();
-    let outcome =
-        fit_dataset(&dataset, &compare, args.seed, |stage| progress.update(stage)).map_err(|error| match error {
+    let outcome = fit_dataset(&dataset, choice, &compare, args.seed, |stage| progress.update(stage)).map_err(
+        |error| match error {
             FitDatasetError::Compared { index, source } => anyhow::Error::new(source).context(format!(
                 "{}: cannot evaluate on {}",
                 args.compare[index].display(),
                 args.input.display()
             )),
             other => anyhow::Error::new(other).context(args.input.display().to_string()),
-        })?;
+        },
+    )?;
     progress.finish();
 
-    let fitted = &outcome.fit;
     let compared = args
         .compare
         .iter()
         .zip(&compare)
         .zip(&outcome.compared_rss)
-        .map(|((path, params), &rss)| ComparedReport { path: path.display().to_string(), params: *params, rss })
+        .map(|((path, model), &rss)| ComparedReport {
+            path: path.display().to_string(),
+            model: model.kind().name(),
+            params: model.into(),
+            rss,
+        })
         .collect();
     let summary = InputSummary {
         path: args.input.display().to_string(),
         kind: dataset.kind(),
         turning_points: outcome.prepared.segmentation.as_ref().map(|s| s.turning_points.len()),
     };
-    let report = FitReport::new(summary, fitted, outcome.lines.clone(), outcome.three_segment.clone(), compared);
+    let report =
+        FitReport::new(summary, &outcome.identified, outcome.lines.clone(), outcome.three_segment.clone(), compared);
     let json = serde_json::to_string_pretty(&report)?;
 
     // Render everything before writing anything.
-    let svg = match &args.plot {
-        Some(_) => {
+    let svg = match (&args.plot, &outcome.identified) {
+        (None, _) => None,
+        (Some(_), Identified::Loop(fitted)) => {
             let model = Model::new(fitted.params)?;
             let title = format!("{} — genetic hysteresis fit, RMS {:.3} N·m", file_name(&args.input), fitted.rms);
             Some(loop_svg(&LoopPlot {
@@ -87,7 +125,18 @@ pub fn run(args: FitArgs) -> Result<()> {
                 three_segment: outcome.three_segment.as_ref(),
             })?)
         }
-        None => None,
+        (Some(_), Identified::Motion(motion)) => {
+            let data = &outcome.prepared.data;
+            let chosen = motion.chosen.model;
+            let torque = &motion.chosen.torque;
+            let label = format!("{} (fitted, run from rest)", chosen.kind().name());
+            let title = format!("{} — {} fit, RMS {:.3} N·m", file_name(&args.input), chosen.kind().name(), report.rms);
+            let time = match &dataset {
+                swg_host::input::Dataset::Recording(recording) => recording.time.clone(),
+                swg_host::input::Dataset::LoopTable(_) => (0..data.theta.len()).map(|i| i as f64).collect(),
+            };
+            Some(motion_svg(&title, &time, &data.theta, &data.torque, &[MotionSeries { label: &label, torque }])?)
+        }
     };
     if let Some(out) = &args.out {
         write_atomically(out, format!("{json}\n").as_bytes()).with_context(|| format!("writing {}", out.display()))?;
@@ -136,6 +185,7 @@ impl DelayedProgress {
         let (done, total, message) = match stage {
             Stage::Swarm { iteration, of } => (iteration, of, format!("particle swarm, iteration {iteration}")),
             Stage::Polish { round, of } => (round, of, format!("polish, round {round} of {of}")),
+            Stage::Kind { kind, index, of } => (index, of, format!("fitting the {} model", kind.name())),
         };
         self.bar.set_length(total as u64);
         self.bar.set_position(done as u64);

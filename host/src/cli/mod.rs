@@ -2,6 +2,7 @@
 mod diagnose;
 mod fit;
 mod flash;
+mod predict;
 mod push;
 mod replay;
 mod simulate;
@@ -19,6 +20,8 @@ pub struct Cli {
 enum Command {
     /// Fit the hysteresis stiffness model to a loop table or a bench recording.
     Fit(fit::FitArgs),
+    /// Run fitted parameters along a recording from rest (hysteresis with memory).
+    Predict(predict::PredictArgs),
     /// Write a bench recording (format v1) from the model.
     Simulate(simulate::SimulateArgs),
     /// Find where the model and a recording disagree and which physics the model misses.
@@ -35,6 +38,7 @@ impl Cli {
     pub fn run(self) -> anyhow::Result<()> {
         match self.command {
             Command::Fit(args) => fit::run(args),
+            Command::Predict(args) => predict::run(args),
             Command::Simulate(args) => simulate::run(args),
             Command::Diagnose(args) => diagnose::run(args),
             Command::Push(args) => push::run(args),

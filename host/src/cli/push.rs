@@ -5,11 +5,13 @@ use std::path::PathBuf;
 use std::time::Duration;
 use swg_host::link::push::{joint_params, push, JointSettings};
 use swg_host::link::Link;
-use swg_host::report::params::read_params;
+use swg_host::report::params::read_model;
+use swg_protocol::JointModel;
 
 #[derive(Args)]
 pub struct PushArgs {
-    /// Parameter file (JSON with a `params` field, as `swg-host fit --out` writes).
+    /// Parameter file of either model kind (JSON with `model` and `params`, as `swg-host fit
+    /// --out` writes): the genetic model or the micro-slip model.
     #[arg(value_name = "PARAMS.json")]
     params: PathBuf,
     #[command(flatten)]
@@ -20,8 +22,8 @@ pub struct PushArgs {
     /// Limit of the feed-forward torque, N·m.
     #[arg(long, default_value_t = 30.0, value_name = "NM")]
     torque_limit: f64,
-    /// How far θ must move back from an extreme before the direction flips, rad; set it above
-    /// the encoders' noise at the output.
+    /// How far θ must move back from an extreme before the genetic model records a turning
+    /// point, rad; set it above the encoders' noise at the output.
     #[arg(long, default_value_t = 2.0e-6, value_name = "RAD")]
     direction_band: f64,
 }
@@ -44,10 +46,10 @@ impl PortOptions {
 }
 
 pub fn run(args: PushArgs) -> Result<()> {
-    let params = read_params(&args.params)?;
+    let model = read_model(&args.params)?;
     let settings =
         JointSettings { gear_ratio: args.ratio, torque_limit: args.torque_limit, direction_band: args.direction_band };
-    let joint = joint_params(&params, &settings)?;
+    let joint = joint_params(&model, &settings)?;
     let mut link = args.port.open()?;
     let report = push(&mut link, &joint).with_context(|| format!("push to {} failed", args.port.port))?;
     let device = report.device;
@@ -59,10 +61,19 @@ pub fn run(args: PushArgs) -> Result<()> {
         Some(previous) => println!("replaced: {:?}", previous.model),
         None => println!("replaced: nothing (the device had no parameters)"),
     }
-    let m = joint.model;
+    let model = match joint.model {
+        JointModel::Genetic(m) => format!(
+            "genetic c1={:e} c2={:e} c3={:e} alpha={:e} beta={:e} omega={:e}",
+            m.c1, m.c2, m.c3, m.alpha, m.beta, m.omega
+        ),
+        JointModel::MicroSlip(m) => format!(
+            "micro-slip c1={:e} c2={:e} c3={:e} stiffness={:?} slip {:e}..{:e} rad",
+            m.c1, m.c2, m.c3, m.stiffness, m.slip_min, m.slip_max
+        ),
+    };
     println!(
-        "wrote and read back: c1={:e} c2={:e} c3={:e} alpha={:e} beta={:e} omega={:e}, ratio {}, torque limit {} N·m, direction band {:e} rad",
-        m.c1, m.c2, m.c3, m.alpha, m.beta, m.omega, joint.gear_ratio, joint.torque_limit, joint.direction_band
+        "wrote and read back: {model}, ratio {}, torque limit {} N·m, direction band {:e} rad",
+        joint.gear_ratio, joint.torque_limit, joint.direction_band
     );
     println!(
         "committed to flash as record {} in {:.1} ms (version check, write, read-back, commit)",

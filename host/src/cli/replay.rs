@@ -5,8 +5,8 @@ use anyhow::{bail, Result};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use swg_host::input::read_recording;
-use swg_host::link::replay::{device_params, replay, samples, widen};
-use swg_host::report::params::read_params;
+use swg_host::link::replay::{device_model, device_params, replay, samples};
+use swg_host::report::params::read_model;
 use swg_protocol::EvalPath;
 
 #[derive(Args)]
@@ -16,7 +16,7 @@ pub struct ReplayArgs {
     recording: PathBuf,
     #[command(flatten)]
     port: PortOptions,
-    /// Compare with this parameter file instead of the device's own set.
+    /// Compare with this parameter file (either model kind) instead of the device's own set.
     #[arg(long, value_name = "PARAMS.json")]
     params: Option<PathBuf>,
     /// The firmware's evaluation to exercise.
@@ -36,16 +36,19 @@ pub fn run(args: ReplayArgs) -> Result<()> {
     let recording = read_recording(&args.recording, None)?;
     let mut link = args.port.open()?;
     let joint = device_params(&mut link)?;
-    let params = match &args.params {
-        Some(path) => read_params(path)?,
-        None => widen(&joint.model),
+    let model = match &args.params {
+        Some(path) => read_model(path)?,
+        None => device_model(&joint),
     };
+    // The comparison runs both models from rest: writing the device's own set back resets its
+    // memory (at its next tick), so the replay starts where the host's model does.
+    link.write_params(&joint)?;
     let samples = samples(&recording, joint.gear_ratio)?;
     let path = match args.path {
         Path::Direct => EvalPath::Direct,
         Path::Fast => EvalPath::Fast,
     };
-    let report = replay(&mut link, &joint, &params, &samples, path)?;
+    let report = replay(&mut link, &joint, &model, &samples, path)?;
     println!("replayed {} through the firmware's {:?} path on {}", args.recording.display(), path, args.port.port);
     println!("{report}");
     if !report.passed() {

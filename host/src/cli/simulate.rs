@@ -1,23 +1,68 @@
-//! `swg-host simulate`: write a recording (format v1) from the model.
-use anyhow::{Context, Result};
-use clap::Args;
+//! `swg-host simulate`: write a recording (format v1) from a motion through a gear's truth
+//! physics (by default today's sine through the model).
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use swg_host::diagnose::effects::EffectValue;
 use swg_host::report::output::write_atomically;
 use swg_host::report::params::{parse_params, read_params};
-use swg_host::simulate::{simulate, Simulation};
+use swg_host::simulate::{
+    read_physics_params, read_trajectory, simulate_experiment, BoucWen, Experiment, MicroSlip, Motion, Physics,
+    Simulation,
+};
 
 /// The fit of the paper's table that ships with the tool (`data/seed/lht-20-50-fit.json`).
 pub const SEED_FIT: &str = include_str!("../../../data/seed/lht-20-50-fit.json");
 
+/// The truth physics' equations and defaults, at the end of `--help`.
+const PHYSICS_HELP: &str = "\
+Truth physics (--physics), θ the elastic deflection (rad), T the torque (N·m), at rest θ = 0:
+  genetic     the params file's model (--params): under --motion sine the symmetric loop of
+              amplitude A, under the others model-core's GeneticMemory (Madelung's rules) from rest.
+  bouc-wen    T = a·k·θ + k3·θ³ + (1 − a)·k·z,  dz = dθ·(A_bw − |z|·(β_bw·sign(dθ·z) + γ_bw)),
+              z = 0 at rest, integrated exactly (closed form between sign changes of z).
+              Defaults: k = 9000 N·m/rad, a = 0.85, k3 = 1.2e10 N·m/rad³, A_bw = 1,
+              β_bw = γ_bw = 1250 1/rad (z saturates at 0.4 mrad). No exact return-point memory.
+  micro-slip  T = k1·θ + k3·θ³ + Σ k_e·s_i,  s_i ← clamp(s_i + Δθ, −d_i, d_i), s_i = 0 at rest;
+              M elements, k_e = K_slip/M, d_i the quantiles (i + ½)/M of p(d) ∝ d^p on
+              [d_min, d_max]. Defaults: k1 = 6000 N·m/rad, k3 = 1.2e10 N·m/rad³, M = 300,
+              K_slip = 3000 N·m/rad, d_min = 0, d_max = 2 mrad, p = 0 (uniform).
+--physics-params FILE.json overrides any of: bouc-wen {k, a, k3, a_bw, beta_bw, gamma_bw};
+micro-slip {k1, k3, elements, slip_stiffness, min_slip_rad, max_slip_rad, slip_exponent}.";
+
 #[derive(Args)]
+#[command(after_long_help = PHYSICS_HELP)]
 pub struct SimulateArgs {
     /// Recording to write.
     #[arg(long, short, value_name = "FILE")]
     out: PathBuf,
-    /// Model parameters (JSON with a `params` field); default: the bundled fit of the seed table.
+    /// Model parameters (JSON with a `params` field) of `--physics genetic`; default: the bundled
+    /// fit of the seed table.
     #[arg(long, value_name = "PARAMS.json")]
     params: Option<PathBuf>,
+    /// The deflection x(t) the bench drives (A = --amplitude, f = the frequency being played,
+    /// φ = 2π·f·t in its block, s(u) = 10u³ − 15u⁴ + 6u⁵ a ramp from rest over one period 1/f).
+    ///
+    /// sine: x = A·sin φ (today's loops). biased: ramp to b − 0.15·A, then x = b − 0.15·A·cos φ
+    /// (mean b). nested: x = A·(0.75·sin φ + 0.25·sin 9φ), minor loops inside the big swing.
+    /// random: 20 sines with seeded (--seed) random frequencies in [0.1·f, 3·f] and phases, faded
+    /// in by s over 1/f, scaled to a peak of exactly A. hold: ramp to b − 0.02·A, then
+    /// x = b − 0.02·A·cos 10φ (a dither about the load b). FILE.csv: the columns time_s (strictly
+    /// increasing) and deflection_rad, played at those times (--rate, --cycles, --frequency
+    /// unused). All but sine start at rest (x = 0, gear unstressed).
+    #[arg(long, default_value = "sine", value_name = "sine|biased|nested|random|hold|FILE.csv", value_parser = parse_motion)]
+    motion: MotionArg,
+    /// The bias b of `--motion biased` and the load of `--motion hold`, rad [default: 0.6·A].
+    #[arg(long, value_name = "RAD", allow_hyphen_values = true)]
+    bias: Option<f64>,
+    /// The gear's truth physics: the model (genetic) or one it is not; equations and defaults
+    /// at the end of --help.
+    #[arg(long, value_enum, default_value_t = PhysicsArg::Genetic)]
+    physics: PhysicsArg,
+    /// Parameters of --physics micro-slip or bouc-wen (JSON object; missing fields keep their
+    /// defaults, listed at the end of --help).
+    #[arg(long, value_name = "FILE.json")]
+    physics_params: Option<PathBuf>,
     /// Deflection amplitude A of the loops, rad.
     #[arg(long, default_value_t = 1.168e-3, value_name = "RAD")]
     amplitude: f64,
@@ -61,10 +106,72 @@ pub struct SimulateArgs {
     seed: u64,
 }
 
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum PhysicsArg {
+    /// The params file's genetic hysteresis model.
+    Genetic,
+    /// A Maxwell-slip/Iwan gear with many slip elements.
+    MicroSlip,
+    /// A Bouc–Wen gear (n = 1).
+    BoucWen,
+}
+
+#[derive(Clone, Debug)]
+enum MotionArg {
+    Sine,
+    Biased,
+    Nested,
+    Random,
+    Hold,
+    File(PathBuf),
+}
+
+fn parse_motion(text: &str) -> Result<MotionArg, String> {
+    Ok(match text {
+        "sine" => MotionArg::Sine,
+        "biased" => MotionArg::Biased,
+        "nested" => MotionArg::Nested,
+        "random" => MotionArg::Random,
+        "hold" => MotionArg::Hold,
+        _ if text.ends_with(".csv") || text.contains(std::path::MAIN_SEPARATOR) => MotionArg::File(text.into()),
+        _ => return Err("expected sine, biased, nested, random, hold or a CSV file (FILE.csv)".into()),
+    })
+}
+
 pub fn run(args: SimulateArgs) -> Result<()> {
     let params = match &args.params {
-        Some(path) => read_params(path)?,
+        Some(path) => {
+            if args.physics != PhysicsArg::Genetic {
+                bail!("--params sets the genetic model; --physics {} takes --physics-params", args.physics.name());
+            }
+            read_params(path)?
+        }
         None => parse_params("data/seed/lht-20-50-fit.json (bundled)".as_ref(), SEED_FIT)?,
+    };
+    if args.bias.is_some() && !matches!(args.motion, MotionArg::Biased | MotionArg::Hold) {
+        bail!("--bias is for --motion biased or hold, not --motion {}", args.motion.name());
+    }
+    let motion = match &args.motion {
+        MotionArg::Sine => Motion::Sine,
+        MotionArg::Biased => Motion::Biased { bias_rad: args.bias },
+        MotionArg::Nested => Motion::Nested,
+        MotionArg::Random => Motion::Random,
+        MotionArg::Hold => Motion::Hold { load_rad: args.bias },
+        MotionArg::File(path) => Motion::File(read_trajectory(path).context("--motion")?),
+    };
+    let physics = match (args.physics, &args.physics_params) {
+        (PhysicsArg::Genetic, None) => Physics::Genetic,
+        (PhysicsArg::Genetic, Some(_)) => {
+            bail!("--physics-params is for --physics micro-slip or bouc-wen; the genetic model takes --params")
+        }
+        (PhysicsArg::MicroSlip, path) => Physics::MicroSlip(match path {
+            Some(path) => read_physics_params(path).context("--physics-params")?,
+            None => MicroSlip::default(),
+        }),
+        (PhysicsArg::BoucWen, path) => Physics::BoucWen(match path {
+            Some(path) => read_physics_params(path).context("--physics-params")?,
+            None => BoucWen::default(),
+        }),
     };
     let simulation = Simulation {
         params,
@@ -81,11 +188,34 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         effects: args.effects,
         seed: args.seed,
     };
-    let recording = simulate(&simulation)?;
+    let recording = simulate_experiment(&Experiment { simulation, motion, physics })?;
     let mut text = Vec::new();
     recording.write(&mut text)?;
     write_atomically(&args.out, &text).with_context(|| format!("writing {}", args.out.display()))?;
     let duration = recording.time.last().copied().unwrap_or(0.0);
     println!("wrote {}: {} samples, {duration} s", args.out.display(), recording.time.len());
     Ok(())
+}
+
+impl PhysicsArg {
+    fn name(self) -> &'static str {
+        match self {
+            PhysicsArg::Genetic => "genetic",
+            PhysicsArg::MicroSlip => "micro-slip",
+            PhysicsArg::BoucWen => "bouc-wen",
+        }
+    }
+}
+
+impl MotionArg {
+    fn name(&self) -> &'static str {
+        match self {
+            MotionArg::Sine => "sine",
+            MotionArg::Biased => "biased",
+            MotionArg::Nested => "nested",
+            MotionArg::Random => "random",
+            MotionArg::Hold => "hold",
+            MotionArg::File(_) => "FILE.csv",
+        }
+    }
 }

@@ -29,6 +29,13 @@ impl Effect {
         Effect::TorqueOffset,
     ];
 
+    /// Whether the effect's torque follows the deflection rate (its size, or its sign): it must
+    /// then show one magnitude at every rate, when the recording has more than one
+    /// ([`crate::diagnose`]'s rate check).
+    pub fn is_rate_dependent(self) -> bool {
+        matches!(self, Effect::ViscousDamping | Effect::CoulombFriction)
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Effect::Backlash => "backlash",

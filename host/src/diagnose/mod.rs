@@ -15,6 +15,7 @@
 //! with magnitudes within ±25 % of their mean.
 pub mod effects;
 mod extended;
+pub mod form;
 mod locate;
 mod observed;
 mod search;
@@ -86,6 +87,10 @@ pub struct Diagnosis {
     pub weights: Vec<f64>,
     /// RMS on the held-out part, N·m, of the baseline and the final model fitted without it.
     pub held_out_rms: Option<(f64, f64)>,
+    /// The baseline's form is what the recording disagrees with (then no effect is named).
+    pub model_form: Option<form::ModelForm>,
+    /// Structure that neither the vocabulary nor a model kind explains.
+    pub unexplained: Option<form::Unexplained>,
 }
 
 /// Why a diagnosis could not be made.

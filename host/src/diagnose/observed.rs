@@ -18,8 +18,15 @@ pub struct Observed {
     pub input_angle: Option<Vec<f64>>,
     /// Temperature minus the temperature at the start, K, when it changes.
     pub warming: Option<Vec<f64>>,
-    /// Two independent parts of the data, for the consistency check.
+    /// Two independent parts of the data, for the consistency check: alternate cycles
+    /// (pairs of legs) of a recording, so that each part spans the whole recording and every
+    /// variable's range (time, temperature, rate, input angle); alternate points of a table.
     pub parts: [Vec<usize>; 2],
+    /// The samples moving slower and faster than the median instantaneous frequency, when the
+    /// recording has a second rate: a rate effect must have one magnitude in both.
+    pub rate_parts: Option<[Vec<usize>; 2]>,
+    /// Ratio of the 90th to the 10th percentile of the motion's instantaneous frequency.
+    pub rate_spread: Option<f64>,
     /// Fit on `training`, judge on `held_out`.
     pub training: Vec<usize>,
     pub held_out: Vec<usize>,
@@ -41,6 +48,8 @@ impl Observed {
             input_angle: None,
             warming: None,
             parts: [Vec::new(), Vec::new()],
+            rate_parts: None,
+            rate_spread: None,
             training: Vec::new(),
             held_out: Vec::new(),
             cannot_reveal: Vec::new(),
@@ -77,12 +86,29 @@ impl Observed {
 
     fn add_recording(&mut self, recording: &Recording, prepared: &Prepared) {
         let n = recording.time.len();
-        self.parts = [(0..n / 2).collect(), (n / 2..n).collect()];
+        self.parts = interleaved_cycles(n, prepared.segmentation.as_ref().map_or(&[][..], |s| &s.turning_points));
         let split = n * 3 / 4;
         self.training = (0..split).collect();
         self.held_out = (split..n).collect();
         let legs = prepared.segmentation.as_ref().map_or(n, |s| n / (s.turning_points.len() + 1).max(1));
-        self.rate = Some(local_slope(&recording.time, &recording.deflection, (legs / 50).max(2)));
+        let rate = local_slope(&recording.time, &recording.deflection, (legs / 50).max(2));
+        let (spread, rate_parts) = rate_spread(&self.data, &rate);
+        self.rate_spread = Some(spread);
+        if spread < MIN_RATE_SPREAD {
+            self.cannot_reveal.push((
+                Effect::ViscousDamping,
+                format!(
+                    "rate-dependent and rate-independent hysteresis cannot be told apart from this data: the \
+                     motion passes each place on the loop at one rate (its frequencies spread {spread:.2}×, \
+                     {MIN_RATE_SPREAD}× needed), so damping and hysteresis open the loop alike; record the same \
+                     loop at a second rate (e.g. half and twice the frequency) to tell them apart. The loop's \
+                     opening is taken for hysteresis shape"
+                ),
+            ));
+        } else {
+            self.rate_parts = Some(rate_parts);
+        }
+        self.rate = Some(rate);
         self.time = Some(recording.time.clone());
         if let Some(segmentation) = &prepared.segmentation {
             let theta = &recording.deflection;
@@ -155,6 +181,56 @@ impl Observed {
         };
         (measured - state.backlash / 2.0).max(f64::MIN_POSITIVE)
     }
+}
+
+/// A rate effect needs a second rate at the same place on the loop: the instantaneous
+/// frequencies of the motion (below) must spread by at least this ratio between their 10th and
+/// 90th percentiles. One excitation frequency gives about 1.1 (noise); two an octave apart, 2.
+pub const MIN_RATE_SPREAD: f64 = 1.5;
+
+/// Alternate cycles (two legs each) of a recording; time halves when it has fewer than four
+/// cycles.
+fn interleaved_cycles(n: usize, turning_points: &[crate::prepare::TurningPoint]) -> [Vec<usize>; 2] {
+    if turning_points.len() < 8 {
+        return [(0..n / 2).collect(), (n / 2..n).collect()];
+    }
+    let mut parts = [Vec::with_capacity(n / 2 + 1), Vec::with_capacity(n / 2 + 1)];
+    let mut leg = 0;
+    for i in 0..n {
+        while leg < turning_points.len() && i > turning_points[leg].index {
+            leg += 1;
+        }
+        parts[(leg / 2) % 2].push(i);
+    }
+    parts
+}
+
+/// How far the motion's rates at the same place on the loop spread, and the samples slower
+/// and faster than the median. At θ = A·sin φ on a leg of amplitude A the rate is
+/// A·ω·cos φ, so ω = |rate|/(A·|cos φ|) is the motion's instantaneous frequency: one value for
+/// a single-frequency excitation whatever the amplitude, many for several frequencies or a
+/// random motion. Samples with |θ/A| > 0.8 (rate near zero, ω ill-defined) are left out.
+fn rate_spread(data: &FitData, rate: &[f64]) -> (f64, [Vec<usize>; 2]) {
+    let frequency: Vec<(usize, f64)> = (0..rate.len())
+        .filter_map(|i| {
+            let x = data.theta[i] / data.amplitude[i];
+            (x.abs() <= 0.8).then(|| (i, rate[i].abs() / (data.amplitude[i] * (1.0 - x * x).sqrt())))
+        })
+        .filter(|(_, w)| w.is_finite())
+        .collect();
+    if frequency.len() < 20 {
+        return (1.0, [Vec::new(), Vec::new()]);
+    }
+    let mut sorted: Vec<f64> = frequency.iter().map(|(_, w)| *w).collect();
+    sorted.sort_by(f64::total_cmp);
+    let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q) as usize];
+    let spread = at(0.9) / at(0.1).max(f64::MIN_POSITIVE);
+    let median = at(0.5);
+    let mut parts = [Vec::new(), Vec::new()];
+    for (i, w) in frequency {
+        parts[usize::from(w > median)].push(i);
+    }
+    (spread, parts)
 }
 
 fn min_max(values: &[f64]) -> (f64, f64) {

@@ -11,7 +11,9 @@
 //! noise 1/(σ_T² + σ_θ²·K²), K the model's stiffness at the sample, refitted a few times.
 pub mod baselines;
 pub mod basis;
+pub mod motion;
 
+use crate::gear::{reversal_band, GearModel, ModelKind};
 use crate::input::Dataset;
 use crate::numeric::median;
 use crate::numeric::optimize::{brent, pso, PsoOptions};
@@ -19,6 +21,7 @@ use crate::prepare::{prepare, FitData, NoiseModel, Prepared, SegmentError};
 use baselines::{lines_per_branch, three_segment, BranchLine, ThreeSegment};
 use basis::Basis;
 use model_core::{Identifiable, Model, Params};
+pub use motion::MotionFit;
 
 #[derive(Clone, Debug)]
 pub struct FitOptions {
@@ -88,8 +91,67 @@ pub enum FitError {
 /// Where a long fit is, for a progress bar.
 #[derive(Clone, Copy, Debug)]
 pub enum Stage {
-    Swarm { iteration: usize, of: usize },
-    Polish { round: usize, of: usize },
+    Swarm {
+        iteration: usize,
+        of: usize,
+    },
+    Polish {
+        round: usize,
+        of: usize,
+    },
+    /// Fitting the `index`-th of `of` model kinds to a recording.
+    Kind {
+        kind: ModelKind,
+        index: usize,
+        of: usize,
+    },
+}
+
+/// Which model `fit` identifies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModelChoice {
+    Kind(ModelKind),
+    /// Every kind, on the first three quarters of a recording; the one with the lowest error on
+    /// the last quarter wins.
+    Auto,
+    /// The paper's symmetric-loop rule on every leg of a recording (each leg on the loop of its
+    /// own amplitude, from the offline segmentation): the fit before the stateful models, kept
+    /// for comparison (the fit benchmark's peers implement it).
+    Loop,
+}
+
+/// What the fit of a recording found: the chosen model and every candidate tried.
+#[derive(Clone, Debug)]
+pub struct MotionOutcome {
+    pub chosen: MotionFit,
+    /// Every kind fitted, the chosen one included, in [`ModelKind::ALL`] order.
+    pub candidates: Vec<MotionFit>,
+    /// Samples held out of every fit (the last quarter with `auto`, else none).
+    pub held_out: usize,
+    /// The reversal band the stateful models used, rad.
+    pub band_rad: f64,
+    /// The noise the residuals were weighted by.
+    pub noise: Option<NoiseModel>,
+    /// Half the range of the fitted deflections, rad: the loop amplitude a genetic model's h
+    /// is reported at.
+    pub reference_amplitude: f64,
+}
+
+/// The identified model: the loop fit of a loop table, or a stateful model of a recording.
+#[derive(Clone, Debug)]
+pub enum Identified {
+    Loop(Fit),
+    Motion(MotionOutcome),
+}
+
+impl Identified {
+    /// The model a params file holds.
+    pub fn model(&self) -> GearModel {
+        match self {
+            Identified::Loop(fit) => GearModel::Genetic(fit.params),
+            Identified::Motion(outcome) => outcome.chosen.model,
+        }
+    }
 }
 
 /// Everything `swg-host fit` computes: the prepared data, the fit, the baselines beside it,
@@ -97,7 +159,7 @@ pub enum Stage {
 #[derive(Clone, Debug)]
 pub struct FitOutcome {
     pub prepared: Prepared,
-    pub fit: Fit,
+    pub identified: Identified,
     pub lines: Vec<BranchLine>,
     pub three_segment: Option<ThreeSegment>,
     /// RSS of each set given to compare, (N·m)², in order.
@@ -112,6 +174,10 @@ pub enum FitDatasetError {
     Segment(#[from] SegmentError),
     #[error("fit failed: {0}")]
     Fit(#[from] FitError),
+    #[error("the {0} model needs a recording: a loop table is one symmetric loop (use the genetic model)")]
+    NeedsRecording(&'static str),
+    #[error("{n} samples: too few to hold a quarter out for --model auto; name a model")]
+    TooFewToHoldOut { n: usize },
     #[error("parameter set {index} to compare cannot be evaluated on this data: {source}")]
     Compared {
         index: usize,
@@ -120,30 +186,81 @@ pub enum FitDatasetError {
     },
 }
 
-/// The `fit` pipeline: prepare `dataset`, fit the model, fit the baselines, and evaluate the
-/// `compare` sets on the same samples.
+/// The `fit` pipeline: prepare `dataset`, identify the model `choice` names, fit the
+/// baselines, and evaluate the `compare` sets on the same samples. A loop table is one loop:
+/// it takes the genetic loop fit (`Auto` means genetic there). A recording takes the stateful
+/// models, run along it from rest.
 pub fn fit_dataset(
     dataset: &Dataset,
-    compare: &[Params<f64>],
+    choice: ModelChoice,
+    compare: &[GearModel],
     seed: u64,
-    progress: impl FnMut(Stage),
+    mut progress: impl FnMut(Stage),
 ) -> Result<FitOutcome, FitDatasetError> {
     let prepared = prepare(dataset)?;
     let options = FitOptions { seed, noise: prepared.noise, ..FitOptions::default() };
-    let fit = fit(&prepared.data, &options, progress)?;
     let data = &prepared.data;
+    let band = reversal_band(prepared.noise.map_or(0.0, |n| n.deflection_rad));
+    let identified = match (dataset, choice) {
+        (Dataset::LoopTable(_), ModelChoice::Kind(ModelKind::Genetic) | ModelChoice::Auto) | (_, ModelChoice::Loop) => {
+            Identified::Loop(fit(data, &options, progress)?)
+        }
+        (Dataset::LoopTable(_), ModelChoice::Kind(kind)) => return Err(FitDatasetError::NeedsRecording(kind.name())),
+        (Dataset::Recording(_), ModelChoice::Kind(_) | ModelChoice::Auto) => {
+            let n = data.theta.len();
+            let (kinds, training): (Vec<ModelKind>, usize) = match choice {
+                ModelChoice::Kind(kind) => (vec![kind], n),
+                _ => (ModelKind::ALL.to_vec(), n * 3 / 4),
+            };
+            if training < MIN_POINTS || (choice == ModelChoice::Auto && n - training < MIN_POINTS) {
+                return Err(FitDatasetError::TooFewToHoldOut { n });
+            }
+            let motion =
+                motion::Motion { theta: &data.theta, torque: &data.torque, training, noise: prepared.noise, band };
+            let mut candidates = Vec::new();
+            for (k, kind) in kinds.iter().enumerate() {
+                progress(Stage::Kind { kind: *kind, index: k + 1, of: kinds.len() });
+                candidates.push(match kind {
+                    ModelKind::Genetic => motion::fit_genetic(&motion, &options)?,
+                    ModelKind::MicroSlip => motion::fit_micro_slip(&motion)?,
+                });
+            }
+            let chosen = candidates
+                .iter()
+                .min_by(|a, b| a.held_out_rms.unwrap_or(a.rms).total_cmp(&b.held_out_rms.unwrap_or(b.rms)))
+                .cloned()
+                .ok_or(FitError::Degenerate)?;
+            Identified::Motion(MotionOutcome {
+                chosen,
+                candidates,
+                held_out: n - training,
+                band_rad: band,
+                noise: prepared.noise,
+                reference_amplitude: {
+                    let fitted = &data.theta[..training];
+                    let (lo, hi) =
+                        fitted.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
+                    (hi - lo) / 2.0
+                },
+            })
+        }
+    };
     let lines = lines_per_branch(&data.theta, &data.torque, &prepared.branch);
     let three_segment = three_segment(&data.theta, &data.torque);
     let compared_rss = compare
         .iter()
         .enumerate()
-        .map(|(index, params)| {
-            Model::new(*params)
-                .and_then(|model| rss(&model, data))
-                .map_err(|source| FitDatasetError::Compared { index, source })
+        .map(|(index, model)| {
+            match (&identified, model) {
+                (Identified::Loop(_), GearModel::Genetic(params)) => Model::new(*params).and_then(|m| rss(&m, data)),
+                _ => crate::gear::run(model, &data.theta, band)
+                    .map(|e| e.iter().zip(&data.torque).map(|(e, t)| (t - e.torque).powi(2)).sum())
+                    .map_err(|(_, e)| e),
+            }
+            .map_err(|source| FitDatasetError::Compared { index, source })
         })
         .collect::<Result<_, _>>()?;
-    Ok(FitOutcome { prepared, fit, lines, three_segment, compared_rss })
+    Ok(FitOutcome { prepared, identified, lines, three_segment, compared_rss })
 }
 
 /// Fits the model to `data`.

@@ -1,8 +1,9 @@
 //! Pushing a parameter set to a joint: check versions, write, read back, commit.
 use super::{Link, LinkError};
-use model_core::{Params, MODEL_VERSION};
+use crate::gear::GearModel;
+use model_core::MODEL_VERSION;
 use std::time::{Duration, Instant};
-use swg_protocol::{DeviceInfo, ErrorReply, JointParams, PROTOCOL_VERSION};
+use swg_protocol::{DeviceInfo, ErrorReply, JointModel, JointParams, SlipModel, PROTOCOL_VERSION};
 
 /// How the joint applies the model, pushed with it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,26 +28,50 @@ pub enum PushError {
     )]
     ModelMismatch { device: u16 },
     #[error("{name} = {value} does not fit the device's f32")]
-    NotRepresentable { name: &'static str, value: f64 },
+    NotRepresentable { name: String, value: f64 },
     #[error("parameters rejected before sending: {0}")]
     Invalid(ErrorReply),
     #[error("read-back differs from what was written: wrote {written:?}, read {read:?}")]
     ReadBack { written: Box<JointParams>, read: Box<Option<JointParams>> },
 }
 
-/// The set as the device will hold it (f32), validated here with the device's own rules.
-pub fn joint_params(params: &Params<f64>, settings: &JointSettings) -> Result<JointParams, PushError> {
-    let narrow = |name: &'static str, value: f64| {
-        let narrowed = value as f32;
-        if value.is_finite() && !narrowed.is_finite() {
-            Err(PushError::NotRepresentable { name, value })
-        } else {
-            Ok(narrowed)
+/// A value rounded to the device's f32; one that is finite but beyond f32 is refused (rather
+/// than sent as infinity), named `name`.
+fn narrow(name: &str, value: f64) -> Result<f32, PushError> {
+    let narrowed = value as f32;
+    if value.is_finite() && !narrowed.is_finite() {
+        Err(PushError::NotRepresentable { name: name.to_owned(), value })
+    } else {
+        Ok(narrowed)
+    }
+}
+
+/// The model of either kind as the device will hold it, f32.
+pub fn joint_model(model: &GearModel) -> Result<JointModel, PushError> {
+    Ok(match model {
+        GearModel::Genetic(params) => JointModel::Genetic(params.try_map(|name, value| narrow(name.as_str(), value))?),
+        GearModel::MicroSlip(params) => {
+            let mut stiffness = [0.0f32; swg_protocol::SLIP_ELEMENTS];
+            for (i, (k, value)) in stiffness.iter_mut().zip(params.stiffness).enumerate() {
+                *k = narrow(&format!("stiffness[{i}]"), value)?;
+            }
+            JointModel::MicroSlip(SlipModel {
+                c1: narrow("c1", params.c1)?,
+                c2: narrow("c2", params.c2)?,
+                c3: narrow("c3", params.c3)?,
+                stiffness,
+                slip_min: narrow("slip_min", params.slip_min)?,
+                slip_max: narrow("slip_max", params.slip_max)?,
+            })
         }
-    };
+    })
+}
+
+/// The set as the device will hold it (f32), validated here with the device's own rules.
+pub fn joint_params(model: &GearModel, settings: &JointSettings) -> Result<JointParams, PushError> {
     let joint = JointParams {
         model_version: MODEL_VERSION,
-        model: params.try_map(|name, value| narrow(name.as_str(), value))?,
+        model: joint_model(model)?,
         gear_ratio: narrow("gear ratio", settings.gear_ratio)?,
         torque_limit: narrow("torque limit", settings.torque_limit)?,
         direction_band: narrow("direction band", settings.direction_band)?,
@@ -96,10 +121,21 @@ pub fn push(link: &mut Link, params: &JointParams) -> Result<PushReport, PushErr
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gear::SLIP_ELEMENTS;
     use crate::link::fake::FakeDevice;
+    use model_core::{Params, SlipParams};
     use swg_protocol::{ParamFault, ParamField};
 
-    const SEED: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
+    const SEED: GearModel =
+        GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 });
+    const SLIP: SlipParams<f64, SLIP_ELEMENTS> = SlipParams {
+        c1: 6.0e3,
+        c2: 1.2e10,
+        c3: 0.0,
+        stiffness: [187.5; SLIP_ELEMENTS],
+        slip_min: 2.0e-5,
+        slip_max: 2.0e-3,
+    };
     const SETTINGS: JointSettings = JointSettings { gear_ratio: 50.0, torque_limit: 30.0, direction_band: 1.0e-5 };
 
     #[test]
@@ -114,9 +150,43 @@ mod tests {
     }
 
     #[test]
+    fn push_sends_a_micro_slip_model() {
+        let mut link = FakeDevice::new().link();
+        let params = joint_params(&GearModel::MicroSlip(SLIP), &SETTINGS).unwrap();
+        let JointModel::MicroSlip(slip) = params.model else { panic!("{params:?}") };
+        assert_eq!(slip.stiffness, [187.5; SLIP_ELEMENTS]);
+        assert_eq!((slip.slip_min, slip.slip_max), (2.0e-5, 2.0e-3));
+        let report = push(&mut link, &params).unwrap();
+        assert_eq!(report.written, params);
+        // Replacing it with the genetic kind is an ordinary push.
+        let genetic = joint_params(&SEED, &SETTINGS).unwrap();
+        assert_eq!(push(&mut link, &genetic).unwrap().previous, Some(params));
+    }
+
+    #[test]
     fn bad_values_are_caught_before_sending() {
-        let huge = Params { c3: 1e300, ..SEED };
-        assert!(matches!(joint_params(&huge, &SETTINGS), Err(PushError::NotRepresentable { name: "c3", .. })));
+        let GearModel::Genetic(seed) = SEED else { unreachable!() };
+        let huge = GearModel::Genetic(Params { c3: 1e300, ..seed });
+        assert!(
+            matches!(joint_params(&huge, &SETTINGS), Err(PushError::NotRepresentable { ref name, .. }) if name == "c3")
+        );
+        let mut slip = SLIP;
+        slip.stiffness[9] = 1e40;
+        let error = joint_params(&GearModel::MicroSlip(slip), &SETTINGS).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "stiffness[9] = 10000000000000000000000000000000000000000 does not fit the device's f32"
+        );
+        // Representable, but refused by the device's rules (slip_min rounds to 0 in f32).
+        let mut slip = SLIP;
+        slip.slip_min = 1e-50;
+        assert!(matches!(
+            joint_params(&GearModel::MicroSlip(slip), &SETTINGS),
+            Err(PushError::Invalid(ErrorReply::InvalidParam {
+                field: ParamField::SlipMin,
+                fault: ParamFault::OutOfRange
+            }))
+        ));
         let no_ratio = JointSettings { gear_ratio: 0.0, ..SETTINGS };
         assert!(matches!(
             joint_params(&SEED, &no_ratio),

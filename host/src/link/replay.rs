@@ -1,11 +1,13 @@
 //! Streaming encoder samples through the firmware and comparing its T_ff and K with the
-//! host's f64 model at exactly the deflection, direction and amplitude the firmware used.
+//! host's f64 model run through exactly the deflections the firmware used, from rest.
 use super::{Link, LinkError};
+use crate::gear::{Evaluator, GearModel, SLIP_ELEMENTS};
 use crate::input::Recording;
-use model_core::tolerance::{loop_scales, Bound};
-use model_core::{Model, Params};
+use model_core::memory::{branch, Hysteretic, TurningPoint};
+use model_core::tolerance::{loop_scales, Bound, RELATIVE_TOLERANCE};
+use model_core::{Evaluation, Model, Params, Polynomial, SlipParams};
 use std::collections::HashMap;
-use swg_protocol::{Compensation, EncoderSample, EvalPath, Feedforward, JointParams};
+use swg_protocol::{Compensation, EncoderSample, EvalPath, Feedforward, JointModel, JointParams};
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -21,7 +23,6 @@ pub enum ReplayError {
     )]
     RatioMismatch { recording: f64, device: f32 },
 }
-
 /// The encoder samples of a recording as the firmware reads them: input and output angles,
 /// or, for a recording with deflections only, θ·N on the input with the output at rest.
 pub fn samples(recording: &Recording, device_ratio: f32) -> Result<Vec<(f32, f32)>, ReplayError> {
@@ -43,17 +44,25 @@ pub struct ReplayReport {
     pub active: usize,
     /// Samples where the firmware clamped the torque (compared against the clamped model).
     pub clamped: usize,
-    /// Samples where the firmware's compensation was off (not compared).
+    /// Samples where the firmware's compensation was off (not compared, and skipped by the
+    /// host's model as by the firmware's).
     pub off: usize,
-    /// Compared samples within 1 % of the amplitude from a turning point.
-    pub near_turning_points: usize,
+    /// Reversals the host's model recognised (genetic kind: direction flips, with the band)
+    /// or where θ reversed (micro-slip kind): how much of the comparison is about memory.
+    pub reversals: usize,
+    /// Deepest memory the firmware reported (turning points stored, or elements slipping).
+    pub deepest_memory: u8,
+    /// Samples where the firmware's memory (direction and stored turning points; for the
+    /// micro-slip kind the slipping elements, up to those at the margin of f32 rounding)
+    /// differed from the host model's.
+    pub memory_mismatches: usize,
     pub torque_worst: f64,
     pub torque_rms: f64,
     pub stiffness_worst: f64,
     pub stiffness_rms: f64,
     /// Largest error / allowed error over all compared samples (≤ 1 passes).
     pub worst_bound_ratio: f64,
-    /// Samples outside the bound of [`model_core::tolerance`].
+    /// Samples outside the bound (see [`replay`]).
     pub violations: usize,
     /// The first sample outside the bound, for the report.
     pub first_violation: Option<(usize, Feedforward, Bound)>,
@@ -61,7 +70,7 @@ pub struct ReplayReport {
 
 impl ReplayReport {
     pub fn passed(&self) -> bool {
-        self.violations == 0 && self.off == 0
+        self.violations == 0 && self.off == 0 && self.memory_mismatches == 0
     }
 }
 
@@ -69,8 +78,14 @@ impl std::fmt::Display for ReplayReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         writeln!(
             f,
-            "{} samples: {} active, {} clamped, {} off; {} within 1 % of a turning point",
-            self.samples, self.active, self.clamped, self.off, self.near_turning_points
+            "{} samples: {} active, {} clamped, {} off; {} reversals, memory up to {}, {} samples where the memories differ",
+            self.samples,
+            self.active,
+            self.clamped,
+            self.off,
+            self.reversals,
+            self.deepest_memory,
+            self.memory_mismatches
         )?;
         writeln!(f, "T_ff difference: worst {:.3e} N·m, RMS {:.3e} N·m", self.torque_worst, self.torque_rms)?;
         writeln!(
@@ -80,16 +95,22 @@ impl std::fmt::Display for ReplayReport {
         )?;
         write!(
             f,
-            "worst error / f32 tolerance: {:.3} ({} samples outside; tolerance: {:.0e} of the loop's T and K scale plus the f32 rounding sensitivity of θ/A)",
-            self.worst_bound_ratio,
-            self.violations,
-            model_core::tolerance::RELATIVE_TOLERANCE
+            "worst error / f32 tolerance: {:.3} ({} samples outside; tolerance: {:.0e} of the motion's T and K scale plus the f32 rounding sensitivity of the current branch)",
+            self.worst_bound_ratio, self.violations, RELATIVE_TOLERANCE
         )?;
         if let Some((index, fw, bound)) = &self.first_violation {
             write!(
                 f,
-                "\nfirst outside: sample {index}: θ = {:e} rad {:?} A = {:e}: firmware T = {}, K = {}; host T = {}, K = {}",
-                fw.deflection, fw.direction, fw.amplitude, fw.torque, fw.stiffness, bound.exact.torque, bound.exact.stiffness
+                "\nfirst outside: sample {index}: θ = {:e} rad, memory {:?}/{}: firmware T = {}, K = {}; host T = {}, K = {} (allowed ±{:e}, ±{:e})",
+                fw.deflection,
+                fw.direction,
+                fw.memory,
+                fw.torque,
+                fw.stiffness,
+                bound.exact.torque,
+                bound.exact.stiffness,
+                bound.torque,
+                bound.stiffness
             )?;
         }
         Ok(())
@@ -97,16 +118,36 @@ impl std::fmt::Display for ReplayReport {
 }
 
 /// Sends every sample through the firmware's control tick (`path`) and compares the results
-/// with `params` in f64 (by default the device's own set, so only evaluation differs).
+/// with `model` in f64 (by default the device's own set, [`device_model`], so only evaluation
+/// differs), run stateful from rest through the same f32 deflections the firmware reports,
+/// with the device's direction band as the genetic kind's reversal band. The device should be
+/// at rest too: push (or write) the parameters just before, which resets its memory.
+///
+/// The tolerance of each sample, for a model with memory: [`RELATIVE_TOLERANCE`] of the
+/// motion's scale (max |T| and max |K| of the model over |θ| up to the largest deflection so
+/// far, [`loop_scales`] for the genetic kind, |poly| + Σ k_i·d_i and poly′ + Σ k_i for the
+/// micro-slip kind), plus how far the exact model moves when the f32 quantities it depends on
+/// move by their rounding:
+///
+/// - genetic: the current branch (from its start, the top turning point, to its target) is
+///   re-evaluated with θ and each end's θ moved by ±2⁻²² of the largest of them — the f32
+///   rounding of θ − c and of the half-width w, which near a branch's ends, where the model is
+///   steep in (θ − c)/w, is what no f32 evaluation can do better than (the analogue of
+///   [`Bound::at`] on one loop, at the branch's own half-width);
+/// - micro-slip: K·2⁻²²·|θ| for θ, and for each element within 10⁻⁵·d_i + 2⁻²¹·(|θ| + d_i)
+///   of its slip limit (where f32 and f64 may disagree on sticking) its k_i on K and
+///   k_i·that margin on T.
+///
+/// The memories are compared too: the genetic kind's direction and number of turning points
+/// must be the host's exactly (the turning points are the samples themselves, exact in both).
 pub fn replay(
     link: &mut Link,
     joint: &JointParams,
-    params: &Params<f64>,
+    model: &GearModel,
     samples: &[(f32, f32)],
     path: EvalPath,
 ) -> Result<ReplayReport, ReplayError> {
-    let model = Model::new(*params)?;
-    let mut comparison = Comparison::new(model, f64::from(joint.torque_limit));
+    let mut comparison = Comparison::new(model, joint)?;
     for (index, &(input_angle, output_angle)) in samples.iter().enumerate() {
         let feedforward = link.replay(&EncoderSample { input_angle, output_angle, path })?;
         comparison.add(index, &feedforward)?;
@@ -114,51 +155,143 @@ pub fn replay(
     Ok(comparison.finish())
 }
 
+/// The host's side of the comparison: the f64 model with its memory, and the tolerance.
+enum Host {
+    Genetic { model: Model<f64>, polynomial: Polynomial<f64>, evaluator: Evaluator },
+    MicroSlip { params: SlipParams<f64, SLIP_ELEMENTS>, evaluator: Evaluator },
+}
+
 /// Accumulates the comparison, sample by sample.
 struct Comparison {
-    model: Model<f64>,
+    host: Host,
     torque_limit: f64,
-    /// The loop's scales per amplitude (f32 bits): the amplitude changes only at turning points.
-    scales: HashMap<u32, (f64, f64)>,
+    /// The largest |θ| so far: the motion's amplitude for the scale of the tolerance.
+    envelope: f64,
+    /// Scales per envelope, quantised to steps of 2^(1/8) (upward).
+    scales: HashMap<i32, (f64, f64)>,
+    last_direction: Option<model_core::Direction>,
+    last_theta: Option<(f64, f64)>,
     torque_squares: f64,
     stiffness_squares: f64,
     report: ReplayReport,
 }
 
+/// 2⁻²²: the relative rounding of an f32 quantity after a few operations.
+const ROUNDING: f64 = 1.0 / 4_194_304.0;
+
 impl Comparison {
-    fn new(model: Model<f64>, torque_limit: f64) -> Self {
-        Comparison {
-            model,
-            torque_limit,
+    fn new(model: &GearModel, joint: &JointParams) -> Result<Self, ReplayError> {
+        let evaluator = model.evaluator(f64::from(joint.direction_band))?;
+        let host = match model {
+            GearModel::Genetic(params) => Host::Genetic {
+                model: Model::new(*params)?,
+                polynomial: Polynomial::new(params.c1, params.c2, params.c3)?,
+                evaluator,
+            },
+            GearModel::MicroSlip(params) => Host::MicroSlip { params: *params, evaluator },
+        };
+        Ok(Comparison {
+            host,
+            torque_limit: f64::from(joint.torque_limit),
+            envelope: 0.0,
             scales: HashMap::new(),
+            last_direction: None,
+            last_theta: None,
             torque_squares: 0.0,
             stiffness_squares: 0.0,
             report: ReplayReport::default(),
+        })
+    }
+
+    /// max |T| and max |K| of the model over |θ| ≤ the envelope (rounded up to 2^(k/8)).
+    fn scales(&mut self) -> Result<(f64, f64), ReplayError> {
+        let key = (self.envelope.max(1.0e-9).log2() * 8.0).ceil() as i32;
+        if let Some(&scales) = self.scales.get(&key) {
+            return Ok(scales);
+        }
+        let amplitude = (f64::from(key) / 8.0).exp2();
+        let scales = match &self.host {
+            Host::Genetic { model, .. } => loop_scales(model, amplitude / 0.99)?,
+            Host::MicroSlip { params, .. } => {
+                let poly = Polynomial::new(params.c1, params.c2, params.c3)?.evaluate(amplitude);
+                let grid = model_core::memory::slip_grid::<f64, SLIP_ELEMENTS>(params.slip_min, params.slip_max)?;
+                let elements: f64 = params.stiffness.iter().zip(grid).map(|(k, d)| k * d.min(amplitude)).sum();
+                let stiffness: f64 = params.stiffness.iter().sum();
+                (poly.torque.abs() + elements, poly.stiffness.abs() + stiffness)
+            }
+        };
+        self.scales.insert(key, scales);
+        Ok(scales)
+    }
+
+    /// The host's step to θ and the allowed torque and stiffness errors there; whether its
+    /// memory matches the firmware's.
+    fn step(&mut self, theta: f64, fw: &Feedforward) -> Result<(Bound, bool), ReplayError> {
+        self.envelope = self.envelope.max(theta.abs());
+        let scales = self.scales()?;
+        let base = (RELATIVE_TOLERANCE * scales.0, RELATIVE_TOLERANCE * scales.1);
+        match &mut self.host {
+            Host::Genetic { model, polynomial, evaluator } => {
+                let exact = evaluator.step(theta)?;
+                let Evaluator::Genetic(memory) = evaluator else { unreachable!("a genetic host model") };
+                let points = memory.turning_points();
+                let depth = points.len();
+                if self.last_direction.is_some() && memory.direction() != self.last_direction {
+                    self.report.reversals += 1;
+                }
+                self.last_direction = memory.direction();
+                let same_memory = fw.direction == memory.direction() && usize::from(fw.memory) == depth;
+                let spread = branch_spread(model, polynomial, points, theta)?;
+                Ok((Bound { exact, torque: base.0 + spread.0, stiffness: base.1 + spread.1 }, same_memory))
+            }
+            Host::MicroSlip { params, evaluator } => {
+                let exact = evaluator.step(theta)?;
+                let Evaluator::MicroSlip(slip) = evaluator else { unreachable!("a micro-slip host model") };
+                let elements = slip.elements();
+                let (mut torque, mut stiffness) = (exact.stiffness.abs() * ROUNDING * theta.abs(), 0.0);
+                let mut marginal = 0;
+                let mut slipping = 0;
+                for ((k, e), d) in params.stiffness.iter().zip(elements.elastic()).zip(elements.slip()) {
+                    let margin = 1.0e-5 * d + 2.0 * ROUNDING * (theta.abs() + d);
+                    if d - e.abs() <= margin {
+                        marginal += 1;
+                        stiffness += k;
+                        torque += k * margin;
+                    }
+                    if !(e.abs() < *d) {
+                        slipping += 1;
+                    }
+                }
+                if let Some((previous, before)) = self.last_theta {
+                    if (theta - previous) * (previous - before) < 0.0 {
+                        self.report.reversals += 1;
+                    }
+                }
+                let same_memory = fw.direction.is_none() && usize::from(fw.memory).abs_diff(slipping) <= marginal;
+                Ok((Bound { exact, torque: base.0 + torque, stiffness: base.1 + stiffness }, same_memory))
+            }
         }
     }
 
     fn add(&mut self, index: usize, fw: &Feedforward) -> Result<(), ReplayError> {
-        let report = &mut self.report;
-        report.samples += 1;
+        self.report.samples += 1;
         match fw.compensation {
             Compensation::Off => {
-                report.off += 1;
+                // The firmware skipped the sample (its memory untouched): so does the host.
+                self.report.off += 1;
                 return Ok(());
             }
-            Compensation::Active => report.active += 1,
-            Compensation::Clamped => report.clamped += 1,
+            Compensation::Active => self.report.active += 1,
+            Compensation::Clamped => self.report.clamped += 1,
         }
-        let amplitude = f64::from(fw.amplitude);
-        let scales = match self.scales.get(&fw.amplitude.to_bits()) {
-            Some(&scales) => scales,
-            None => {
-                let scales = loop_scales(&self.model, amplitude)?;
-                self.scales.insert(fw.amplitude.to_bits(), scales);
-                scales
-            }
-        };
         let theta = f64::from(fw.deflection);
-        let bound = Bound::at(&self.model, theta, fw.direction, amplitude, scales)?;
+        let (bound, same_memory) = self.step(theta, fw)?;
+        self.last_theta = Some((theta, self.last_theta.map_or(theta, |(previous, _)| previous)));
+        let report = &mut self.report;
+        report.deepest_memory = report.deepest_memory.max(fw.memory);
+        if !same_memory {
+            report.memory_mismatches += 1;
+        }
         let (torque_error, stiffness_error) = match fw.compensation {
             Compensation::Clamped => {
                 // The firmware saturates at the limit; the model must be there too, within bound.
@@ -172,9 +305,6 @@ impl Comparison {
                 (f64::from(fw.stiffness) - bound.exact.stiffness).abs(),
             ),
         };
-        if theta.abs() >= 0.99 * amplitude {
-            report.near_turning_points += 1;
-        }
         report.torque_worst = report.torque_worst.max(torque_error);
         report.stiffness_worst = report.stiffness_worst.max(stiffness_error);
         self.torque_squares += torque_error * torque_error;
@@ -196,12 +326,77 @@ impl Comparison {
     }
 }
 
+/// How far the genetic model's T and K at θ move when θ and the current branch's two ends move
+/// by ±2⁻²² of the largest of them (their f32 rounding). The branch runs from the top turning
+/// point to the one below it, or to its mirror (−θ, −H) when it is alone; at rest (no turning
+/// points) T is the polynomial alone.
+fn branch_spread(
+    model: &Model<f64>,
+    polynomial: &Polynomial<f64>,
+    points: &[TurningPoint<f64>],
+    theta: f64,
+) -> Result<(f64, f64), ReplayError> {
+    let evaluate =
+        |from: Option<(TurningPoint<f64>, TurningPoint<f64>)>, t: f64| -> Result<Evaluation<f64>, ReplayError> {
+            let spring = polynomial.evaluate(t);
+            Ok(match from {
+                None => spring,
+                Some((a, b)) => spring.plus(branch(model, a, b, t)?),
+            })
+        };
+    let ends = match points {
+        [] => None,
+        [.., below, top] => Some((*top, *below)),
+        [top] => Some((*top, TurningPoint { theta: -top.theta, hysteresis: -top.hysteresis })),
+    };
+    let exact = evaluate(ends, theta)?;
+    let size = ends.map_or(theta.abs(), |(a, b)| theta.abs().max(a.theta.abs()).max(b.theta.abs()));
+    let delta = ROUNDING * size;
+    let moved = |dt: f64, da: f64, db: f64| {
+        let ends =
+            ends.map(|(a, b)| (TurningPoint { theta: a.theta + da, ..a }, TurningPoint { theta: b.theta + db, ..b }));
+        evaluate(ends, theta + dt)
+    };
+    let mut spread = (0.0f64, 0.0f64);
+    for (dt, da, db) in [
+        (delta, 0.0, 0.0),
+        (-delta, 0.0, 0.0),
+        (0.0, delta, 0.0),
+        (0.0, -delta, 0.0),
+        (0.0, 0.0, delta),
+        (0.0, 0.0, -delta),
+    ] {
+        if ends.is_none() && dt == 0.0 {
+            continue;
+        }
+        let e = moved(dt, da, db)?;
+        spread.0 = spread.0.max((e.torque - exact.torque).abs());
+        spread.1 = spread.1.max((e.stiffness - exact.stiffness).abs());
+    }
+    Ok(spread)
+}
+
 /// The device's parameters, which replay needs.
 pub fn device_params(link: &mut Link) -> Result<JointParams, ReplayError> {
     link.read_params()?.ok_or(ReplayError::NoParams)
 }
 
-/// The f64 model of a device set, exactly as the device holds it.
+/// The f64 model of a device set, exactly as the device holds it (every f32 is an f64).
+pub fn device_model(joint: &JointParams) -> GearModel {
+    match joint.model {
+        JointModel::Genetic(params) => GearModel::Genetic(widen(&params)),
+        JointModel::MicroSlip(slip) => GearModel::MicroSlip(SlipParams {
+            c1: slip.c1.into(),
+            c2: slip.c2.into(),
+            c3: slip.c3.into(),
+            stiffness: slip.stiffness.map(f64::from),
+            slip_min: slip.slip_min.into(),
+            slip_max: slip.slip_max.into(),
+        }),
+    }
+}
+
+/// The f64 genetic parameters of a device set.
 pub fn widen(params: &Params<f32>) -> Params<f64> {
     Params {
         c1: params.c1.into(),
@@ -220,12 +415,29 @@ mod tests {
     use crate::link::push::{joint_params, push, JointSettings};
     use crate::simulate::{simulate, Simulation};
 
-    const SEED: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
+    const SEED_PARAMS: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
+    const SEED: GearModel = GearModel::Genetic(SEED_PARAMS);
+    const AMPLITUDE: f64 = 1.168e-3;
+
+    fn slip() -> GearModel {
+        let mut stiffness = [0.0; SLIP_ELEMENTS];
+        for (i, k) in stiffness.iter_mut().enumerate() {
+            *k = 120.0 + 15.0 * i as f64;
+        }
+        GearModel::MicroSlip(SlipParams {
+            c1: 6.0e3,
+            c2: 1.2e10,
+            c3: 0.0,
+            stiffness,
+            slip_min: 1.0e-5,
+            slip_max: 2.0e-3,
+        })
+    }
 
     fn recording(input_bits: Option<u32>) -> Recording {
         simulate(&Simulation {
-            params: SEED,
-            amplitude_rad: 1.168e-3,
+            params: SEED_PARAMS,
+            amplitude_rad: AMPLITUDE,
             frequencies_hz: vec![1.0],
             cycles: 2,
             sample_rate_hz: 500.0,
@@ -241,41 +453,103 @@ mod tests {
         .unwrap()
     }
 
-    fn pushed(torque_limit: f64) -> (Link, JointParams) {
+    /// θ = 0.6·A + 0.15·A·sin φ (after a ramp from rest) and θ = A·(0.75·sin φ + 0.25·sin 9φ),
+    /// as encoder samples of a 1:50 gear with the output at rest.
+    fn motions() -> [Vec<(f32, f32)>; 2] {
+        let n = 3000;
+        let tau = std::f64::consts::TAU;
+        let biased = (0..n)
+            .map(|i| {
+                let ramp = n / 5;
+                if i < ramp {
+                    0.6 * AMPLITUDE * i as f64 / ramp as f64
+                } else {
+                    0.6 * AMPLITUDE + 0.15 * AMPLITUDE * (tau * 4.0 * (i - ramp) as f64 / (n - ramp) as f64).sin()
+                }
+            })
+            .map(|theta| ((50.0 * theta) as f32, 0.0))
+            .collect();
+        let nested = (0..n)
+            .map(|i| {
+                let phase = tau * 2.0 * i as f64 / n as f64;
+                AMPLITUDE * (0.75 * phase.sin() + 0.25 * (9.0 * phase).sin())
+            })
+            .map(|theta| ((50.0 * theta) as f32, 0.0))
+            .collect();
+        [biased, nested]
+    }
+
+    fn pushed(model: &GearModel, torque_limit: f64) -> (Link, JointParams) {
         let mut link = FakeDevice::new().link();
         let settings = JointSettings { gear_ratio: 50.0, torque_limit, direction_band: 2.0e-6 };
-        let joint = joint_params(&SEED, &settings).unwrap();
+        let joint = joint_params(model, &settings).unwrap();
         push(&mut link, &joint).unwrap();
         (link, joint)
     }
 
     #[test]
     fn both_paths_match_the_f64_model_over_whole_loops() {
-        let (mut link, joint) = pushed(100.0);
+        let (mut link, joint) = pushed(&SEED, 100.0);
         let samples = samples(&recording(None), joint.gear_ratio).unwrap();
         for path in [EvalPath::Direct, EvalPath::Fast] {
-            let report = replay(&mut link, &joint, &widen(&joint.model), &samples, path).unwrap();
+            // Each replay from rest: a write resets the device's memory.
+            link.write_params(&joint).unwrap();
+            let report = replay(&mut link, &joint, &device_model(&joint), &samples, path).unwrap();
             assert!(report.passed(), "{path:?}: {report}");
             assert_eq!((report.samples, report.active), (samples.len(), samples.len()));
-            assert!(report.near_turning_points >= 8, "{report}");
+            assert!(report.reversals >= 3, "{report}");
         }
     }
 
     #[test]
+    fn biased_and_nested_motions_of_both_kinds_match_the_f64_model() {
+        for model in [SEED, slip()] {
+            let (mut link, joint) = pushed(&model, 100.0);
+            for samples in motions() {
+                for path in [EvalPath::Direct, EvalPath::Fast] {
+                    link.write_params(&joint).unwrap();
+                    let report = replay(&mut link, &joint, &device_model(&joint), &samples, path).unwrap();
+                    assert!(report.passed(), "{:?} {path:?}: {report}", model.kind());
+                    assert!(report.reversals >= 8 && report.deepest_memory >= 2, "{report}");
+                    // Against the unrounded f64 parameters too.
+                    link.write_params(&joint).unwrap();
+                    let report = replay(&mut link, &joint, &model, &samples, path).unwrap();
+                    assert!(report.passed(), "{:?} {path:?} against f64: {report}", model.kind());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_device_not_at_rest_fails_the_comparison() {
+        let (mut link, joint) = pushed(&SEED, 100.0);
+        let [biased, _] = motions();
+        replay(&mut link, &joint, &SEED, &biased[..1000], EvalPath::Fast).unwrap();
+        // No write in between: the device remembers the first replay, the host starts at rest.
+        let report = replay(&mut link, &joint, &SEED, &biased, EvalPath::Fast).unwrap();
+        assert!(!report.passed() && report.memory_mismatches > 0, "{report}");
+    }
+
+    #[test]
     fn clamped_samples_are_compared_against_the_limit() {
-        let (mut link, joint) = pushed(5.0);
+        let (mut link, joint) = pushed(&SEED, 5.0);
         let samples = samples(&recording(Some(20)), joint.gear_ratio).unwrap();
-        let report = replay(&mut link, &joint, &widen(&joint.model), &samples, EvalPath::Fast).unwrap();
+        let report = replay(&mut link, &joint, &device_model(&joint), &samples, EvalPath::Fast).unwrap();
         assert!(report.clamped > 0 && report.active > 0, "{report}");
         assert!(report.passed(), "{report}");
     }
 
     #[test]
     fn a_different_model_fails_the_comparison() {
-        let (mut link, joint) = pushed(100.0);
-        let samples = samples(&recording(None), joint.gear_ratio).unwrap();
-        let other = Params { c1: SEED.c1 * 1.001, ..SEED };
+        let samples = motions()[1].clone();
+        let other = GearModel::Genetic(Params { c1: SEED_PARAMS.c1 * 1.001, ..SEED_PARAMS });
+        let (mut link, joint) = pushed(&SEED, 100.0);
         let report = replay(&mut link, &joint, &other, &samples, EvalPath::Fast).unwrap();
+        assert!(!report.passed() && report.first_violation.is_some(), "{report}");
+        let GearModel::MicroSlip(mut params) = slip() else { unreachable!() };
+        params.stiffness[3] *= 1.01;
+        let (mut link, joint) = pushed(&slip(), 100.0);
+        let report = replay(&mut link, &joint, &GearModel::MicroSlip(params), &samples, EvalPath::Fast).unwrap();
         assert!(!report.passed() && report.first_violation.is_some(), "{report}");
     }
 

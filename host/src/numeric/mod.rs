@@ -1,6 +1,7 @@
 //! Numerical tools with no knowledge of gears: small dense linear algebra, the optimisers,
 //! statistics.
 pub mod linalg;
+pub mod nnls;
 pub mod optimize;
 
 /// The median (upper middle for an even count); NaN for no values.

@@ -3,7 +3,7 @@ pub mod segment;
 
 use crate::input::{Branch, Dataset, LoopTable, Recording};
 use model_core::Direction;
-pub use segment::{noise_from_second_differences, segment, SegmentError, Segmentation, TurningPoint};
+pub use segment::{deflection_noise, noise_from_second_differences, segment, SegmentError, Segmentation, TurningPoint};
 
 /// Deflection samples with what the model needs to evaluate them.
 #[derive(Clone, Debug, Default)]

@@ -47,6 +47,13 @@ pub fn noise_from_second_differences(x: &[f64]) -> f64 {
     (sum / n as f64 / 6.0).sqrt()
 }
 
+/// The deflection noise σ of a recording, rad: from second differences, and at least the
+/// step/√12 of a quantising encoder (a staircase from a coarse encoder has few non-zero second
+/// differences, whatever they say).
+pub fn deflection_noise(deflection: &[f64]) -> f64 {
+    noise_from_second_differences(deflection).max(typical_step(deflection) / 12f64.sqrt())
+}
+
 /// Median of the non-zero sample-to-sample steps: the quantisation step of a staircase.
 fn typical_step(x: &[f64]) -> f64 {
     let mut steps: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|d| *d > 0.0).collect();
@@ -63,10 +70,8 @@ pub fn segment(time: &[f64], deflection: &[f64]) -> Result<Segmentation, Segment
     if n < 3 {
         return Err(SegmentError::TooShort(n));
     }
-    // A staircase from a coarse encoder has few non-zero second differences; its
-    // quantisation noise is step/√12 whatever the second differences say.
     let step = typical_step(deflection);
-    let noise = noise_from_second_differences(deflection).max(step / 12f64.sqrt());
+    let noise = deflection_noise(deflection);
     let (lo, hi) = deflection.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
     let range = hi - lo;
     // Ten σ keeps Gaussian noise from ever spanning the band near a slow turning point; two

@@ -1,4 +1,5 @@
 //! What `diagnose` reports: the JSON document and the text for a person.
+use crate::diagnose::form::{ModelForm, Unexplained};
 use crate::diagnose::{
     DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, MAX_HALF_SPREAD, MIN_BIC_DROP,
     MIN_EXPLAINED, MIN_HALF_Z,
@@ -18,6 +19,12 @@ pub struct DiagnoseReport {
     pub revealable: Vec<Effect>,
     pub not_revealable: Vec<NotRevealable>,
     pub findings: Vec<Finding>,
+    /// The baseline's form is what the recording disagrees with; no effect is named then.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model_form: Option<ModelForm>,
+    /// Structure left that nothing in the vocabulary explains.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unexplained: Option<Unexplained>,
     pub rejected: Vec<Rejection>,
     #[serde(rename = "final")]
     pub final_model: ModelSummary,
@@ -87,6 +94,8 @@ impl DiagnoseReport {
                 .map(|(effect, why)| NotRevealable { effect: *effect, why: why.clone() })
                 .collect(),
             findings: diagnosis.findings.clone(),
+            model_form: diagnosis.model_form.clone(),
+            unexplained: diagnosis.unexplained.clone(),
             rejected: diagnosis.rejected.clone(),
             final_model: ModelSummary::new(&diagnosis.final_fit, after),
             held_out: diagnosis.held_out_rms.map(|(rms_before, rms_after)| HeldOut {
@@ -121,7 +130,15 @@ impl DiagnoseReport {
         for o in &report.locate {
             let _ = writeln!(s, "  - {}", o.words);
         }
-        if report.findings.is_empty() {
+        if let Some(form) = &report.model_form {
+            let _ = writeln!(s, "\nthe model's form is what is missing");
+            let _ = writeln!(s, "  {}", form.words);
+            let held = match (form.held_out_before, form.held_out_after) {
+                (Some(b), Some(a)) => format!("; held-out RMS {b:.4} → {a:.4} N·m"),
+                _ => String::new(),
+            };
+            let _ = writeln!(s, "  RSS {:.5} → {:.5} (N·m)²{held}", form.rss_before, form.rss_after);
+        } else if report.findings.is_empty() {
             let _ = writeln!(s, "\nno missing physics found: no effect passed the evidence tests");
         } else {
             let _ = writeln!(s, "\nmissing physics, most important first");
@@ -138,6 +155,9 @@ impl DiagnoseReport {
                     100.0 * f.evidence.explained
                 );
             }
+        }
+        if let Some(u) = &report.unexplained {
+            let _ = writeln!(s, "\n{}", u.words);
         }
         let fm = &report.final_model;
         let effects = if fm.effects.is_empty() {

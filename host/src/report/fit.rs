@@ -1,8 +1,10 @@
 //! What `fit` reports: the JSON document (also the parameter file) and the human summary.
+use super::params::SlipParamsFile;
 use crate::fit::baselines::{BranchLine, ThreeSegment};
-use crate::fit::{Fit, SearchSummary};
+use crate::fit::{Fit, Identified, MotionFit, SearchSummary};
+use crate::gear::GearModel;
 use crate::prepare::NoiseModel;
-use model_core::{Params, MODEL_NAME, MODEL_VERSION};
+use model_core::{Params, MODEL_VERSION};
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -11,10 +13,12 @@ pub struct FitReport {
     pub model: &'static str,
     pub model_version: u16,
     pub input: InputSummary,
-    /// Canonical parameters (ω = 1).
-    pub params: Params<f64>,
-    pub identifiable: IdentifiableReport,
-    pub convention: &'static str,
+    /// The kind's parameters: canonical genetic ones (ω = 1), or micro-slip ones.
+    pub params: ParamsReport,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub identifiable: Option<IdentifiableReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub convention: Option<&'static str>,
     /// Unweighted residual sum of squares, (N·m)².
     pub rss: f64,
     /// Unweighted RMS residual, N·m.
@@ -25,7 +29,53 @@ pub struct FitReport {
     pub baselines: Vec<BaselineReport>,
     /// Parameter sets given with `--compare`, evaluated on the same data.
     pub compared: Vec<ComparedReport>,
-    pub search: SearchSummary,
+    /// The smallest reversal the stateful models followed, rad (recordings).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub band_rad: Option<f64>,
+    /// The samples held out of every fit and the chosen model's error on them (`--model auto`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<HeldOutReport>,
+    /// Every model kind fitted to a recording, the chosen one included.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub candidates: Vec<CandidateReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub search: Option<SearchSummary>,
+}
+
+/// A model's parameters as files write them.
+#[derive(Clone, Debug, Serialize)]
+#[serde(untagged)]
+pub enum ParamsReport {
+    Genetic(Params<f64>),
+    MicroSlip(SlipParamsFile),
+}
+
+impl From<&GearModel> for ParamsReport {
+    fn from(model: &GearModel) -> Self {
+        match model {
+            GearModel::Genetic(params) => ParamsReport::Genetic(*params),
+            GearModel::MicroSlip(params) => ParamsReport::MicroSlip(params.into()),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct HeldOutReport {
+    pub samples: usize,
+    /// RMS residual of the chosen model on them, N·m.
+    pub rms: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct CandidateReport {
+    pub model: &'static str,
+    /// Unweighted RSS and RMS on the samples it was fitted to.
+    pub rss: f64,
+    pub rms: f64,
+    /// RMS on the held-out samples, N·m.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out_rms: Option<f64>,
+    pub chosen: bool,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -55,16 +105,20 @@ pub struct BaselineReport {
 #[derive(Clone, Debug, Serialize)]
 pub struct ComparedReport {
     pub path: String,
-    pub params: Params<f64>,
+    pub model: &'static str,
+    pub params: ParamsReport,
     pub rss: f64,
 }
+
+/// How a genetic model fitted to a motion is written.
+pub const MEMORY_CONVENTION: &str = "genetic model with Madelung's rules: every branch between two turning points is the paper's loop of the branch's half-width w with h = w*alpha/(omega*(1 + r^2)); params are the point with omega = 1";
 
 pub const CONVENTION: &str = "only h and r are identifiable: (s*alpha, s*beta, s*omega) gives the same torque for any s != 0; params are the point with omega = 1";
 
 impl FitReport {
     pub fn new(
         input: InputSummary,
-        fit: &Fit,
+        identified: &Identified,
         lines: Vec<BranchLine>,
         three_segment: Option<ThreeSegment>,
         compared: Vec<ComparedReport>,
@@ -77,53 +131,139 @@ impl FitReport {
         if let Some(curve) = three_segment {
             baselines.push(BaselineReport { name: "three_segment", rss: curve.rss, params: serde_json::json!(curve) });
         }
+        match identified {
+            Identified::Loop(fit) => FitReport::of_loop(input, fit, baselines, compared),
+            Identified::Motion(outcome) => {
+                let chosen = &outcome.chosen;
+                let model = chosen.model;
+                let candidate = |fit: &MotionFit| CandidateReport {
+                    model: fit.model.kind().name(),
+                    rss: fit.rss,
+                    rms: fit.rms,
+                    held_out_rms: fit.held_out_rms,
+                    chosen: fit.model == model,
+                };
+                FitReport {
+                    model: model.kind().name(),
+                    model_version: MODEL_VERSION,
+                    input,
+                    params: (&model).into(),
+                    identifiable: match model {
+                        GearModel::Genetic(params) => params.identifiable(outcome.reference_amplitude).ok().map(|id| {
+                            IdentifiableReport { h: id.h, r: id.r, amplitude_rad: outcome.reference_amplitude }
+                        }),
+                        GearModel::MicroSlip(_) => None,
+                    },
+                    convention: matches!(model, GearModel::Genetic(_)).then_some(MEMORY_CONVENTION),
+                    rss: chosen.rss,
+                    rms: chosen.rms,
+                    n: chosen.n,
+                    noise: outcome.noise,
+                    baselines,
+                    compared,
+                    band_rad: Some(outcome.band_rad),
+                    held_out: chosen
+                        .held_out_rms
+                        .map(|rms| HeldOutReport { samples: outcome.held_out, rms })
+                        .filter(|h| h.samples > 0),
+                    candidates: outcome.candidates.iter().map(candidate).collect(),
+                    search: None,
+                }
+            }
+        }
+    }
+
+    fn of_loop(input: InputSummary, fit: &Fit, baselines: Vec<BaselineReport>, compared: Vec<ComparedReport>) -> Self {
         FitReport {
-            model: MODEL_NAME,
+            model: model_core::MODEL_NAME,
             model_version: MODEL_VERSION,
             input,
-            params: fit.params,
-            identifiable: IdentifiableReport {
+            params: ParamsReport::Genetic(fit.params),
+            identifiable: Some(IdentifiableReport {
                 h: fit.identifiable.h,
                 r: fit.identifiable.r,
                 amplitude_rad: fit.reference_amplitude,
-            },
-            convention: CONVENTION,
+            }),
+            convention: Some(CONVENTION),
             rss: fit.rss,
             rms: fit.rms,
             n: fit.n,
             noise: fit.noise,
             baselines,
             compared,
-            search: fit.search.clone(),
+            band_rad: None,
+            held_out: None,
+            candidates: Vec::new(),
+            search: Some(fit.search.clone()),
         }
     }
 
     /// The summary printed for a person.
     pub fn human(&self) -> String {
         let mut s = String::new();
-        let p = &self.params;
-        let id = &self.identifiable;
         let _ = write!(s, "{} ({}, {} samples", self.input.path, self.input.kind.replace('_', " "), self.n);
         if let Some(tp) = self.input.turning_points {
             let _ = write!(s, ", {tp} turning points");
         }
         let _ = writeln!(s, ")");
-        let _ = writeln!(s, "model {} v{}: T = c1·θ + c2·θ³ + c3·θ⁵ + z(θ)", self.model, self.model_version);
-        let _ = writeln!(s, "  c1 = {:>12.5e} N·m/rad", p.c1);
-        let _ = writeln!(s, "  c2 = {:>12.5e} N·m/rad³", p.c2);
-        let _ = writeln!(s, "  c3 = {:>12.5e} N·m/rad⁵", p.c3);
-        let _ = writeln!(
-            s,
-            "  hysteresis, identifiable: h = {:.5} N·m, r = β/ω = {:.5}  (at A = {:.4} mrad)",
-            id.h,
-            id.r,
-            id.amplitude_rad * 1e3
-        );
-        let _ = writeln!(
-            s,
-            "  canonical point (ω = 1): α = {:.5e}, β = {:.5}, ω = {}  — any (sα, sβ, sω) fits the same",
-            p.alpha, p.beta, p.omega
-        );
+        match &self.params {
+            ParamsReport::Genetic(p) => {
+                let _ = writeln!(s, "model {} v{}: T = c1·θ + c2·θ³ + c3·θ⁵ + z(θ)", self.model, self.model_version);
+                let _ = writeln!(s, "  c1 = {:>12.5e} N·m/rad", p.c1);
+                let _ = writeln!(s, "  c2 = {:>12.5e} N·m/rad³", p.c2);
+                let _ = writeln!(s, "  c3 = {:>12.5e} N·m/rad⁵", p.c3);
+                match (&self.identifiable, self.band_rad) {
+                    (Some(id), None) => {
+                        let _ = writeln!(
+                            s,
+                            "  hysteresis, identifiable: h = {:.5} N·m, r = β/ω = {:.5}  (at A = {:.4} mrad)",
+                            id.h,
+                            id.r,
+                            id.amplitude_rad * 1e3
+                        );
+                        let _ = writeln!(
+                            s,
+                            "  canonical point (ω = 1): α = {:.5e}, β = {:.5}, ω = {}  — any (sα, sβ, sω) fits the same",
+                            p.alpha, p.beta, p.omega
+                        );
+                    }
+                    (identifiable, _) => {
+                        let _ = writeln!(
+                            s,
+                            "  hysteresis with memory (Madelung's rules): α = {:.5e}, β = {:.5}, ω = {} (r = β/ω)",
+                            p.alpha, p.beta, p.omega
+                        );
+                        if let Some(id) = identifiable {
+                            let _ = writeln!(
+                                s,
+                                "  on a loop of A = {:.4} mrad (half the range): h = {:.5} N·m",
+                                id.amplitude_rad * 1e3,
+                                id.h
+                            );
+                        }
+                    }
+                }
+            }
+            ParamsReport::MicroSlip(p) => {
+                let _ = writeln!(
+                    s,
+                    "model {} v{}: T = c1·θ + c2·θ³ + c3·θ⁵ + Σ k_i·e_i, {} elasto-slip elements",
+                    self.model,
+                    self.model_version,
+                    p.stiffness.len()
+                );
+                let _ = writeln!(s, "  c1 = {:>12.5e} N·m/rad", p.c1);
+                let _ = writeln!(s, "  c2 = {:>12.5e} N·m/rad³", p.c2);
+                let _ = writeln!(s, "  c3 = {:>12.5e} N·m/rad⁵", p.c3);
+                let total: f64 = p.stiffness.iter().sum();
+                let active = p.stiffness.iter().filter(|k| **k > 0.0).count();
+                let _ = writeln!(
+                    s,
+                    "  slip deflections {:.3e} … {:.3e} rad (log grid); {active} elements with k > 0, Σ k = {:.5e} N·m/rad",
+                    p.slip_min, p.slip_max, total
+                );
+            }
+        }
         if let Some(noise) = &self.noise {
             let _ = writeln!(
                 s,
@@ -131,10 +271,27 @@ impl FitReport {
                 noise.torque_nm, noise.deflection_rad
             );
         }
+        if let Some(band) = self.band_rad {
+            let _ = writeln!(s, "  run from rest along the recording; reversals below {band:.3e} rad taken for noise");
+        }
+        if !self.candidates.is_empty() {
+            let held = self.held_out.as_ref().map_or(0, |h| h.samples);
+            let _ = writeln!(s, "model kinds tried (fitted without the last {held} samples, judged on them)");
+            let _ = writeln!(s, "  {:<34} {:>12} {:>10} {:>14}", "model", "RSS (N·m)²", "RMS N·m", "held-out RMS");
+            for c in &self.candidates {
+                let held_out = c.held_out_rms.map_or("—".to_string(), |r| format!("{r:.4}"));
+                let mark = if c.chosen { "  ← chosen" } else { "" };
+                let _ = writeln!(s, "  {:<34} {:>12.5} {:>10.4} {:>14}{mark}", c.model, c.rss, c.rms, held_out);
+            }
+        }
         let _ = writeln!(s, "fit quality (unweighted torque residuals)");
         let _ = writeln!(s, "  {:<34} {:>12} {:>10}", "model", "RSS (N·m)²", "RMS N·m");
         let rms = |rss: f64| (rss / self.n as f64).sqrt();
-        let _ = writeln!(s, "  {:<34} {:>12.5} {:>10.4}", "genetic hysteresis (this fit)", self.rss, self.rms);
+        let this = match self.params {
+            ParamsReport::Genetic(_) => "genetic hysteresis (this fit)",
+            ParamsReport::MicroSlip(_) => "micro-slip (this fit)",
+        };
+        let _ = writeln!(s, "  {:<34} {:>12.5} {:>10.4}", this, self.rss, self.rms);
         for b in &self.baselines {
             let name = match b.name {
                 "line_per_branch" => "one straight line per branch",

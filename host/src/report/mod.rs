@@ -5,3 +5,4 @@ pub mod fit;
 pub mod output;
 pub mod params;
 pub mod plot;
+pub mod predict;

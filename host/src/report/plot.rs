@@ -318,3 +318,105 @@ fn draw_diagnosis_loop(
     root.present()?;
     Ok(())
 }
+
+/// A model run along a recording: its torque at every sample.
+pub struct MotionSeries<'a> {
+    pub label: &'a str,
+    pub torque: &'a [f64],
+}
+
+/// The measured loop of a motion with models run along it (each a line through its samples in
+/// time order, so inner loops show), with the mean stiffness removed so that the hysteresis
+/// is visible, and every model's residual against time below.
+pub fn motion_svg(
+    title: &str,
+    time: &[f64],
+    theta: &[f64],
+    measured: &[f64],
+    models: &[MotionSeries],
+) -> Result<String, PlotError> {
+    let mut svg = String::new();
+    drawn("motion picture", draw_motion(title, time, theta, measured, models, &mut svg))?;
+    Ok(svg)
+}
+
+fn draw_motion(
+    title: &str,
+    time: &[f64],
+    theta: &[f64],
+    measured: &[f64],
+    models: &[MotionSeries],
+    svg: &mut String,
+) -> DrawResult {
+    const COLORS: [RGBColor; 3] = [RGBColor(0, 90, 200), RGBColor(210, 60, 0), RGBColor(0, 150, 80)];
+    // Fewer points than the loop picture: every model is a line as well.
+    const POINTS: usize = 2000;
+    let n = theta.len();
+    let stride = n.div_ceil(POINTS).max(1);
+    let shown: Vec<usize> = (0..n).step_by(stride).collect();
+    let stiffness = theta.iter().zip(measured).map(|(t, q)| t * q).sum::<f64>()
+        / theta.iter().map(|t| t * t).sum::<f64>().max(f64::MIN_POSITIVE);
+    let detrend = |values: &[f64]| -> Vec<(f64, f64)> {
+        shown.iter().map(|&i| (theta[i] * MRAD, values[i] - stiffness * theta[i])).collect()
+    };
+    let root = SVGBackend::with_string(svg, (960, 820)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (upper, lower) = root.split_vertically(560);
+    let measured_points = detrend(measured);
+    let (x_lo, x_hi) = range(measured_points.iter().map(|p| p.0));
+    let (y_lo, y_hi) = range(measured_points.iter().map(|p| p.1));
+    let mut chart = ChartBuilder::on(&upper)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
+    chart
+        .configure_mesh()
+        .x_desc("deflection θ (mrad)")
+        .y_desc(format!("T − {stiffness:.0} N·m/rad · θ (N·m)"))
+        .draw()?;
+    let grey = RGBColor(90, 90, 90);
+    chart
+        .draw_series(measured_points.iter().map(|&p| Circle::new(p, 2, grey.mix(0.4).filled())))?
+        .label("measured")
+        .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
+    for (model, color) in models.iter().zip(COLORS.iter().cycle()) {
+        let color = *color;
+        chart
+            .draw_series(LineSeries::new(detrend(model.torque), color.stroke_width(1)))?
+            .label(model.label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    }
+    draw_legend(&mut chart)?;
+
+    let residuals: Vec<Vec<f64>> =
+        models.iter().map(|m| measured.iter().zip(m.torque).map(|(q, p)| q - p).collect()).collect();
+    let (r_lo, r_hi) = range(residuals.iter().flatten().copied().chain([0.0]));
+    let r_max = r_lo.abs().max(r_hi.abs());
+    let (t_lo, t_hi) = range(time.iter().copied());
+    let mut below = ChartBuilder::on(&lower)
+        .caption("residual, measured − model", ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d(t_lo..t_hi, -r_max..r_max)?;
+    below.configure_mesh().x_desc("time (s)").y_desc("residual (N·m)").draw()?;
+    below.draw_series(LineSeries::new([(t_lo, 0.0), (t_hi, 0.0)], BLACK.stroke_width(1)))?;
+    for ((model, residual), color) in models.iter().zip(&residuals).zip(COLORS.iter().cycle()) {
+        let color = *color;
+        let rms = (residual.iter().map(|r| r * r).sum::<f64>() / n.max(1) as f64).sqrt();
+        below
+            .draw_series(shown.iter().map(|&i| Circle::new((time[i], residual[i]), 1, color.filled())))?
+            .label(format!("{} (RMS {rms:.3} N·m)", model.label))
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, color.filled()));
+    }
+    below
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}

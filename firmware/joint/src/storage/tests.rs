@@ -3,13 +3,14 @@ use super::*;
 use crate::flash::RamFlash;
 use embedded_storage::nor_flash::{ErrorType, NorFlashErrorKind, ReadNorFlash};
 use model_core::{Params, MODEL_VERSION};
+use swg_protocol::{SlipModel, SLIP_ELEMENTS};
 
 type Flash = RamFlash<4096>;
 
 fn params(c1: f32) -> JointParams {
     JointParams {
         model_version: MODEL_VERSION,
-        model: Params { c1, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.3, omega: 1.0 },
+        model: JointModel::Genetic(Params { c1, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.3, omega: 1.0 }),
         gear_ratio: 100.0,
         torque_limit: 50.0,
         direction_band: 2.0e-5,
@@ -95,9 +96,11 @@ fn saves_alternate_slots_and_the_newest_wins() {
 #[test]
 fn power_lost_at_any_step_leaves_the_old_or_the_new_set() {
     let old = params(1.0e3);
-    let new = params(9.0e3);
-    // Both starting states: only one slot used, and both slots used.
-    for earlier_saves in [1, 2] {
+    // Both kinds (the micro-slip record is the longest); both starting states: only one slot
+    // used, and both slots used.
+    for (new, earlier_saves) in
+        [(params(9.0e3), 1), (params(9.0e3), 2), (golden_slip_params(), 1), (golden_slip_params(), 2)]
+    {
         let mut start = ParamStore::new(Flash::new()).unwrap();
         for _ in 0..earlier_saves {
             start.save(&old).unwrap();
@@ -210,20 +213,28 @@ fn too_small_a_flash_is_refused() {
 fn golden_params() -> JointParams {
     JointParams {
         model_version: MODEL_VERSION,
-        model: Params { c1: 2.5e4, c2: 1.5e9, c3: -1.25e14, alpha: 2.75e6, beta: -420.5, omega: -225.25 },
+        model: JointModel::Genetic(Params {
+            c1: 2.5e4,
+            c2: 1.5e9,
+            c3: -1.25e14,
+            alpha: 2.75e6,
+            beta: -420.5,
+            omega: -225.25,
+        }),
         gear_ratio: 80.0,
         torque_limit: 35.5,
         direction_band: 2.5e-6,
     }
 }
 
-/// The record of [`golden_params`] as the first save writes it into slot 0, CRC block included.
+/// The record of [`golden_params`] as firmware of record format 1 (protocol 1) wrote it into
+/// slot 0 with its first save, CRC block included: a real old record, which must keep loading.
 #[rustfmt::skip]
 const GOLDEN_RECORD: [u8; 64] = [
     b'S', b'W', b'G', b'P', // magic
     0x01, 0x00, 0x00, 0x00, // sequence 1
     0x25, 0x00, // payload length 37
-    RECORD_FORMAT, // format 1
+    LEGACY_FORMAT, // format 1
     0xFF, // reserved
     0x01, // model_version 1 (postcard varint)
     0x00, 0x50, 0xC3, 0x46, // c1 2.5e4 (f32 LE)
@@ -260,7 +271,7 @@ fn flash_with(slot_0: &[u8]) -> Flash {
 #[test]
 fn golden_params_have_distinct_fields() {
     let p = golden_params();
-    let m = p.model;
+    let JointModel::Genetic(m) = p.model else { unreachable!() };
     let fields = [m.c1, m.c2, m.c3, m.alpha, m.beta, m.omega, p.gear_ratio, p.torque_limit, p.direction_band];
     for (i, a) in fields.iter().enumerate() {
         for b in &fields[i + 1..] {
@@ -270,13 +281,107 @@ fn golden_params_have_distinct_fields() {
     assert_eq!(MODEL_VERSION, 1, "the golden record holds model version 1");
 }
 
+/// A micro-slip set with every field different.
+fn golden_slip_params() -> JointParams {
+    let mut stiffness = [0.0f32; SLIP_ELEMENTS];
+    for (i, k) in stiffness.iter_mut().enumerate() {
+        *k = 50.0 * (i + 1) as f32 + 0.5;
+    }
+    JointParams {
+        model_version: MODEL_VERSION,
+        model: JointModel::MicroSlip(SlipModel {
+            c1: 7.5e3,
+            c2: 3.0e9,
+            c3: -6.25e13,
+            stiffness,
+            slip_min: 1.0 / 32768.0,
+            slip_max: 1.0 / 256.0,
+        }),
+        gear_ratio: 120.0,
+        torque_limit: 42.25,
+        direction_band: 1.25e-6,
+    }
+}
+
+/// The record of [`golden_params`] in format 2, as the first save writes it into slot 0.
+#[rustfmt::skip]
+const GOLDEN_RECORD_2: [u8; 64] = [
+    b'S', b'W', b'G', b'P', // magic
+    0x01, 0x00, 0x00, 0x00, // sequence 1
+    0x26, 0x00, // payload length 38
+    0x02, // format 2
+    0xFF, // reserved
+    0x01, // model_version 1 (postcard varint)
+    0x00, // JointModel::Genetic
+    0x00, 0x50, 0xC3, 0x46, // c1 2.5e4 (f32 LE)
+    0x5E, 0xD0, 0xB2, 0x4E, // c2 1.5e9
+    0xA9, 0x5F, 0xE3, 0xD6, // c3 -1.25e14
+    0xC0, 0xD8, 0x27, 0x4A, // alpha 2.75e6
+    0x00, 0x40, 0xD2, 0xC3, // beta -420.5
+    0x00, 0x40, 0x61, 0xC3, // omega -225.25
+    0x00, 0x00, 0xA0, 0x42, // gear_ratio 80
+    0x00, 0x00, 0x0E, 0x42, // torque_limit 35.5
+    0xAC, 0xC5, 0x27, 0x36, // direction_band 2.5e-6
+    0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, // padding to 56 bytes
+    0x08, 0x57, 0x01, 0x96, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..50, LE
+];
+
 #[test]
 fn a_saved_record_matches_the_golden_bytes() {
     let mut store = ParamStore::new(Flash::new()).unwrap();
     assert_eq!(store.save(&golden_params()), Ok(1));
     let mut record = [0u8; 64];
     store.into_flash().read(0, &mut record).unwrap();
-    assert_eq!(record, GOLDEN_RECORD);
+    assert_eq!(record, GOLDEN_RECORD_2);
+}
+
+/// The record of [`golden_slip_params`], as the first save writes it into slot 0.
+#[rustfmt::skip]
+const GOLDEN_SLIP_RECORD: [u8; 120] = [
+    b'S', b'W', b'G', b'P', // magic
+    0x01, 0x00, 0x00, 0x00, // sequence 1
+    0x62, 0x00, // payload length 98
+    0x02, // format 2
+    0xFF, // reserved
+    0x01, // model_version 1
+    0x01, // JointModel::MicroSlip
+    0x00, 0x60, 0xEA, 0x45, // c1 7.5e3
+    0x5E, 0xD0, 0x32, 0x4F, // c2 3e9
+    0xA9, 0x5F, 0x63, 0xD6, // c3 -6.25e13
+    0x00, 0x00, 0x4A, 0x42, // stiffness[0] 50.5
+    0x00, 0x00, 0xC9, 0x42, // 100.5
+    0x00, 0x80, 0x16, 0x43, // 150.5
+    0x00, 0x80, 0x48, 0x43, // 200.5
+    0x00, 0x80, 0x7A, 0x43, // 250.5
+    0x00, 0x40, 0x96, 0x43, // 300.5
+    0x00, 0x40, 0xAF, 0x43, // 350.5
+    0x00, 0x40, 0xC8, 0x43, // 400.5
+    0x00, 0x40, 0xE1, 0x43, // 450.5
+    0x00, 0x40, 0xFA, 0x43, // 500.5
+    0x00, 0xA0, 0x09, 0x44, // 550.5
+    0x00, 0x20, 0x16, 0x44, // 600.5
+    0x00, 0xA0, 0x22, 0x44, // 650.5
+    0x00, 0x20, 0x2F, 0x44, // 700.5
+    0x00, 0xA0, 0x3B, 0x44, // 750.5
+    0x00, 0x20, 0x48, 0x44, // stiffness[15] 800.5
+    0x00, 0x00, 0x00, 0x38, // slip_min 2⁻¹⁵
+    0x00, 0x00, 0x80, 0x3B, // slip_max 2⁻⁸
+    0x00, 0x00, 0xF0, 0x42, // gear_ratio 120
+    0x00, 0x00, 0x29, 0x42, // torque_limit 42.25
+    0xAC, 0xC5, 0xA7, 0x35, // direction_band 1.25e-6
+    0xFF, 0xFF, // padding to 112 bytes
+    0x09, 0xAD, 0x77, 0x0D, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..110, LE
+];
+
+#[test]
+fn a_saved_micro_slip_record_matches_the_golden_bytes() {
+    let mut store = ParamStore::new(Flash::new()).unwrap();
+    assert_eq!(store.save(&golden_slip_params()), Ok(1));
+    let mut record = [0u8; 120];
+    store.into_flash().read(0, &mut record).unwrap();
+    assert_eq!(record, GOLDEN_SLIP_RECORD);
+    let mut store = ParamStore::new(flash_with(&GOLDEN_SLIP_RECORD)).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_slip_params(), sequence: 1 }));
 }
 
 #[test]
@@ -298,6 +403,37 @@ fn a_record_without_the_format_byte_reads_as_format_1() {
     assert_eq!(store.slots()[0], Ok(Stored { params: golden_params(), sequence: 1 }));
 }
 
+#[test]
+fn format_1_records_load_as_the_genetic_kind_and_the_next_commit_writes_format_2() {
+    let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD)).unwrap();
+    let loaded = store.load().unwrap();
+    assert_eq!(loaded, Stored { params: golden_params(), sequence: 1 });
+    assert!(matches!(loaded.params.model, JointModel::Genetic(_)));
+    // A micro-slip set goes to slot 1 in format 2; the format-1 record stays the fallback.
+    assert_eq!(store.save(&golden_slip_params()), Ok(2));
+    let mut flash = store.into_flash();
+    let mut header = [0u8; HEADER_LEN];
+    flash.read(2048, &mut header).unwrap();
+    assert_eq!(header[FORMAT_AT], RECORD_FORMAT);
+    let mut store = ParamStore::new(flash).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_slip_params(), sequence: 2 }));
+    assert_eq!(store.slots()[0], Ok(Stored { params: golden_params(), sequence: 1 }));
+    // Either kind, power lost anywhere in the commit: the old or the new set (below, generic).
+}
+
+#[test]
+fn the_largest_record_fits_its_buffer() {
+    // A micro-slip set with a three-byte model version: 100 bytes of payload.
+    let mut widest = golden_slip_params();
+    widest.model_version = u16::MAX;
+    let mut payload = [0u8; MAX_PAYLOAD_LEN];
+    let len = postcard::to_slice(&widest, &mut payload).unwrap().len();
+    assert_eq!(len, 100);
+    assert!(RECORD_LEN >= (HEADER_LEN + len).div_ceil(ALIGN) * ALIGN + ALIGN);
+    // Two records fit the smallest flash the store accepts (two 1 KiB slots).
+    const { assert!(RECORD_LEN <= 1024) };
+}
+
 /// `record` with its format byte set to `format` and its CRC recomputed: valid but for that.
 fn with_format(record: [u8; 64], format: u8) -> [u8; 64] {
     let mut record = record;
@@ -309,9 +445,9 @@ fn with_format(record: [u8; 64], format: u8) -> [u8; 64] {
 
 #[test]
 fn a_record_of_an_unknown_format_is_ignored() {
-    assert_eq!(with_format(GOLDEN_RECORD, RECORD_FORMAT), GOLDEN_RECORD);
+    assert_eq!(with_format(GOLDEN_RECORD, LEGACY_FORMAT), GOLDEN_RECORD);
     assert_eq!(with_format(GOLDEN_RECORD, 0xFF), LEGACY_RECORD);
-    for format in [0u8, 2, 0x7F, 0xFE] {
+    for format in [0u8, 3, 0x7F, 0xFE] {
         let newer = with_format(GOLDEN_RECORD, format);
         let mut store = ParamStore::new(flash_with(&newer)).unwrap();
         assert_eq!(store.slots()[0], Err(SlotFault::UnknownFormat(format)));
@@ -319,7 +455,7 @@ fn a_record_of_an_unknown_format_is_ignored() {
 
         // Next to a valid older record in slot 1, the older one is used.
         let mut flash = flash_with(&newer);
-        let mut older = with_format(GOLDEN_RECORD, RECORD_FORMAT);
+        let mut older = with_format(GOLDEN_RECORD, LEGACY_FORMAT);
         older[4] = 0; // sequence 0, below the unknown record's 1
         let crc = CRC.checksum(&older[..HEADER_LEN + 37]);
         older[56..60].copy_from_slice(&crc.to_le_bytes());

@@ -1,0 +1,70 @@
+//! `swg-host predict`: run fitted parameters along a recording from rest.
+use super::InputOptions;
+use anyhow::{Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+use swg_host::input::read_recording;
+use swg_host::predict::predict;
+use swg_host::report::output::write_atomically;
+use swg_host::report::params::read_model;
+use swg_host::report::predict::prediction_csv;
+
+#[derive(Args)]
+pub struct PredictArgs {
+    /// Parameter file, as `swg-host fit --out` writes it.
+    params: PathBuf,
+    /// Bench recording (`# swg-recording v1`) whose deflection the model follows.
+    recording: PathBuf,
+    /// Write the prediction (time_s,deflection_rad,torque_nm,stiffness_nm_per_rad) to this CSV file.
+    #[arg(long, value_name = "PRED.csv")]
+    out: Option<PathBuf>,
+    /// Print the summary (n, rss, rms, max_step_nm, band_rad) as JSON.
+    #[arg(long)]
+    json: bool,
+    /// Smallest reversal the model follows, rad (default: 3× the recording's deflection noise).
+    #[arg(long, value_name = "RAD")]
+    band: Option<f64>,
+    #[command(flatten)]
+    input_options: InputOptions,
+}
+
+pub fn run(args: PredictArgs) -> Result<()> {
+    let model = read_model(&args.params)?;
+    let recording = read_recording(&args.recording, args.input_options.ratio)?;
+    if let Some(out) = &args.out {
+        if [&args.params, &args.recording].into_iter().any(|input| same_file(out, input)) {
+            anyhow::bail!("--out {}: that is an input of this command; name another file", out.display());
+        }
+    }
+    let prediction = predict(&model, &recording, args.band).with_context(|| args.recording.display().to_string())?;
+    let summary = prediction.summary(&recording.torque);
+    let csv = args.out.as_ref().map(|_| prediction_csv(&prediction)).transpose()?;
+    if let (Some(out), Some(csv)) = (&args.out, csv) {
+        write_atomically(out, &csv).with_context(|| format!("writing {}", out.display()))?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!(
+            "{}: {} samples predicted from rest with {} (reversal band {:.3e} rad)",
+            args.recording.display(),
+            summary.n,
+            args.params.display(),
+            summary.band_rad
+        );
+        println!("  against the recorded torque: RSS {:.5} (N·m)², RMS {:.4} N·m", summary.rss, summary.rms);
+        println!("  largest change of the predicted torque between samples: {:.4} N·m", summary.max_step_nm);
+        if let Some(out) = &args.out {
+            println!("wrote {}", out.display());
+        }
+    }
+    Ok(())
+}
+
+/// Whether two paths name the same file (an output must never replace an input).
+fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}

@@ -1,0 +1,176 @@
+//! Whether structure remains after the accepted findings, and whether it is the baseline's
+//! form — the shape of the genetic loop — rather than a missing effect: the micro-slip model
+//! (rate-independent hysteresis with memory, `fit --model micro-slip`) is fitted to the same
+//! recording, and when it leaves far less than the genetic model with every accepted effect,
+//! the shape is named instead of the effects that stood in for it. The form must pass what an
+//! effect must: the information criterion drops by more than [`MIN_BIC_DROP`] for its extra
+//! parameters, it explains at least [`MIN_EXPLAINED`] of the weighted residual, and it does
+//! better on the last quarter of the recording, held out of both fits.
+use super::effects::Effect;
+use super::extended::ExtendedFit;
+use super::observed::Observed;
+use super::{MIN_BIC_DROP, MIN_EXPLAINED};
+use crate::fit::motion::{fit_micro_slip, micro_slip_with_columns, Motion};
+use crate::gear::reversal_band;
+use serde::Serialize;
+
+/// Structure remains when the final residual's RMS exceeds this many times the noise's.
+pub const STRUCTURE_FACTOR: f64 = 2.0;
+
+/// The baseline's form is what the recording disagrees with.
+#[derive(Clone, Debug, Serialize)]
+pub struct ModelForm {
+    /// The model kind that fits: `micro-slip`.
+    pub model: &'static str,
+    pub words: String,
+    /// Unweighted RSS, (N·m)², of the genetic model with the effects tried, and of this form.
+    pub rss_before: f64,
+    pub rss_after: f64,
+    /// RMS, N·m, likewise, and what the noise alone would leave.
+    pub rms_before: f64,
+    pub rms_after: f64,
+    pub noise_rms: f64,
+    /// RMS on the last quarter of the recording of each, fitted without it, N·m.
+    pub held_out_before: Option<f64>,
+    pub held_out_after: Option<f64>,
+}
+
+/// Structure that no effect of the vocabulary and no model kind explains.
+#[derive(Clone, Debug, Serialize)]
+pub struct Unexplained {
+    pub words: String,
+    /// RMS of the final residual and of the noise alone, N·m.
+    pub rms: f64,
+    pub noise_rms: f64,
+}
+
+/// What the final residual says.
+#[derive(Clone, Debug)]
+pub enum Structure {
+    /// Within [`STRUCTURE_FACTOR`] of the noise, or nothing better found.
+    Noise,
+    /// The micro-slip form fits better; `kept` are the accepted effects that still pass on top
+    /// of it (deflection effects, which the form cannot take as columns, are kept as they are).
+    Form {
+        form: ModelForm,
+        kept: Vec<Effect>,
+    },
+    Unexplained(Unexplained),
+}
+
+/// The torque column of an effect that adds torque (`None` for the deflection effects).
+fn torque_column(observed: &Observed, effect: Effect) -> Option<Vec<f64>> {
+    let d = &observed.data;
+    let n = d.theta.len();
+    match effect {
+        Effect::TorqueOffset => Some(vec![1.0; n]),
+        Effect::CoulombFriction => {
+            Some(d.direction.iter().map(|dir| if *dir == model_core::Direction::Rising { 1.0 } else { -1.0 }).collect())
+        }
+        Effect::ViscousDamping => observed.rate.clone(),
+        Effect::ThermalDrift => observed.warming.as_ref().map(|w| w.iter().zip(&d.theta).map(|(w, t)| w * t).collect()),
+        Effect::Backlash | Effect::KinematicError => None,
+    }
+}
+
+/// Judges the final residual (`final_residuals`, every sample) against the noise that the
+/// weights stand for (1/w is each sample's variance).
+pub fn judge(
+    observed: &Observed,
+    weights: &[f64],
+    final_fit: &ExtendedFit,
+    final_residuals: &[f64],
+    held_out_final: Option<f64>,
+) -> Structure {
+    let Some(noise) = observed.noise else { return Structure::Noise };
+    let n = final_residuals.len();
+    let noise_rms = (weights.iter().map(|w| 1.0 / w).sum::<f64>() / n as f64).sqrt();
+    let rss: f64 = final_residuals.iter().map(|r| r * r).sum();
+    let rms = (rss / n as f64).sqrt();
+    let data = &observed.data;
+    let band = reversal_band(noise.deflection_rad);
+    let motion = |training| Motion { theta: &data.theta, torque: &data.torque, training, noise: Some(noise), band };
+    let all = motion(n);
+    // Weighted χ² in the noise's units as the search measures them.
+    let chi2: f64 = final_residuals.iter().zip(weights).map(|(r, w)| w * r * r).sum();
+    let variance = chi2 / (n as f64 - final_fit.degrees_of_freedom() as f64).max(1.0);
+    let ln_n = (n as f64).ln();
+    let columns: Vec<(Effect, Vec<f64>)> =
+        final_fit.active.iter().filter_map(|&e| torque_column(observed, e).map(|c| (e, c))).collect();
+    let with = |skip: Option<Effect>| {
+        let extra: Vec<&[f64]> = columns.iter().filter(|(e, _)| Some(*e) != skip).map(|(_, c)| c.as_slice()).collect();
+        micro_slip_with_columns(&all, weights, &extra).ok()
+    };
+    let Some((_, form_chi2)) = with(None) else { return Structure::Noise };
+    // Each torque effect must still pass on top of the form.
+    let kept: Vec<Effect> = final_fit
+        .active
+        .iter()
+        .copied()
+        .filter(|&effect| match columns.iter().find(|(e, _)| *e == effect) {
+            None => true,
+            Some(_) => with(Some(effect)).is_some_and(|(_, without)| {
+                let drop = without - form_chi2;
+                drop / variance - ln_n > MIN_BIC_DROP && drop / without >= MIN_EXPLAINED
+            }),
+        })
+        .collect();
+    let kept_columns: Vec<&[f64]> =
+        columns.iter().filter(|(e, _)| kept.contains(e)).map(|(_, c)| c.as_slice()).collect();
+    let Ok((form_torque, form_chi2)) = micro_slip_with_columns(&all, weights, &kept_columns) else {
+        return Structure::Noise;
+    };
+    let form_rss: f64 = form_torque.iter().zip(&data.torque).map(|(p, t)| (t - p).powi(2)).sum();
+    let form_rms = (form_rss / n as f64).sqrt();
+    let held_out = (!observed.held_out.is_empty())
+        .then(|| fit_micro_slip(&motion(observed.training.len())).ok().and_then(|f| f.held_out_rms))
+        .flatten();
+    let extra_parameters =
+        (3 + crate::gear::SLIP_ELEMENTS + kept_columns.len()).saturating_sub(final_fit.degrees_of_freedom()) as f64;
+    let delta_bic = (chi2 - form_chi2) / variance - extra_parameters * ln_n;
+    let explained = (chi2 - form_chi2) / chi2;
+    let held_out_better = held_out_final.zip(held_out).is_none_or(|(genetic, slip)| slip < genetic);
+    let effects = if final_fit.active.is_empty() {
+        "the genetic model".to_string()
+    } else {
+        format!("the genetic model with {}", final_fit.active.iter().map(|e| e.name()).collect::<Vec<_>>().join(" + "))
+    };
+    if delta_bic > MIN_BIC_DROP && explained >= MIN_EXPLAINED && held_out_better {
+        let kept_words = if kept.is_empty() {
+            String::new()
+        } else {
+            format!(" with {}", kept.iter().map(|e| e.name()).collect::<Vec<_>>().join(" + "))
+        };
+        Structure::Form {
+            form: ModelForm {
+                model: crate::gear::MICRO_SLIP_NAME,
+                words: format!(
+                    "rate-independent hysteresis with memory: the genetic loop's shape does not match; the \
+                     micro-slip model{kept_words} fits to RMS {form_rms:.4} N·m against {rms:.4} N·m for {effects} \
+                     (the noise alone leaves {noise_rms:.4} N·m)"
+                ),
+                rss_before: rss,
+                rss_after: form_rss,
+                rms_before: rms,
+                rms_after: form_rms,
+                noise_rms,
+                held_out_before: held_out_final,
+                held_out_after: held_out,
+            },
+            kept,
+        }
+    } else if rms > STRUCTURE_FACTOR * noise_rms {
+        Structure::Unexplained(Unexplained {
+            words: format!(
+                "structure remains that no effect in the vocabulary explains: {effects} leaves RMS {rms:.4} N·m, \
+                 {:.1}× the {noise_rms:.4} N·m the noise alone would, and the micro-slip model does no better \
+                 (RMS {form_rms:.4} N·m)",
+                rms / noise_rms
+            ),
+            rms,
+            noise_rms,
+        })
+    } else {
+        Structure::Noise
+    }
+}

@@ -1,0 +1,375 @@
+//! Fits of the stateful models to a recording of any motion: the genetic kind with Madelung's
+//! rules and the micro-slip kind. Both are run along the whole recording from rest, as
+//! `predict` and the joint run them; the least squares count only the training samples.
+//!
+//! - genetic: for a fixed r the model is linear in c1, c2, c3 and k (h = w·k on every branch
+//!   of half-width w), so each r is an exact 4-unknown solve on the columns θ, θ³, θ⁵ and the
+//!   hysteretic part run with k = 1; r is searched by the swarm on a strided copy of the motion
+//!   and polished by Brent on all of it.
+//! - micro-slip: linear in (c1, c2, c3, k_1 … k_M) on a fixed log grid of slip deflections, so
+//!   one non-negative least-squares solve (k_i ≥ 0) identifies it exactly.
+//!
+//! With a noise model, residuals are weighted by their total noise 1/(σ_T² + σ_θ²·K²) with K
+//! the model's stiffness, refitted twice, as the loop fit does.
+use super::{FitError, FitOptions, R_LIMIT};
+use crate::gear::{run, GearModel, SLIP_ELEMENTS};
+use crate::numeric::linalg::Cholesky;
+use crate::numeric::nnls::nnls_normal;
+use crate::numeric::optimize::{brent, pso, PsoOptions};
+use crate::prepare::NoiseModel;
+use model_core::memory::{slip_grid, GeneticMemory, Hysteretic, SlipElements, SlipParams};
+use model_core::{Identifiable, Model, Params};
+
+/// The swarm runs the genetic kind on at most this many samples of the motion.
+const SWARM_SAMPLES: usize = 4096;
+/// Reweighting rounds for the total-noise weights.
+const REWEIGHTINGS: usize = 2;
+/// The smallest slip deflection of the micro-slip grid, in deflection-noise standard
+/// deviations: elements that slip inside the noise cannot be told from it.
+const SLIP_MIN_IN_NOISE_SIGMAS: f64 = 3.0;
+
+/// A recording's motion and torque, ready for the stateful fits.
+#[derive(Clone, Debug)]
+pub struct Motion<'a> {
+    pub theta: &'a [f64],
+    pub torque: &'a [f64],
+    /// The samples the least squares count: the first `training` of them.
+    pub training: usize,
+    pub noise: Option<NoiseModel>,
+    /// The smallest reversal the genetic kind follows, rad.
+    pub band: f64,
+}
+
+/// A stateful model fitted to a motion, with its errors.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MotionFit {
+    pub model: GearModel,
+    /// The samples fitted (the training ones).
+    pub n: usize,
+    /// Unweighted RSS over the training samples, (N·m)².
+    pub rss: f64,
+    /// Unweighted RMS over the training samples, N·m.
+    pub rms: f64,
+    /// RMS over the samples after the training ones, N·m (none when all were trained on).
+    pub held_out_rms: Option<f64>,
+    /// Evaluations of the model along the whole motion (swarm and polish).
+    pub evaluations: usize,
+    /// The model's torque along the whole motion from rest, N·m.
+    pub torque: Vec<f64>,
+}
+
+impl Motion<'_> {
+    fn check(&self) -> Result<(), FitError> {
+        if self.training < super::MIN_POINTS {
+            return Err(FitError::TooFewPoints { n: self.training, need: super::MIN_POINTS });
+        }
+        if self.theta[..self.training].iter().all(|&t| t == 0.0) {
+            return Err(FitError::NoDeflection);
+        }
+        Ok(())
+    }
+
+    /// The largest |θ| over the training samples: the scale of the polynomial's columns.
+    fn scale(&self) -> f64 {
+        self.theta[..self.training].iter().fold(0.0, |m, t| t.abs().max(m))
+    }
+
+    /// Errors of `model` run along the whole motion.
+    fn score(&self, model: GearModel, evaluations: usize) -> Result<MotionFit, FitError> {
+        let predicted = run(&model, self.theta, self.band).map_err(|(_, e)| FitError::Model(e))?;
+        let squares: Vec<f64> = predicted.iter().zip(self.torque).map(|(p, t)| (t - p.torque).powi(2)).collect();
+        let rss: f64 = squares[..self.training].iter().sum();
+        let held = &squares[self.training..];
+        Ok(MotionFit {
+            model,
+            n: self.training,
+            rss,
+            rms: (rss / self.training as f64).sqrt(),
+            held_out_rms: (!held.is_empty()).then(|| (held.iter().sum::<f64>() / held.len() as f64).sqrt()),
+            evaluations,
+            torque: predicted.iter().map(|e| e.torque).collect(),
+        })
+    }
+
+    /// Total-noise weights of `model` on the training samples, normalised to a mean of 1.
+    fn weights(&self, model: &GearModel, noise: &NoiseModel) -> Result<Vec<f64>, FitError> {
+        let predicted = run(model, &self.theta[..self.training], self.band).map_err(|(_, e)| FitError::Model(e))?;
+        let (var_t, var_theta) = (noise.torque_nm.powi(2), noise.deflection_rad.powi(2));
+        let mut weights: Vec<f64> = predicted
+            .iter()
+            .map(|e| 1.0 / (var_t + var_theta * e.stiffness * e.stiffness).max(f64::MIN_POSITIVE))
+            .collect();
+        let mean = weights.iter().sum::<f64>() / weights.len() as f64;
+        weights.iter_mut().for_each(|w| *w /= mean);
+        Ok(weights)
+    }
+}
+
+/// Normal equations Σ w·x·xᵀ and Σ w·x·T of rows `columns(i)` over the training samples.
+fn normal_equations(
+    n: usize,
+    training: usize,
+    weights: Option<&[f64]>,
+    torque: &[f64],
+    mut row: impl FnMut(usize, &mut [f64]),
+) -> (Vec<f64>, Vec<f64>) {
+    let mut gram = vec![0.0; n * n];
+    let mut rhs = vec![0.0; n];
+    let mut x = vec![0.0; n];
+    for i in 0..training {
+        row(i, &mut x);
+        let w = weights.map_or(1.0, |w| w[i]);
+        for a in 0..n {
+            let wa = w * x[a];
+            rhs[a] += wa * torque[i];
+            for b in a..n {
+                gram[a * n + b] += wa * x[b];
+            }
+        }
+    }
+    for a in 0..n {
+        for b in 0..a {
+            gram[a * n + b] = gram[b * n + a];
+        }
+    }
+    (gram, rhs)
+}
+
+/// The genetic model with k = 1 and no spring at decay ratio r: its hysteretic part along
+/// `theta` is the fit's fourth column.
+fn unit_hysteresis(theta: &[f64], r: f64, band: f64) -> Result<Vec<f64>, FitError> {
+    let unit = Params { c1: 0.0, c2: 0.0, c3: 0.0, alpha: 1.0 + r * r, beta: r, omega: 1.0 };
+    let mut memory = GeneticMemory::<f64, { crate::gear::TURNING_POINTS }>::new(Model::new(unit)?, band);
+    theta.iter().map(|&t| memory.step(t).map(|e| e.torque).map_err(FitError::Model)).collect()
+}
+
+/// The exact least-squares genetic parameters at r, and their weighted RSS.
+fn genetic_at(
+    theta: &[f64],
+    torque: &[f64],
+    training: usize,
+    weights: Option<&[f64]>,
+    scale: f64,
+    r: f64,
+    band: f64,
+) -> Result<(Params<f64>, f64), FitError> {
+    let hysteresis = unit_hysteresis(theta, r, band)?;
+    let (gram, rhs) = normal_equations(4, training.min(theta.len()), weights, torque, |i, x| {
+        let u = theta[i] / scale;
+        x.copy_from_slice(&[u, u * u * u, u * u * u * u * u, hysteresis[i]]);
+    });
+    let coef = Cholesky::new(4, &gram).ok_or(FitError::Degenerate)?.solve(&rhs);
+    if !coef.iter().all(|c| c.is_finite()) {
+        return Err(FitError::Degenerate);
+    }
+    let tt: f64 = (0..training.min(theta.len())).map(|i| weights.map_or(1.0, |w| w[i]) * torque[i] * torque[i]).sum();
+    let explained: f64 = coef.iter().zip(&rhs).map(|(c, r)| c * r).sum();
+    // Canonical point ω = 1 at A = 1: α = k·(1 + r²), so h = k per rad of half-width.
+    let params = Params::from_identifiable(
+        coef[0] / scale,
+        coef[1] / scale.powi(3),
+        coef[2] / scale.powi(5),
+        Identifiable { h: coef[3], r },
+        1.0,
+    )?;
+    Ok((params, (tt - explained).max(0.0)))
+}
+
+/// Fits the genetic kind with Madelung's rules to `motion`.
+pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {
+    motion.check()?;
+    let scale = motion.scale();
+    let s_limit = R_LIMIT.asinh();
+    // The swarm on a strided copy: a coarser motion with the same reversals, to within a stride.
+    let stride = motion.training.div_ceil(SWARM_SAMPLES).max(1);
+    let coarse_theta: Vec<f64> = motion.theta[..motion.training].iter().step_by(stride).copied().collect();
+    let coarse_torque: Vec<f64> = motion.torque[..motion.training].iter().step_by(stride).copied().collect();
+    let coarse = |s: f64| {
+        genetic_at(&coarse_theta, &coarse_torque, coarse_theta.len(), None, scale, s.sinh(), motion.band)
+            .map_or(f64::INFINITY, |(_, rss)| rss)
+    };
+    let swarm = pso(
+        |x| coarse(x[0]),
+        &[(-s_limit, s_limit)],
+        &PsoOptions {
+            particles: options.particles,
+            max_iterations: options.max_iterations,
+            stall_iterations: 12,
+            seed: options.seed,
+        },
+        |_, _| {},
+    );
+    let mut evaluations = swarm.evaluations;
+    let mut s = swarm.best[0];
+    let mut half_width = (3.0 * swarm.spread[0]).clamp(0.02, 0.1);
+    let mut weights: Option<Vec<f64>> = None;
+    let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
+    let mut params = None;
+    for _ in 0..rounds {
+        if let (Some(noise), Some(params)) = (&motion.noise, params) {
+            weights = Some(motion.weights(&GearModel::Genetic(params), noise)?);
+        }
+        let objective = |s: f64| {
+            genetic_at(motion.theta, motion.torque, motion.training, weights.as_deref(), scale, s.sinh(), motion.band)
+                .map_or(f64::INFINITY, |(_, rss)| rss)
+        };
+        let (lo, hi) = ((s - half_width).max(-s_limit), (s + half_width).min(s_limit));
+        let (polished, _, used) = brent(objective, lo, hi, 1e-8);
+        evaluations += used;
+        s = polished;
+        half_width = 0.05;
+        params = Some(
+            genetic_at(motion.theta, motion.torque, motion.training, weights.as_deref(), scale, s.sinh(), motion.band)?
+                .0,
+        );
+    }
+    let params = params.ok_or(FitError::Degenerate)?;
+    motion.score(GearModel::Genetic(params), evaluations)
+}
+
+/// The slip grid for `motion`: from 3σ of the deflection noise (at least 10⁻³ of the range) to
+/// half the range of the deflection, rad.
+pub fn slip_range(motion: &Motion) -> (f64, f64) {
+    let theta = &motion.theta[..motion.training];
+    let (lo, hi) = theta.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| (lo.min(t), hi.max(t)));
+    let half_range = (hi - lo) / 2.0;
+    let noise = motion.noise.map_or(0.0, |n| n.deflection_rad);
+    ((SLIP_MIN_IN_NOISE_SIGMAS * noise).max(1e-3 * half_range), half_range)
+}
+
+/// Each element's unit-stiffness torque e_i along the training samples: the columns of the k_i.
+fn element_columns(motion: &Motion, slip_min: f64, slip_max: f64) -> Result<Vec<[f64; SLIP_ELEMENTS]>, FitError> {
+    let mut elements = SlipElements::<f64, SLIP_ELEMENTS>::new(slip_grid(slip_min, slip_max)?)?;
+    motion.theta[..motion.training]
+        .iter()
+        .map(|&theta| {
+            elements.step(theta)?;
+            Ok(*elements.elastic())
+        })
+        .collect()
+}
+
+/// The micro-slip form with further free columns beside it (the diagnosis' torque effects),
+/// in one least-squares solve with the given weights on the training samples: its torque at
+/// each of them and the weighted residual sum of squares.
+pub fn micro_slip_with_columns(
+    motion: &Motion,
+    weights: &[f64],
+    extra: &[&[f64]],
+) -> Result<(Vec<f64>, f64), FitError> {
+    motion.check()?;
+    let scale = motion.scale();
+    let (slip_min, slip_max) = slip_range(motion);
+    let elastic = element_columns(motion, slip_min, slip_max)?;
+    let n = 3 + SLIP_ELEMENTS + extra.len();
+    let nonnegative: Vec<bool> = (0..n).map(|j| (3..3 + SLIP_ELEMENTS).contains(&j)).collect();
+    let row = |i: usize, x: &mut [f64]| {
+        let u = motion.theta[i] / scale;
+        x[..3].copy_from_slice(&[u, u * u * u, u * u * u * u * u]);
+        for (value, e) in x[3..3 + SLIP_ELEMENTS].iter_mut().zip(&elastic[i]) {
+            *value = e / scale;
+        }
+        for (value, column) in x[3 + SLIP_ELEMENTS..].iter_mut().zip(extra) {
+            *value = column[i];
+        }
+    };
+    let (gram, rhs) = normal_equations(n, motion.training, Some(weights), motion.torque, row);
+    let coef = nnls_normal(&gram, &rhs, &nonnegative).ok_or(FitError::Degenerate)?;
+    let mut x = vec![0.0; n];
+    let mut chi2 = 0.0;
+    let predicted = (0..motion.training)
+        .map(|i| {
+            row(i, &mut x);
+            let p: f64 = x.iter().zip(&coef).map(|(a, b)| a * b).sum();
+            chi2 += weights[i] * (motion.torque[i] - p).powi(2);
+            p
+        })
+        .collect();
+    Ok((predicted, chi2))
+}
+
+/// Fits the micro-slip kind to `motion`.
+pub fn fit_micro_slip(motion: &Motion) -> Result<MotionFit, FitError> {
+    motion.check()?;
+    let scale = motion.scale();
+    let (slip_min, slip_max) = slip_range(motion);
+    let elastic = element_columns(motion, slip_min, slip_max)?;
+    const N: usize = 3 + SLIP_ELEMENTS;
+    let nonnegative: Vec<bool> = (0..N).map(|j| j >= 3).collect();
+    let solve = |weights: Option<&[f64]>| -> Result<SlipParams<f64, SLIP_ELEMENTS>, FitError> {
+        let (gram, rhs) = normal_equations(N, motion.training, weights, motion.torque, |i, x| {
+            let u = motion.theta[i] / scale;
+            x[..3].copy_from_slice(&[u, u * u * u, u * u * u * u * u]);
+            for (value, e) in x[3..].iter_mut().zip(&elastic[i]) {
+                // e_i/S: the element columns on the scale of the polynomial's.
+                *value = e / scale;
+            }
+        });
+        let coef = nnls_normal(&gram, &rhs, &nonnegative).ok_or(FitError::Degenerate)?;
+        let mut stiffness = [0.0; SLIP_ELEMENTS];
+        for (k, c) in stiffness.iter_mut().zip(&coef[3..]) {
+            *k = c / scale;
+        }
+        Ok(SlipParams {
+            c1: coef[0] / scale,
+            c2: coef[1] / scale.powi(3),
+            c3: coef[2] / scale.powi(5),
+            stiffness,
+            slip_min,
+            slip_max,
+        })
+    };
+    let mut params = solve(None)?;
+    if let Some(noise) = &motion.noise {
+        for _ in 0..REWEIGHTINGS {
+            let weights = motion.weights(&GearModel::MicroSlip(params), noise)?;
+            params = solve(Some(&weights))?;
+        }
+    }
+    motion.score(GearModel::MicroSlip(params), 1 + REWEIGHTINGS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A motion of nested reversals from rest: a big sine with a smaller, faster one on top.
+    fn nested(n: usize, amplitude: f64) -> Vec<f64> {
+        (0..n)
+            .map(|i| {
+                let phase = std::f64::consts::TAU * 3.0 * i as f64 / n as f64;
+                amplitude * (0.75 * phase.sin() + 0.25 * (9.0 * phase).sin())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn micro_slip_recovers_its_own_gear_exactly() {
+        let theta = nested(6000, 1.2e-3);
+        let motion_noise = NoiseModel { torque_nm: 0.0, deflection_rad: 0.0 };
+        let probe = Motion { theta: &theta, torque: &[], training: theta.len(), noise: Some(motion_noise), band: 0.0 };
+        let (slip_min, slip_max) = slip_range(&probe);
+        let mut stiffness = [0.0; SLIP_ELEMENTS];
+        for (i, k) in stiffness.iter_mut().enumerate() {
+            *k = if i % 3 == 0 { 400.0 + 50.0 * i as f64 } else { 0.0 };
+        }
+        let truth = SlipParams { c1: 8000.0, c2: 1.0e10, c3: 0.0, stiffness, slip_min, slip_max };
+        let torque: Vec<f64> =
+            run(&GearModel::MicroSlip(truth), &theta, 0.0).unwrap().iter().map(|e| e.torque).collect();
+        let motion = Motion { theta: &theta, torque: &torque, training: theta.len(), noise: None, band: 0.0 };
+        let fitted = fit_micro_slip(&motion).unwrap();
+        let scale = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+        assert!(fitted.rms < 1e-6 * scale, "RMS {} of a peak {scale}: {:?}", fitted.rms, fitted.model);
+    }
+
+    #[test]
+    fn genetic_recovers_its_own_gear_on_nested_motion() {
+        let theta = nested(6000, 1.2e-3);
+        let truth = Params::from_identifiable(2.2e4, 4.0e9, 0.0, Identifiable { h: 1.5, r: 1.2 }, 1.2e-3).unwrap();
+        let torque: Vec<f64> = run(&GearModel::Genetic(truth), &theta, 0.0).unwrap().iter().map(|e| e.torque).collect();
+        let motion = Motion { theta: &theta, torque: &torque, training: theta.len(), noise: None, band: 0.0 };
+        let fitted = fit_genetic(&motion, &FitOptions::default()).unwrap();
+        let scale = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+        assert!(fitted.rms < 1e-6 * scale, "RMS {} of a peak {scale}: {:?}", fitted.rms, fitted.model);
+    }
+}

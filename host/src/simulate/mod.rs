@@ -1,0 +1,444 @@
+//! Synthetic bench recordings: a deflection motion (today's sine, or one of [`Motion`]'s)
+//! played through a gear's truth physics (the params file's genetic model, or one of
+//! [`Physics`]'s that the model is not), plus sensor noise, quantised input/output encoders,
+//! and the physical effects of [`crate::diagnose::effects`] on request.
+//!
+//! [`simulate`] plays [`Simulation`] as it always has (sine, genetic); [`simulate_experiment`]
+//! plays an [`Experiment`], a simulation with its motion and physics.
+pub mod motion;
+pub mod physics;
+
+use crate::diagnose::effects::{backlash, kinematic_error, Effect, EffectValue};
+use crate::input::{deflection, Angles, Recording};
+use model_core::{Direction, GeneticMemory, Hysteretic, Model, Params};
+pub use motion::{read_trajectory, Motion, Trajectory};
+use motion::{Played, Timing};
+pub use physics::{read_physics_params, BoucWen, MicroSlip, Physics, PhysicsParamError};
+use physics::{BoucWenGear, Gear, MicroSlipGear};
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use std::f64::consts::TAU;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Simulation {
+    pub params: Params<f64>,
+    /// Deflection amplitude A, rad.
+    pub amplitude_rad: f64,
+    /// Excitation frequencies, played one after the other, Hz.
+    pub frequencies_hz: Vec<f64>,
+    /// Whole cycles at each frequency.
+    pub cycles: u32,
+    pub sample_rate_hz: f64,
+    /// Gear reduction ratio N.
+    pub ratio: f64,
+    /// Input (wave generator) speed, rad/s; 0 for a locked input.
+    pub input_speed_rad_s: f64,
+    /// Encoder resolutions, bits per revolution; `None` for exact angles.
+    pub input_bits: Option<u32>,
+    pub output_bits: Option<u32>,
+    /// Standard deviation of the torque sensor's noise, N·m.
+    pub torque_noise_nm: f64,
+    /// Temperature at the start, °C, and its rise, K/s; `None` for no temperature column.
+    pub temperature: Option<(f64, f64)>,
+    /// Physics the model leaves out, added to what is written.
+    pub effects: Vec<EffectValue>,
+    pub seed: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimulateError {
+    #[error("invalid parameters: {0}")]
+    Params(#[from] model_core::Error),
+    #[error("{name} must be {expected}, got {value}")]
+    OutOfRange { name: &'static str, expected: &'static str, value: f64 },
+    #[error("thermal_drift needs a temperature column: add --temperature (and --temperature-rise)")]
+    NeedsTemperature,
+    #[error("the recording would have {0} samples; at most {MAX_SAMPLES} are written")]
+    TooLong(f64),
+    #[error(transparent)]
+    PhysicsParam(#[from] PhysicsParamError),
+}
+
+/// Turning points the genetic model with memory keeps (deeper nested excursions retrace).
+pub const GENETIC_MEMORY_DEPTH: usize = 64;
+
+/// A simulation with the motion it plays and the gear's truth physics: what
+/// `swg-host simulate` runs. From a [`Simulation`] alone: today's sine through the genetic model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Experiment {
+    pub simulation: Simulation,
+    pub motion: Motion,
+    pub physics: Physics,
+}
+
+impl From<Simulation> for Experiment {
+    fn from(simulation: Simulation) -> Self {
+        Experiment { simulation, motion: Motion::Sine, physics: Physics::Genetic }
+    }
+}
+
+pub const MAX_SAMPLES: f64 = 50e6;
+
+fn check(name: &'static str, value: f64, ok: bool, expected: &'static str) -> Result<(), SimulateError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(SimulateError::OutOfRange { name, expected, value })
+    }
+}
+
+impl Simulation {
+    fn validate(&self) -> Result<(), SimulateError> {
+        check("amplitude", self.amplitude_rad, self.amplitude_rad > 0.0, "> 0 rad")?;
+        check("sample rate", self.sample_rate_hz, self.sample_rate_hz > 0.0, "> 0 Hz")?;
+        check("ratio", self.ratio, self.ratio > 0.0, "> 0")?;
+        check("input speed", self.input_speed_rad_s, true, "finite")?;
+        check("torque noise", self.torque_noise_nm, self.torque_noise_nm >= 0.0, ">= 0 N·m")?;
+        check("cycles", self.cycles as f64, self.cycles > 0, "at least 1")?;
+        if self.frequencies_hz.is_empty() {
+            return Err(SimulateError::OutOfRange { name: "frequencies", expected: "at least one", value: 0.0 });
+        }
+        for &f in &self.frequencies_hz {
+            check("frequency", f, f > 0.0, "> 0 Hz")?;
+        }
+        for bits in [self.input_bits, self.output_bits].into_iter().flatten() {
+            check("encoder resolution", bits as f64, (1..=48).contains(&bits), "1 to 48 bits")?;
+        }
+        if let Some((start, rise)) = self.temperature {
+            check("temperature", start, true, "finite")?;
+            check("temperature rise", rise, true, "finite")?;
+        }
+        for e in &self.effects {
+            check("effect value", e.value, true, "finite")?;
+        }
+        if self.effect(Effect::ThermalDrift) != 0.0 && self.temperature.is_none() {
+            return Err(SimulateError::NeedsTemperature);
+        }
+        Ok(())
+    }
+
+    /// The magnitude of `effect` (summed if given twice), 0 when absent.
+    pub fn effect(&self, effect: Effect) -> f64 {
+        self.effects.iter().filter(|e| e.effect == effect).map(|e| e.value).sum()
+    }
+}
+
+/// The recording the simulation describes: today's sine through the params' genetic model.
+pub fn simulate(sim: &Simulation) -> Result<Recording, SimulateError> {
+    run(sim, &Motion::Sine, &Physics::Genetic)
+}
+
+/// The recording of `experiment`: its motion through its physics.
+pub fn simulate_experiment(experiment: &Experiment) -> Result<Recording, SimulateError> {
+    run(&experiment.simulation, &experiment.motion, &experiment.physics)
+}
+
+/// The gear the torque comes from, with its state.
+enum Truth {
+    /// The genetic model on the sine's loop: stateless, the direction picks the branch.
+    Loop(model_core::Loop<f64>),
+    /// The genetic model with Madelung's rules, stepped along the deflection's path from rest.
+    Memory(Box<GeneticMemory<f64, GENETIC_MEMORY_DEPTH>>),
+    /// A host physics with memory, stepped along the deflection's path from rest.
+    Path(Box<dyn Gear>),
+}
+
+fn truth(sim: &Simulation, motion: &Motion, physics: &Physics, width: f64) -> Result<Truth, SimulateError> {
+    Ok(match physics {
+        Physics::Genetic if !matches!(motion, Motion::Sine) => {
+            Truth::Memory(Box::new(GeneticMemory::new(Model::new(sim.params)?, 0.0)))
+        }
+        Physics::Genetic => {
+            check(
+                "backlash",
+                width,
+                (0.0..2.0 * sim.amplitude_rad).contains(&width),
+                "from 0 to below twice the amplitude",
+            )?;
+            // Behind the dead band the elastic loop is narrower by half its width.
+            Truth::Loop(Model::new(sim.params)?.at_amplitude(sim.amplitude_rad - width / 2.0)?)
+        }
+        Physics::BoucWen(params) => Truth::Path(Box::new(BoucWenGear::new(*params)?)),
+        Physics::MicroSlip(params) => Truth::Path(Box::new(MicroSlipGear::new(*params)?)),
+    })
+}
+
+/// sign(v), 0 at 0.
+fn sign(v: f64) -> f64 {
+    if v == 0.0 {
+        0.0
+    } else {
+        v.signum()
+    }
+}
+
+fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording, SimulateError> {
+    sim.validate()?;
+    let width = sim.effect(Effect::Backlash);
+    if !matches!((motion, physics), (Motion::Sine, Physics::Genetic)) {
+        check("backlash", width, width >= 0.0, ">= 0 rad")?;
+    }
+    if let Motion::Biased { bias_rad: Some(level) } | Motion::Hold { load_rad: Some(level) } = motion {
+        check("bias", *level, true, "a finite deflection, rad")?;
+    }
+    let mut truth = truth(sim, motion, physics, width)?;
+    let timing = Timing {
+        amplitude: sim.amplitude_rad,
+        frequencies_hz: &sim.frequencies_hz,
+        cycles: sim.cycles,
+        sample_rate_hz: sim.sample_rate_hz,
+        seed: sim.seed,
+    };
+    let played = Played::new(motion, &timing, MAX_SAMPLES).map_err(SimulateError::TooLong)?;
+    let n = played.len;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(sim.seed);
+    // Phases from their own stream, so that adding an effect leaves the noise unchanged.
+    let mut phase_rng = rand_chacha::ChaCha8Rng::seed_from_u64(sim.seed ^ 0x6b69_6e65_6d61_7469);
+    let kinematic_phases = (phase_rng.random_range(0.0..TAU), phase_rng.random_range(0.0..TAU));
+    let (friction, damping, offset) =
+        (sim.effect(Effect::CoulombFriction), sim.effect(Effect::ViscousDamping), sim.effect(Effect::TorqueOffset));
+    let (kinematic, thermal) = (sim.effect(Effect::KinematicError), sim.effect(Effect::ThermalDrift));
+    let torque_noise = Normal::new(0.0, sim.torque_noise_nm).map_err(|_| SimulateError::OutOfRange {
+        name: "torque noise",
+        expected: ">= 0 N·m",
+        value: sim.torque_noise_nm,
+    })?;
+    let quantise = |angle: f64, bits: Option<u32>| match bits {
+        Some(bits) => {
+            let step = TAU / (1u64 << bits) as f64;
+            (angle / step).round() * step
+        }
+        None => angle,
+    };
+
+    let mut metadata = vec![("source".to_string(), "swg-host simulate".to_string())];
+    match motion {
+        Motion::File(trajectory) => {
+            let peak = trajectory.deflection().iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+            metadata.push(("amplitude_rad".into(), peak.to_string()));
+        }
+        _ => {
+            metadata.push(("amplitude_rad".into(), sim.amplitude_rad.to_string()));
+            metadata.push((
+                "frequencies_hz".into(),
+                sim.frequencies_hz.iter().map(f64::to_string).collect::<Vec<_>>().join(" "),
+            ));
+        }
+    }
+    metadata.push(("seed".into(), sim.seed.to_string()));
+    match motion {
+        Motion::Sine => {}
+        Motion::File(trajectory) => metadata.push(("motion".into(), format!("file {}", trajectory.name()))),
+        _ => metadata.push(("motion".into(), motion.name().into())),
+    }
+    if !matches!(physics, Physics::Genetic) {
+        metadata.push(("physics".into(), physics.name().into()));
+    }
+    let mut rec = Recording {
+        ratio: sim.ratio,
+        metadata,
+        angles: Some(Angles { input: Vec::with_capacity(n), output: Vec::with_capacity(n) }),
+        temperature: sim.temperature.map(|_| Vec::with_capacity(n)),
+        ..Recording::default()
+    };
+    let linear_stiffness = match &truth {
+        Truth::Loop(_) | Truth::Memory(_) => sim.params.c1,
+        Truth::Path(gear) => gear.linear_stiffness(),
+    };
+    for i in 0..n {
+        let motion::Sample { t, x, rate } = played.sample(i);
+        // The bench drives the gear's deflection x; the encoders see x minus the kinematic
+        // error, the teeth see x behind the backlash dead band.
+        let direction = if rate >= 0.0 { Direction::Rising } else { Direction::Falling };
+        let theta_in = sim.input_speed_rad_s * t;
+        let elastic = backlash(x, width);
+        let temperature = sim.temperature.map(|(start, rise)| (start + rise * t, rise * t));
+        let warming = temperature.map_or(0.0, |(_, delta)| delta);
+        let gear_torque = match &mut truth {
+            Truth::Loop(model) => model.torque(elastic, direction)?,
+            Truth::Memory(memory) => memory.step(elastic)?.torque,
+            Truth::Path(gear) => gear.step(elastic),
+        };
+        let torque = gear_torque
+            + linear_stiffness * thermal * warming * elastic
+            + friction * sign(rate)
+            + damping * rate
+            + offset
+            + torque_noise.sample(&mut rng);
+        let measured = x - kinematic_error(kinematic, kinematic_phases, theta_in);
+        let theta_out = theta_in / sim.ratio - measured;
+        let (measured_in, measured_out) = (quantise(theta_in, sim.input_bits), quantise(theta_out, sim.output_bits));
+        rec.time.push(t);
+        if let Some(angles) = rec.angles.as_mut() {
+            angles.input.push(measured_in);
+            angles.output.push(measured_out);
+        }
+        rec.deflection.push(deflection(measured_in, measured_out, sim.ratio));
+        rec.torque.push(torque);
+        if let (Some((celsius, _)), Some(temps)) = (temperature, rec.temperature.as_mut()) {
+            temps.push((celsius * 100.0).round() / 100.0);
+        }
+    }
+    Ok(rec)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SEED_FIT: Params<f64> = Params {
+        c1: 9017.390264630189,
+        c2: 12248781620.661516,
+        c3: -297350209733149.75,
+        alpha: 48.61317264674619,
+        beta: -2.29817742071738,
+        omega: 1.0,
+    };
+
+    fn base() -> Simulation {
+        Simulation {
+            params: SEED_FIT,
+            amplitude_rad: 1.168e-3,
+            frequencies_hz: vec![0.5],
+            cycles: 2,
+            sample_rate_hz: 1000.0,
+            ratio: 50.0,
+            input_speed_rad_s: 0.0,
+            input_bits: None,
+            output_bits: None,
+            torque_noise_nm: 0.0,
+            temperature: None,
+            effects: Vec::new(),
+            seed: 1,
+        }
+    }
+
+    #[test]
+    fn the_memory_model_on_the_loop_is_todays_loop_where_the_peaks_are_sampled() {
+        // At 0.5 Hz and 1 kHz the samples hit ±A exactly: GeneticMemory started on the loop
+        // gives today's torque bit for bit. (Where the samples straddle the peak it reverses at
+        // the sampled extreme instead of ±A, and differs; so `sine` keeps the symmetric rule.)
+        let sim = base();
+        let model = Model::new(sim.params).unwrap();
+        let mut memory: GeneticMemory<f64, 64> =
+            GeneticMemory::on_loop(model, 0.0, sim.amplitude_rad, Direction::Rising).unwrap();
+        let rec = simulate(&sim).unwrap();
+        for i in 0..rec.time.len() {
+            let x = sim.amplitude_rad * (std::f64::consts::TAU * 0.5 * rec.time[i]).sin();
+            assert_eq!(memory.step(x).unwrap().torque, rec.torque[i], "sample {i}");
+        }
+    }
+
+    #[test]
+    fn an_experiment_from_a_simulation_is_the_simulation() {
+        let sim = Simulation { torque_noise_nm: 0.1, input_bits: Some(18), ..base() };
+        assert_eq!(simulate_experiment(&sim.clone().into()).unwrap(), simulate(&sim).unwrap());
+    }
+
+    fn motions() -> Vec<Motion> {
+        let trajectory = Trajectory::new("t", (0..500).map(|i| i as f64 * 0.01).collect(), {
+            (0..500).map(|i| 1e-3 * (i as f64 * 0.05).sin() * (i as f64 * 0.013).cos()).collect()
+        })
+        .unwrap();
+        vec![
+            Motion::Sine,
+            Motion::Biased { bias_rad: None },
+            Motion::Nested,
+            Motion::Random,
+            Motion::Hold { load_rad: Some(-0.5e-3) },
+            Motion::File(trajectory),
+        ]
+    }
+
+    fn physics() -> [Physics; 3] {
+        [Physics::Genetic, Physics::BoucWen(BoucWen::default()), Physics::MicroSlip(MicroSlip::default())]
+    }
+
+    #[test]
+    fn every_motion_runs_through_every_physics_with_every_effect() {
+        let effects = ["backlash=1e-4", "coulomb_friction=0.2", "viscous_damping=0.3", "kinematic_error=2e-6"]
+            .into_iter()
+            .chain(["thermal_drift=0.01", "torque_offset=0.1"])
+            .map(|e| e.parse().unwrap())
+            .collect();
+        let sim = Simulation {
+            input_speed_rad_s: 3.0,
+            input_bits: Some(20),
+            output_bits: Some(20),
+            torque_noise_nm: 0.05,
+            temperature: Some((25.0, 0.2)),
+            effects,
+            ..base()
+        };
+        for motion in motions() {
+            for physics in physics() {
+                let experiment = Experiment { simulation: sim.clone(), motion: motion.clone(), physics };
+                let rec = simulate_experiment(&experiment).unwrap();
+                let expected = if let Motion::File(t) = &motion { t.time().len() } else { rec.time.len() };
+                assert_eq!(rec.time.len(), expected);
+                assert!(rec.torque.iter().chain(&rec.deflection).all(|v| v.is_finite()), "{experiment:?}");
+                let peak = rec.torque.iter().fold(0.0, |m: f64, t| m.max(t.abs()));
+                // (The seed fit's genetic branches overshoot far more than a gear's: r < 0.)
+                assert!(peak > 2.0 && peak < 200.0, "{} {}: peak {peak}", motion.name(), experiment.physics.name());
+            }
+        }
+    }
+
+    /// ∮T dθ over samples `from..to` (trapezoids), of the exact motion's deflection.
+    fn work(rec: &Recording, from: usize, to: usize) -> f64 {
+        (from..to)
+            .map(|i| 0.5 * (rec.torque[i] + rec.torque[i + 1]) * (rec.deflection[i + 1] - rec.deflection[i]))
+            .sum()
+    }
+
+    #[test]
+    fn both_truth_physics_are_passive_on_the_closed_cycles_of_every_periodic_motion() {
+        // 0.5 Hz at 1 kHz: a cycle is 2000 samples; the last cycle (after the ramp) is closed.
+        for motion in [Motion::Sine, Motion::Biased { bias_rad: None }, Motion::Nested, Motion::Hold { load_rad: None }]
+        {
+            // Not the seed fit's genetic model: its own loop is not passive (README: r < 0).
+            for physics in physics().into_iter().skip(1) {
+                let experiment = Experiment { simulation: base(), motion: motion.clone(), physics };
+                let rec = simulate_experiment(&experiment).unwrap();
+                let end = rec.time.len() - 1;
+                assert!((rec.deflection[end - 2000] - rec.deflection[end]).abs() < 1e-15);
+                let dissipated = work(&rec, end - 2000, end);
+                assert!(dissipated > 0.0, "{} {}: ∮T dθ = {dissipated}", motion.name(), experiment.physics.name());
+            }
+        }
+    }
+
+    #[test]
+    fn the_genetic_model_starts_at_rest_off_the_sine() {
+        let experiment = Experiment { simulation: base(), motion: Motion::Nested, physics: Physics::Genetic };
+        let rec = simulate_experiment(&experiment).unwrap();
+        assert_eq!(rec.torque[0], 0.0);
+        assert_eq!(rec.metadata.iter().find(|(k, _)| k == "motion").unwrap().1, "nested");
+    }
+
+    #[test]
+    fn bad_values_are_named() {
+        let biased = Experiment {
+            simulation: base(),
+            motion: Motion::Biased { bias_rad: Some(f64::NAN) },
+            physics: Physics::BoucWen(BoucWen::default()),
+        };
+        assert_eq!(
+            simulate_experiment(&biased).unwrap_err().to_string(),
+            "bias must be a finite deflection, rad, got NaN"
+        );
+        let bad = Experiment {
+            simulation: base(),
+            motion: Motion::Sine,
+            physics: Physics::MicroSlip(MicroSlip { max_slip_rad: -1.0, ..MicroSlip::default() }),
+        };
+        let message = simulate_experiment(&bad).unwrap_err().to_string();
+        assert_eq!(message, "micro-slip parameter max_slip_rad must be > min_slip_rad, got -1");
+        let too_long = Experiment {
+            simulation: Simulation { sample_rate_hz: 1e9, ..base() },
+            motion: Motion::Random,
+            physics: Physics::BoucWen(BoucWen::default()),
+        };
+        assert!(matches!(simulate_experiment(&too_long), Err(SimulateError::TooLong(_))));
+    }
+}

@@ -1,0 +1,102 @@
+//! `swg-host fit --model …` on recordings of any motion and `swg-host predict` end to end.
+mod common;
+
+use common::{json, ok, repo, swg_host};
+
+/// A recording of `physics` under `motion`, 20-bit encoders, 0.02 N·m torque noise.
+fn simulate(dir: &std::path::Path, name: &str, physics: &str, motion: &str) -> std::path::PathBuf {
+    let path = dir.join(name);
+    ok(swg_host(&[
+        "simulate",
+        "--out",
+        path.to_str().unwrap(),
+        "--physics",
+        physics,
+        "--motion",
+        motion,
+        "--cycles",
+        "4",
+        "--frequency",
+        "0.5",
+        "--output-bits",
+        "20",
+        "--input-bits",
+        "20",
+        "--torque-noise",
+        "0.02",
+    ]));
+    path
+}
+
+#[test]
+fn auto_picks_micro_slip_for_a_micro_slip_gear_and_predicts_other_motions() {
+    let dir = tempfile::tempdir().unwrap();
+    let train = simulate(dir.path(), "train.csv", "micro-slip", "random");
+    let params = dir.path().join("params.json");
+    let report = json(&swg_host(&["fit", train.to_str().unwrap(), "--json", "--out", params.to_str().unwrap()]));
+    assert_eq!(report["model"], "micro-slip", "{report:#}");
+    let candidates = report["candidates"].as_array().unwrap();
+    assert_eq!(candidates.len(), 2);
+    assert!(report["held_out"]["samples"].as_u64().unwrap() > 0);
+    assert_eq!(report["params"]["stiffness"].as_array().unwrap().len(), 16);
+
+    let other = simulate(dir.path(), "nested.csv", "micro-slip", "nested");
+    let pred = dir.path().join("pred.csv");
+    let summary = json(&swg_host(&[
+        "predict",
+        params.to_str().unwrap(),
+        other.to_str().unwrap(),
+        "--json",
+        "--out",
+        pred.to_str().unwrap(),
+    ]));
+    let n = summary["n"].as_u64().unwrap() as usize;
+    // Near the noise (0.02 N·m and 20-bit encoders through a stiffness of ≈ 10⁴ N·m/rad).
+    assert!(summary["rms"].as_f64().unwrap() < 0.1, "{summary:#}");
+    assert!(summary["max_step_nm"].as_f64().unwrap() > 0.0);
+    let text = std::fs::read_to_string(&pred).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("time_s,deflection_rad,torque_nm,stiffness_nm_per_rad"));
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.len(), n);
+    assert!(rows.windows(2).all(|w| w[1][0] > w[0][0]), "rows in time order");
+}
+
+#[test]
+fn a_named_model_is_fitted_on_every_sample() {
+    let dir = tempfile::tempdir().unwrap();
+    let recording = simulate(dir.path(), "rec.csv", "bouc-wen", "biased");
+    for model in ["genetic", "micro-slip"] {
+        let report = json(&swg_host(&["fit", recording.to_str().unwrap(), "--json", "--model", model]));
+        assert!(report.get("held_out").is_none(), "{model}: nothing held out");
+        assert_eq!(report["candidates"].as_array().unwrap().len(), 1);
+        assert!(report["rms"].as_f64().unwrap() < 0.5, "{model}: {report:#}");
+    }
+    let table = swg_host(&["fit", &repo("data/seed/lht-20-50.csv"), "--model", "micro-slip"]);
+    assert!(!table.status.success());
+    assert!(String::from_utf8_lossy(&table.stderr).contains("needs a recording"));
+}
+
+#[test]
+fn predict_refuses_bad_input_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let recording = simulate(dir.path(), "rec.csv", "micro-slip", "hold");
+    let params = repo("data/seed/lht-20-50-fit.json");
+    let out = dir.path().join("pred.csv");
+    // The output may not replace an input.
+    let same = swg_host(&["predict", &params, recording.to_str().unwrap(), "--out", recording.to_str().unwrap()]);
+    assert!(!same.status.success());
+    assert!(String::from_utf8_lossy(&same.stderr).contains("is an input"));
+    // A bad recording names file, line and column; nothing is written.
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "# swg-recording v1\n# ratio: 50\ntime_s,deflection_rad,torque_nm\n0,0,0\n0.1,abc,0\n")
+        .unwrap();
+    let failed = swg_host(&["predict", &params, bad.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(!failed.status.success());
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert!(stderr.contains("bad.csv:5") && stderr.contains("deflection_rad"), "{stderr}");
+    assert!(!out.exists());
+    // A bad band is named.
+    let band = swg_host(&["predict", &params, recording.to_str().unwrap(), "--band=-1"]);
+    assert!(String::from_utf8_lossy(&band.stderr).contains("reversal band"));
+}

@@ -1,0 +1,627 @@
+//! Hysteresis with memory for arbitrary motion: biased oscillations, small reversals inside
+//! big ones, holds with dither.
+//!
+//! [`Loop`](crate::Loop) evaluates the paper's model on one symmetric loop of amplitude A. The
+//! evaluators here are fed θ sample by sample from rest and keep what the motion has left
+//! behind, in memory bounded by a const generic; both implement [`Hysteretic`]:
+//!
+//! - [`GeneticMemory`]: the paper's genetic model generalised by Madelung's rules (a stack of
+//!   turning points, each branch a scaled genetic loop between its two ends; see [`branch`]).
+//!   On a symmetric zero-centred loop it is exactly [`Loop::evaluate`](crate::Loop::evaluate).
+//! - [`MicroSlip`]: an odd polynomial spring in parallel with M elasto-slip elements
+//!   (Maxwell-slip, a discrete Iwan model), linear in its parameters for a host-side
+//!   non-negative least-squares fit ([`SlipElements`] gives the fit's columns).
+//!
+//! Like the rest of the crate: `no_std`, no allocation, never panics, f32 and f64. A step that
+//! returns an error leaves the evaluator as it was (the sample is skipped).
+use crate::{Direction, Elementary, Error, Evaluation, Libm, Model, ParamName, Polynomial, Real};
+
+/// A hysteretic element fed the deflection θ sample by sample.
+pub trait Hysteretic<F> {
+    /// Back to rest: no history (what a parameter change does on the joint).
+    fn reset(&mut self);
+    /// Moves to deflection θ (rad); T and K there. A non-finite θ is
+    /// [`Error::NonFiniteDeflection`]; an error leaves the state unchanged.
+    fn step(&mut self, theta: F) -> Result<Evaluation<F>, Error>;
+}
+
+fn two<F: Real>() -> F {
+    F::one() + F::one()
+}
+
+fn opposite(direction: Direction) -> Direction {
+    match direction {
+        Direction::Rising => Direction::Falling,
+        Direction::Falling => Direction::Rising,
+    }
+}
+
+fn finite<F: Real>(e: Evaluation<F>) -> Result<Evaluation<F>, Error> {
+    if e.torque.is_finite() && e.stiffness.is_finite() {
+        Ok(e)
+    } else {
+        Err(Error::Overflow)
+    }
+}
+
+/// A band in rad: negative or NaN counts as 0 (as the firmware's direction tracker).
+fn sanitise_band<F: Real>(band: F) -> F {
+    if band > F::zero() {
+        band
+    } else {
+        F::zero()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Kind 1: the genetic model with Madelung's rules
+// ---------------------------------------------------------------------------------------------
+
+/// A turning point of the motion: the deflection where θ reversed and the hysteretic part
+/// H = T − poly(θ) of the torque there.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TurningPoint<F> {
+    /// θ, rad.
+    pub theta: F,
+    /// H = T − (c1·θ + c2·θ³ + c3·θ⁵), N·m.
+    pub hysteresis: F,
+}
+
+/// The hysteretic part H (and dH/dθ, as an [`Evaluation`]) at `theta` on the branch that
+/// starts at the turning point `from` = (θ_a, H_a) and heads for `to` = (θ_b, H_b):
+///
+/// ```text
+/// H(θ) = H_a·(1 − s) + H_b·s + z(θ − c; w, direction)
+/// s = (θ − θ_a)/(θ_b − θ_a),  c = (θ_a + θ_b)/2,  w = |θ_b − θ_a|/2,  direction = sign(θ_b − θ_a)
+/// ```
+///
+/// with z the paper's hysteresis term on a symmetric loop of amplitude w (h = w·k, through
+/// [`Model::at_amplitude`] and [`Loop::evaluate_parts`](crate::Loop::evaluate_parts), so the
+/// math is the crate's one copy). dH/dθ = (H_b − H_a)/(θ_b − θ_a) + dz/dθ.
+///
+/// Why this shape:
+/// - **Exact on symmetric loops.** With the ends (∓A, 0) it is z of [`Loop`](crate::Loop) at
+///   amplitude A, bit for bit (c = 0, w = A).
+/// - **Continuity and return-point memory.** z vanishes at both ends of its loop, so the
+///   branch starts exactly at `from` and ends exactly at `to` (at s = 0 and s = 1 the term is
+///   evaluated at its clamped end, where it is 0).
+/// - **Amplitude dependence as in the paper.** An inner branch is the paper's loop of the
+///   inner excursion's own half-width: h ∝ w, so a small loop opens proportionally less, as
+///   the paper's h = A·k does for a small symmetric loop.
+///
+/// Outside the branch (s < 0 or s > 1) the straight part holds its end value and z its edge
+/// slope, as [`Loop`](crate::Loop) beyond ±A. A branch of zero width (or one so narrow that
+/// 1/w overflows) is flat: H = H_a, no z.
+pub fn branch<F: Real>(
+    model: &Model<F>,
+    from: TurningPoint<F>,
+    to: TurningPoint<F>,
+    theta: F,
+) -> Result<Evaluation<F>, Error> {
+    branch_with::<F, Libm>(model, from, to, theta)
+}
+
+/// [`branch`] with the elementary functions of `E` (ln, exp, asin, √): the firmware's fast
+/// path runs this same formula with its polynomial approximations.
+#[inline(always)]
+pub fn branch_with<F: Real, E: Elementary<F>>(
+    model: &Model<F>,
+    from: TurningPoint<F>,
+    to: TurningPoint<F>,
+    theta: F,
+) -> Result<Evaluation<F>, Error> {
+    if !theta.is_finite() {
+        return Err(Error::NonFiniteDeflection);
+    }
+    let half = two::<F>().recip();
+    // Halves first: (θ_b − θ_a)/2 cannot overflow, and halving is exact.
+    let (start, end) = (from.theta * half, to.theta * half);
+    let span = end - start;
+    let width = span.abs();
+    if !(width > F::zero() && width.recip().is_finite()) {
+        return Ok(Evaluation { torque: from.hysteresis, stiffness: F::zero() });
+    }
+    let direction = if span > F::zero() { Direction::Rising } else { Direction::Falling };
+    // s is exactly 0 at θ_a and exactly 1 at θ_b.
+    let s = (theta * half - start) / span;
+    // θ − c, or beyond the loop's end (clamped there) at and past the ends, where z = 0.
+    let beyond = {
+        let far = span + span * half;
+        if far.is_finite() {
+            far
+        } else {
+            span
+        }
+    };
+    let offset = if s >= F::one() {
+        beyond
+    } else if s <= F::zero() {
+        -beyond
+    } else {
+        theta - (start + end)
+    };
+    let (_, z) = model.at_amplitude_with::<E>(width)?.evaluate_parts_with::<E>(offset, direction)?;
+    let s = if s >= F::one() {
+        F::one()
+    } else if s <= F::zero() {
+        F::zero()
+    } else {
+        s
+    };
+    let line = from.hysteresis * (F::one() - s) + to.hysteresis * s;
+    let slope = (to.hysteresis * half - from.hysteresis * half) / span;
+    finite(Evaluation { torque: line + z.torque, stiffness: slope + z.stiffness })
+}
+
+/// The paper's genetic model for any motion, generalised by Madelung's rules; at most `N`
+/// turning points (N ≥ 3, checked at compile time).
+///
+/// T = poly(θ) + H, poly the model's memoryless spring c1·θ + c2·θ³ + c3·θ⁵ and H the
+/// hysteretic part. The state is a stack of turning points (θ_k, H_k):
+///
+/// - **Rest (virgin).** Empty stack, H = 0. (The symmetric rule gives the same on first
+///   loading: A = max|θ| there and z(±A) = 0.)
+/// - **Reversal.** When θ moves back by more than `band` rad from its extreme since the last
+///   reversal (band 0: every sign change of Δθ), the extreme sample (θ_r, H_r) is pushed.
+/// - **Branch.** From the top point a toward its target b, the point below it (or, when the
+///   stack holds one point, its mirror (−θ_a, −H_a)), with the shape of [`branch`].
+/// - **Wipe-out.** When θ passes the target b, a and b are popped and θ continues on the
+///   branch below, which passes through b; repeated while θ is beyond the new target. Popping
+///   the last point returns to H = 0. The bottom point was pushed from rest (H = 0) or by
+///   [`GeneticMemory::on_loop`] (H = 0), and the overflow rule never removes it, so the mirror
+///   target is on the virgin curve and the return to H = 0 is continuous. A reversal exactly
+///   at the target closes the inner loop first (a and b popped, then b pushed again), so a
+///   steady loop does not grow the stack.
+/// - **Overflow.** A reversal that finds the stack full is not recorded: the innermost
+///   excursion (the smallest, since the stack's loops nest) retraces the current branch
+///   backward, reversibly. If θ moves back past that branch's start a, a is popped and θ
+///   continues on the branch a lay on (which passes through a). T stays continuous everywhere
+///   and every stored point keeps its return-point memory; only excursions nested deeper
+///   than N have no hysteresis of their own.
+///
+///   Dropping the newest stored pair instead and pushing the new reversal is continuous at the
+///   reversal, but not later: the new point lies on the dropped inner branch, not on the
+///   branch below, so T would jump when a later motion wipes it out.
+///
+/// With a band, a reversal is recognised only once θ is more than the band back from θ_r, and
+/// that sample changes branch there: T moves by about the loops' difference over one band, as
+/// in the symmetric model with the firmware's direction tracker. Band 0 is continuous.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GeneticMemory<F, const N: usize> {
+    model: Model<F>,
+    band: F,
+    stack: [TurningPoint<F>; N],
+    depth: usize,
+    /// The direction of motion; `None` at rest until θ leaves ±band.
+    direction: Option<Direction>,
+    /// The extreme θ in `direction` since the last reversal, with its H.
+    extreme: TurningPoint<F>,
+    /// A reversal found the stack full: θ moves against the current branch.
+    retracing: bool,
+}
+
+impl<F: Real, const N: usize> GeneticMemory<F, N> {
+    /// At rest (virgin), with a direction band of `band` rad (negative or NaN counts as 0).
+    pub fn new(model: Model<F>, band: F) -> Self {
+        const { assert!(N >= 3, "GeneticMemory needs room for N >= 3 turning points") };
+        let rest = TurningPoint { theta: F::zero(), hysteresis: F::zero() };
+        GeneticMemory {
+            model,
+            band: sanitise_band(band),
+            stack: [rest; N],
+            depth: 0,
+            direction: None,
+            extreme: rest,
+            retracing: false,
+        }
+    }
+
+    /// At θ = 0 on the steady symmetric loop of amplitude `amplitude` (rad), moving in
+    /// `direction`: stack [(A, 0), (−A, 0)] rising, [(−A, 0), (A, 0)] falling. A sine of
+    /// amplitude A from θ = 0 then gives exactly [`Loop::evaluate`](crate::Loop::evaluate) from
+    /// its first sample, turning points included, when its samples reach ±A (a peak sample
+    /// short of A turns onto a branch narrower by that shortfall, by Madelung's rules).
+    pub fn on_loop(model: Model<F>, band: F, amplitude: F, direction: Direction) -> Result<Self, Error> {
+        if !(amplitude.is_finite() && amplitude > F::zero()) {
+            return Err(Error::InvalidAmplitude);
+        }
+        let mut memory = Self::new(model, band);
+        let (bottom, top) = match direction {
+            Direction::Rising => (amplitude, -amplitude),
+            Direction::Falling => (-amplitude, amplitude),
+        };
+        memory.push(TurningPoint { theta: bottom, hysteresis: F::zero() });
+        memory.push(TurningPoint { theta: top, hysteresis: F::zero() });
+        let at_rest = memory.hysteresis(F::zero())?;
+        memory.direction = Some(direction);
+        memory.extreme = TurningPoint { theta: F::zero(), hysteresis: at_rest.torque };
+        Ok(memory)
+    }
+
+    /// The model's parameters.
+    pub fn model(&self) -> &Model<F> {
+        &self.model
+    }
+
+    /// The direction band, rad.
+    pub fn band(&self) -> F {
+        self.band
+    }
+
+    /// The direction of motion (`None` at rest, before θ has left ±band).
+    pub fn direction(&self) -> Option<Direction> {
+        self.direction
+    }
+
+    /// The stored turning points, oldest first.
+    pub fn turning_points(&self) -> &[TurningPoint<F>] {
+        self.stack.get(..self.depth).unwrap_or(&[])
+    }
+
+    /// How many turning points are stored (≤ N).
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+
+    /// Whether a reversal found the stack full and θ is retracing the current branch.
+    pub fn is_retracing(&self) -> bool {
+        self.retracing
+    }
+
+    /// H and dH/dθ at `theta` on the current branch, without moving.
+    pub fn hysteresis(&self, theta: F) -> Result<Evaluation<F>, Error> {
+        self.hysteresis_with::<Libm>(theta)
+    }
+
+    /// [`GeneticMemory::hysteresis`] with the elementary functions of `E`.
+    #[inline(always)]
+    pub fn hysteresis_with<E: Elementary<F>>(&self, theta: F) -> Result<Evaluation<F>, Error> {
+        match self.current() {
+            None if theta.is_finite() => Ok(Evaluation { torque: F::zero(), stiffness: F::zero() }),
+            None => Err(Error::NonFiniteDeflection),
+            Some((from, to, _)) => branch_with::<F, E>(&self.model, from, to, theta),
+        }
+    }
+
+    /// [`Hysteretic::step`] with the elementary functions of `E` (the firmware's fast path):
+    /// the same state, the same turning-point logic, so a caller may change `E` from one
+    /// sample to the next.
+    #[inline]
+    pub fn step_with<E: Elementary<F>>(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
+        if !theta.is_finite() {
+            return Err(Error::NonFiniteDeflection);
+        }
+        let mut next = *self;
+        let evaluation = next.advance::<E>(theta)?;
+        *self = next;
+        Ok(evaluation)
+    }
+
+    fn top(&self) -> Option<TurningPoint<F>> {
+        self.depth.checked_sub(1).and_then(|i| self.stack.get(i)).copied()
+    }
+
+    /// The current branch: its start, its target, and whether the target is stored (not the
+    /// mirror of a single point).
+    fn current(&self) -> Option<(TurningPoint<F>, TurningPoint<F>, bool)> {
+        let from = self.top()?;
+        match self.depth.checked_sub(2).and_then(|i| self.stack.get(i)) {
+            Some(to) => Some((from, *to, true)),
+            None => Some((from, TurningPoint { theta: -from.theta, hysteresis: -from.hysteresis }, false)),
+        }
+    }
+
+    fn push(&mut self, point: TurningPoint<F>) -> bool {
+        match self.stack.get_mut(self.depth) {
+            Some(slot) => {
+                *slot = point;
+                self.depth += 1;
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn pop(&mut self) {
+        self.depth = self.depth.saturating_sub(1);
+    }
+
+    /// Pops the current branch's start and, if stored, its target.
+    fn pop_branch(&mut self, target_stored: bool) {
+        self.pop();
+        if target_stored {
+            self.pop();
+        }
+    }
+
+    /// θ reversed at the extreme: record it (Madelung's rule 1), unless it ends a retrace.
+    fn reverse(&mut self) {
+        if self.retracing {
+            // Back onto the branch being retraced: nothing was recorded, nothing to undo.
+            self.retracing = false;
+            return;
+        }
+        let point = self.extreme;
+        if let Some((_, to, stored)) = self.current() {
+            if point.theta == to.theta {
+                // Reached the target exactly and turned there: the inner loop is closed.
+                self.pop_branch(stored);
+            }
+        }
+        if !self.push(point) {
+            self.retracing = true;
+        }
+    }
+
+    /// Madelung's rules 2 and 3: pops the branches that θ has passed.
+    fn wipe_out(&mut self, theta: F) {
+        // Each pass pops at least one point, so this ends within N + 1 passes.
+        for _ in 0..=N {
+            let Some((from, to, stored)) = self.current() else { return };
+            let rising = to.theta > from.theta;
+            let falling = to.theta < from.theta;
+            if (rising && theta > to.theta) || (falling && theta < to.theta) {
+                self.pop_branch(stored);
+            } else if self.retracing && ((rising && theta < from.theta) || (falling && theta > from.theta)) {
+                // Retraced past the branch's start: continue on the branch it lay on.
+                self.pop();
+                self.retracing = false;
+            } else {
+                return;
+            }
+        }
+    }
+
+    /// The state change of one sample; returns whether θ is the new extreme.
+    fn track(&mut self, theta: F) -> bool {
+        match self.direction {
+            None => {
+                let direction = if theta > self.band {
+                    Direction::Rising
+                } else if theta < -self.band {
+                    Direction::Falling
+                } else {
+                    return false;
+                };
+                self.direction = Some(direction);
+                true
+            }
+            Some(direction) => {
+                let extreme = self.extreme.theta;
+                let (onward, turned) = match direction {
+                    Direction::Rising => (theta > extreme, theta < extreme - self.band),
+                    Direction::Falling => (theta < extreme, theta > extreme + self.band),
+                };
+                if turned {
+                    self.reverse();
+                    self.direction = Some(opposite(direction));
+                }
+                onward || turned
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn advance<E: Elementary<F>>(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
+        let new_extreme = self.track(theta);
+        self.wipe_out(theta);
+        let h = self.hysteresis_with::<E>(theta)?;
+        if new_extreme {
+            self.extreme = TurningPoint { theta, hysteresis: h.torque };
+        }
+        finite(self.model.polynomial.evaluate(theta).plus(h))
+    }
+}
+
+impl<F: Real, const N: usize> Hysteretic<F> for GeneticMemory<F, N> {
+    fn reset(&mut self) {
+        *self = Self::new(self.model, self.band);
+    }
+
+    fn step(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
+        self.step_with::<Libm>(theta)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Kind 2: Maxwell-slip / Iwan
+// ---------------------------------------------------------------------------------------------
+
+/// The slip deflections d_0 < … < d_(M−1) of the M elements: a log grid from `slip_min` to
+/// `slip_max` (rad), d_i = d_min·(d_max/d_min)^(i/(M−1)), both ends exact; M = 1 gives
+/// `[d_min]`. Needs 0 < d_min < d_max, both finite ([`Error::InvalidSlipRange`]).
+pub fn slip_grid<F: Real, const M: usize>(slip_min: F, slip_max: F) -> Result<[F; M], Error> {
+    if !(slip_min.is_finite() && slip_max.is_finite() && F::zero() < slip_min && slip_min < slip_max) {
+        return Err(Error::InvalidSlipRange);
+    }
+    let (ln_min, ln_max) = (slip_min.ln(), slip_max.ln());
+    let last = M.saturating_sub(1);
+    let steps = F::from(last).ok_or(Error::Overflow)?;
+    let mut grid = [slip_min; M];
+    for (i, d) in grid.iter_mut().enumerate() {
+        *d = if i == 0 {
+            slip_min
+        } else if i == last {
+            slip_max
+        } else {
+            let fraction = F::from(i).ok_or(Error::Overflow)? / steps;
+            (ln_min + fraction * (ln_max - ln_min)).exp()
+        };
+    }
+    Ok(grid)
+}
+
+/// The parameters of [`MicroSlip`]: the spring c1·θ + c2·θ³ + c3·θ⁵ (N·m/rad, /rad³, /rad⁵)
+/// and the M element stiffnesses k_i (N·m/rad) on the slip grid [`slip_grid`]`(slip_min,
+/// slip_max)` (rad).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlipParams<F, const M: usize> {
+    pub c1: F,
+    pub c2: F,
+    pub c3: F,
+    /// k_i ≥ 0 of element i, which slips at elastic deflection d_i.
+    pub stiffness: [F; M],
+    /// d_min, rad.
+    pub slip_min: F,
+    /// d_max, rad.
+    pub slip_max: F,
+}
+
+impl<F: Real, const M: usize> SlipParams<F, M> {
+    /// All finite, every k_i ≥ 0, 0 < d_min < d_max.
+    pub fn validate(&self) -> Result<(), Error> {
+        for (name, value) in [(ParamName::C1, self.c1), (ParamName::C2, self.c2), (ParamName::C3, self.c3)] {
+            if !value.is_finite() {
+                return Err(Error::NonFiniteParameter(name));
+            }
+        }
+        if let Some((index, _)) = self.stiffness.iter().enumerate().find(|(_, k)| !(k.is_finite() && **k >= F::zero()))
+        {
+            return Err(Error::InvalidSlipStiffness(index));
+        }
+        slip_grid::<F, M>(self.slip_min, self.slip_max).map(|_| ())
+    }
+}
+
+/// The M elasto-slip elements alone, each with unit stiffness: element i's elastic deflection
+/// e_i (its spring's torque per N·m/rad of k_i). What a fit steps through a recording to build
+/// its columns: T = c1·θ + c2·θ³ + c3·θ⁵ + Σ k_i·e_i is linear in (c1, c2, c3, k_1 … k_M),
+/// with the columns θ, θ³, θ⁵, e_1 … e_M (and for the stiffness 1, 3θ², 5θ⁴ and 1 for each
+/// element that sticks, 0 for one that slips), so non-negative least squares on the k_i
+/// identifies them exactly, by the same code that [`MicroSlip`] runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlipElements<F, const M: usize> {
+    slip: [F; M],
+    elastic: [F; M],
+    theta: F,
+}
+
+impl<F: Real, const M: usize> SlipElements<F, M> {
+    /// At rest (θ = 0, every e_i = 0), with slip deflections `slip` (each finite > 0, rad;
+    /// otherwise [`Error::InvalidSlipRange`]).
+    pub fn new(slip: [F; M]) -> Result<Self, Error> {
+        if slip.iter().any(|d| !(d.is_finite() && *d > F::zero())) {
+            return Err(Error::InvalidSlipRange);
+        }
+        Ok(SlipElements { slip, elastic: [F::zero(); M], theta: F::zero() })
+    }
+
+    /// The elements of the log grid [`slip_grid`]`(slip_min, slip_max)`, at rest.
+    pub fn on_grid(slip_min: F, slip_max: F) -> Result<Self, Error> {
+        Self::new(slip_grid(slip_min, slip_max)?)
+    }
+
+    /// Back to rest: θ = 0, every e_i = 0.
+    pub fn reset(&mut self) {
+        self.elastic = [F::zero(); M];
+        self.theta = F::zero();
+    }
+
+    /// Moves to θ (rad): e_i ← clamp(e_i + Δθ, −d_i, d_i).
+    pub fn step(&mut self, theta: F) -> Result<(), Error> {
+        if !theta.is_finite() {
+            return Err(Error::NonFiniteDeflection);
+        }
+        // Finite θs: Δθ is finite or ±∞, never NaN, and the clamp keeps e_i finite.
+        let delta = theta - self.theta;
+        for (e, d) in self.elastic.iter_mut().zip(self.slip.iter()) {
+            let moved = *e + delta;
+            *e = if moved > *d {
+                *d
+            } else if moved < -*d {
+                -*d
+            } else {
+                moved
+            };
+        }
+        self.theta = theta;
+        Ok(())
+    }
+
+    /// The last θ, rad.
+    pub fn theta(&self) -> F {
+        self.theta
+    }
+
+    /// The slip deflections d_i, rad.
+    pub fn slip(&self) -> &[F; M] {
+        &self.slip
+    }
+
+    /// The elastic deflections e_i, rad: the torque of each element per unit stiffness.
+    pub fn elastic(&self) -> &[F; M] {
+        &self.elastic
+    }
+
+    /// Whether each element sticks (|e_i| < d_i: its spring adds to the stiffness) or slips
+    /// (at its limit).
+    pub fn sticking(&self) -> [bool; M] {
+        let mut sticking = [false; M];
+        for (s, (e, d)) in sticking.iter_mut().zip(self.elastic.iter().zip(self.slip.iter())) {
+            *s = e.abs() < *d;
+        }
+        sticking
+    }
+}
+
+/// Maxwell-slip (a discrete Iwan model): an odd polynomial spring c1·θ + c2·θ³ + c3·θ⁵ in
+/// parallel with M elasto-slip elements, element i a spring k_i in series with a slider that
+/// slips when the spring's deflection reaches d_i.
+///
+/// T = poly(θ) + Σ k_i·e_i; K = poly′(θ) + Σ k_i over the sticking elements (|e_i| < d_i).
+/// Madelung's rules hold exactly; the loops are rate-independent and point-symmetric
+/// (Masing's rule).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MicroSlip<F, const M: usize> {
+    polynomial: Polynomial<F>,
+    stiffness: [F; M],
+    elements: SlipElements<F, M>,
+}
+
+impl<F: Real, const M: usize> MicroSlip<F, M> {
+    /// Validates `params` ([`SlipParams::validate`]); at rest.
+    pub fn new(params: SlipParams<F, M>) -> Result<Self, Error> {
+        params.validate()?;
+        Ok(MicroSlip {
+            polynomial: Polynomial::new(params.c1, params.c2, params.c3)?,
+            stiffness: params.stiffness,
+            elements: SlipElements::on_grid(params.slip_min, params.slip_max)?,
+        })
+    }
+
+    /// The elements' state.
+    pub fn elements(&self) -> &SlipElements<F, M> {
+        &self.elements
+    }
+
+    /// T and K at the elements' current state.
+    fn evaluate(&self, elements: &SlipElements<F, M>) -> Result<Evaluation<F>, Error> {
+        let mut total = self.polynomial.evaluate(elements.theta);
+        let sticking = elements.sticking();
+        for ((k, e), sticks) in self.stiffness.iter().zip(elements.elastic.iter()).zip(sticking.iter()) {
+            total.torque = total.torque + *k * *e;
+            if *sticks {
+                total.stiffness = total.stiffness + *k;
+            }
+        }
+        finite(total)
+    }
+}
+
+impl<F: Real, const M: usize> Hysteretic<F> for MicroSlip<F, M> {
+    fn reset(&mut self) {
+        self.elements.reset();
+    }
+
+    fn step(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
+        let mut next = self.elements;
+        next.step(theta)?;
+        let evaluation = self.evaluate(&next)?;
+        self.elements = next;
+        Ok(evaluation)
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,31 @@
+//! The prediction goals that hold, on a few cases of the benchmark's corpus
+//! (`bench/prediction.sh` runs them all): a model fitted on the bench sine predicts a nested
+//! motion of its own family's gear within 1.3× the floor, the truth physics on the same
+//! measured angles, where today's symmetric rule is several times worse.
+#[path = "prediction_corpus.rs"]
+mod corpus;
+
+use corpus::*;
+use swg_host::simulate::{MicroSlip, Physics};
+
+/// RMS against the truth of [symmetric, genetic, micro-slip], divided by the floor's.
+fn ratios(physics: &Physics, trained_on: &'static str, predicted: &'static str) -> [f64; 3] {
+    let fitted = fit_all(&case(physics, trained_on).measured);
+    let target = case(physics, predicted);
+    let floor = rms(&target.floor, &target.truth);
+    predictions(&fitted, &target).map(|p| rms(&p, &target.truth) / floor)
+}
+
+#[test]
+fn the_micro_slip_model_predicts_a_micro_slip_gear_near_the_floor() {
+    let [symmetric, _, micro_slip] = ratios(&Physics::MicroSlip(MicroSlip::default()), "sine", "nested");
+    assert!(micro_slip <= 1.3, "micro-slip model: {micro_slip:.2}× the floor");
+    assert!(symmetric > 3.0 * micro_slip, "today's rule {symmetric:.2}× against {micro_slip:.2}×");
+}
+
+#[test]
+fn the_genetic_model_with_memory_predicts_a_genetic_gear_near_the_floor() {
+    let [symmetric, genetic, _] = ratios(&Physics::Genetic, "random", "biased");
+    assert!(genetic <= 1.3, "genetic model: {genetic:.2}× the floor");
+    assert!(symmetric > 3.0 * genetic, "today's rule {symmetric:.2}× against {genetic:.2}×");
+}

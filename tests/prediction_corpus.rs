@@ -1,0 +1,124 @@
+//! The prediction corpus shared by the benchmark (`prediction_bench.rs`, every case, figures)
+//! and the system test (`prediction.rs`, the goals on a few cases): gears of three truth
+//! physics recorded under five motions, the models fitted on one motion, run along another.
+// The benchmark and the test each use their own part of it.
+#![allow(dead_code)]
+use model_core::{Identifiable, Model, Params};
+use swg_host::fit::motion::{fit_genetic, fit_micro_slip, Motion as FitMotion};
+use swg_host::fit::{fit, FitOptions};
+use swg_host::gear::{reversal_band, run, GearModel};
+use swg_host::input::Recording;
+use swg_host::prepare::{deflection_noise, from_recording};
+use swg_host::simulate::{simulate_experiment, Experiment, Motion, Physics, Simulation, Trajectory};
+
+pub const MOTIONS: [&str; 5] = ["sine", "biased", "nested", "random", "hold"];
+pub const TRAINING: [&str; 2] = ["sine", "random"];
+pub const SEED: u64 = 11;
+
+/// A genetic gear with decaying memory (r > 0), as bench gears show.
+pub fn genetic_gear() -> Params<f64> {
+    Params::from_identifiable(2.2e4, 4.0e9, 0.0, Identifiable { h: 1.5, r: 1.2 }, 1.2e-3).expect("valid gear")
+}
+
+pub fn motion(name: &str) -> Motion {
+    match name {
+        "sine" => Motion::Sine,
+        "biased" => Motion::Biased { bias_rad: None },
+        "nested" => Motion::Nested,
+        "random" => Motion::Random,
+        "hold" => Motion::Hold { load_rad: None },
+        other => panic!("no motion {other}"),
+    }
+}
+
+pub fn simulation(noisy: bool) -> Simulation {
+    Simulation {
+        params: genetic_gear(),
+        amplitude_rad: 1.168e-3,
+        frequencies_hz: vec![0.5],
+        cycles: 4,
+        sample_rate_hz: 1000.0,
+        ratio: 50.0,
+        input_speed_rad_s: 0.0,
+        input_bits: noisy.then_some(20),
+        output_bits: noisy.then_some(20),
+        torque_noise_nm: if noisy { 0.05 } else { 0.0 },
+        temperature: None,
+        effects: Vec::new(),
+        seed: SEED,
+    }
+}
+
+pub fn record(physics: &Physics, motion: Motion, noisy: bool) -> Recording {
+    simulate_experiment(&Experiment { simulation: simulation(noisy), motion, physics: physics.clone() })
+        .expect("simulation runs")
+}
+
+pub fn rms(a: &[f64], b: &[f64]) -> f64 {
+    (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / a.len() as f64).sqrt()
+}
+
+pub fn max_step(t: &[f64]) -> f64 {
+    t.windows(2).map(|w| (w[1] - w[0]).abs()).fold(0.0, f64::max)
+}
+
+/// The models fitted to one training recording.
+pub struct Fitted {
+    pub symmetric: Params<f64>,
+    pub genetic: GearModel,
+    pub micro_slip: GearModel,
+}
+
+pub fn fit_all(recording: &Recording) -> Fitted {
+    let prepared = from_recording(recording).expect("segmentation");
+    let options = FitOptions { noise: prepared.noise, ..FitOptions::default() };
+    let symmetric = fit(&prepared.data, &options, |_| {}).expect("symmetric fit").params;
+    let band = reversal_band(prepared.noise.map_or(0.0, |n| n.deflection_rad));
+    let motion = FitMotion {
+        theta: &recording.deflection,
+        torque: &recording.torque,
+        training: recording.deflection.len(),
+        noise: prepared.noise,
+        band,
+    };
+    Fitted {
+        symmetric,
+        genetic: fit_genetic(&motion, &options).expect("genetic fit").model,
+        micro_slip: fit_micro_slip(&motion).expect("micro-slip fit").model,
+    }
+}
+
+/// Torque of the symmetric rule along a recording: each sample on the loop of its leg.
+pub fn symmetric_prediction(params: &Params<f64>, recording: &Recording) -> Vec<f64> {
+    let prepared = from_recording(recording).expect("segmentation");
+    let model = Model::new(*params).expect("valid");
+    let d = &prepared.data;
+    (0..d.theta.len()).map(|i| model.torque(d.theta[i], d.direction[i], d.amplitude[i]).unwrap_or(0.0)).collect()
+}
+
+/// One motion of one gear: measured, the noise-free truth, and the truth on the measured angles.
+pub struct Case {
+    pub motion: &'static str,
+    pub measured: Recording,
+    pub truth: Vec<f64>,
+    pub floor: Vec<f64>,
+}
+
+pub fn case(physics: &Physics, name: &'static str) -> Case {
+    let measured = record(physics, motion(name), true);
+    let truth = record(physics, motion(name), false).torque;
+    let trajectory =
+        Trajectory::new("measured angles", measured.time.clone(), measured.deflection.clone()).expect("a trajectory");
+    let floor = record(physics, Motion::File(trajectory), false).torque;
+    Case { motion: name, measured, truth, floor }
+}
+
+/// The torque of the symmetric rule, the genetic and the micro-slip model along `case`.
+pub fn predictions(fitted: &Fitted, case: &Case) -> [Vec<f64>; 3] {
+    let measured = &case.measured;
+    let band = reversal_band(deflection_noise(&measured.deflection));
+    let stateful = |model: &GearModel| -> Vec<f64> {
+        run(model, &measured.deflection, band).expect("runs").iter().map(|e| e.torque).collect()
+    };
+    [symmetric_prediction(&fitted.symmetric, measured), stateful(&fitted.genetic), stateful(&fitted.micro_slip)]
+}
