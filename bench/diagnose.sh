@@ -20,7 +20,7 @@ done
 echo "== speed: 60,000 samples (15 cycles at 0.25 Hz, 1 kHz), turning input, temperature, two effects"
 gear=bench/out/decaying-gear.json
 cat > "$gear" <<'JSON'
-{"model": "genetic-hysteresis", "params": {"c1": 22000.0, "c2": 4.0e9, "c3": 0.0, "alpha": 3050.0, "beta": 1.2, "omega": 1.0}}
+{"model": "genetic-hysteresis", "params": {"c1": 22000.0, "c2": 4.0e9, "c3": 0.0, "alpha": -3050.0, "beta": 1.2, "omega": 1.0}}
 JSON
 recording=bench/out/diagnose-60k.csv
 $swg simulate --params "$gear" --out "$recording" --cycles 15 --frequency 0.25 --rate 1000 \

@@ -37,6 +37,8 @@ struct Case {
     physics: Physics,
     motion: Motion,
     truth: Vec<EffectValue>,
+    /// The gear's loop runs the active way (∮T dθ < 0): the diagnosis must say so.
+    active: bool,
 }
 
 #[derive(Clone, Copy)]
@@ -69,7 +71,9 @@ fn make_case(name: &str, effects: &[Effect], setting: Setting, seed: u64) -> Cas
         rng.random_range(1.5e4..3.0e4),
         rng.random_range(0.0..6.0e9),
         0.0,
-        Identifiable { h: rng.random_range(0.8..2.5), r: rng.random_range(0.6..2.0) },
+        // h < 0 and r < 1.9: the loop runs the passive way (torque higher while θ rises); the
+        // genetic loop of h < 0 turns active beyond r ≈ 1.9.
+        Identifiable { h: -rng.random_range(0.8..2.5), r: rng.random_range(0.6..1.8) },
         amplitude,
     )
     .unwrap();
@@ -121,7 +125,14 @@ fn make_case(name: &str, effects: &[Effect], setting: Setting, seed: u64) -> Cas
         truth.push(EffectValue { effect, value: sign * unit(effect) * share * noise_rms / share_at_unit });
     }
     simulation.effects = truth.clone();
-    Case { name: format!("{name} (seed {seed})"), simulation, physics: Physics::Genetic, motion: Motion::Sine, truth }
+    Case {
+        name: format!("{name} (seed {seed})"),
+        simulation,
+        physics: Physics::Genetic,
+        motion: Motion::Sine,
+        truth,
+        active: false,
+    }
 }
 
 /// A gear whose hysteresis is not the genetic model's: Maxwell-slip or Bouc–Wen (the simulator's
@@ -157,7 +168,7 @@ fn other_physics_case(
         simulation.frequencies_hz,
         if effects.is_empty() { String::new() } else { format!(", {}", effect_names.join(" + ")) }
     );
-    Case { name, simulation, physics, motion, truth: effects }
+    Case { name, simulation, physics, motion, truth: effects, active: false }
 }
 
 struct Outcome {
@@ -170,6 +181,8 @@ struct Outcome {
     other_physics: bool,
     /// The diagnosis named the model's form.
     form: bool,
+    /// The passivity check flagged the loop active exactly when it is.
+    passivity_right: bool,
 }
 
 impl Outcome {
@@ -232,6 +245,23 @@ fn corpus(base_seed: u64) -> Vec<Case> {
     ] {
         cases.push(make_case(name, &[], setting, next()));
     }
+    // Loops that run the active way, as the seed table's and any h > 0 genetic gear's do: the
+    // torque channel or the branch labels are off. Flagged, and no effect is named for it.
+    for frequencies in [1, 2] {
+        let mut case = make_case("none, active loop", &[], Setting { frequencies, ..plain }, next());
+        let p = case.simulation.params;
+        let id = p.identifiable(case.simulation.amplitude_rad).unwrap();
+        case.simulation.params = Params::from_identifiable(
+            p.c1,
+            p.c2,
+            p.c3,
+            Identifiable { h: -id.h, r: id.r },
+            case.simulation.amplitude_rad,
+        )
+        .unwrap();
+        case.active = true;
+        cases.push(case);
+    }
     // Gears of other physics: the diagnosis must name their shape, never an effect they lack.
     for physics in [Physics::MicroSlip(MicroSlip::default()), Physics::BoucWen(BoucWen::default())] {
         for (motion, frequencies) in [
@@ -251,11 +281,38 @@ fn corpus(base_seed: u64) -> Vec<Case> {
     cases
 }
 
+/// ∮T dθ and ∫|T||dθ| per cycle of the case's noise-free recording, from its first maximum of θ
+/// to its last.
+fn truth_energy_per_cycle(case: &Case) -> (f64, f64) {
+    let quiet = Simulation { torque_noise_nm: 0.0, input_bits: None, output_bits: None, ..case.simulation.clone() };
+    let experiment = Experiment { simulation: quiet, motion: case.motion.clone(), physics: case.physics.clone() };
+    let recording = simulate_experiment(&experiment).unwrap();
+    let (theta, torque) = (&recording.deflection, &recording.torque);
+    let maxima: Vec<usize> =
+        (1..theta.len() - 1).filter(|&i| theta[i] > theta[i - 1] && theta[i] >= theta[i + 1]).collect();
+    let (Some(&first), Some(&last)) = (maxima.first(), maxima.last()) else { return (0.0, 0.0) };
+    let cycles = (maxima.len() - 1).max(1) as f64;
+    let energy: f64 = (first..last).map(|i| 0.5 * (torque[i] + torque[i + 1]) * (theta[i + 1] - theta[i])).sum();
+    let work: f64 =
+        (first..last).map(|i| 0.5 * (torque[i].abs() + torque[i + 1].abs()) * (theta[i + 1] - theta[i]).abs()).sum();
+    (energy / cycles, work / cycles)
+}
+
 fn run(case: &Case) -> Outcome {
     let experiment =
         Experiment { simulation: case.simulation.clone(), motion: case.motion.clone(), physics: case.physics.clone() };
     let recording = simulate_experiment(&experiment).unwrap();
-    let diagnosis = diagnose_dataset(&Dataset::Recording(recording), None, 1).unwrap().diagnosis;
+    let outcome = diagnose_dataset(&Dataset::Recording(recording), None, 1).unwrap();
+    let flagged_active = outcome.passivity.as_ref().is_some_and(|p| p.active);
+    // Negative damping or friction (the corpus draws either sign) gives energy back too. A loop
+    // whose energy is within 1 % of its work of zero may be called either way.
+    let (energy, work) = truth_energy_per_cycle(case);
+    let active = case.active || energy < -0.01 * work;
+    let ambiguous = !case.active && energy.abs() <= 0.01 * work;
+    if flagged_active != active && !ambiguous {
+        println!("    passivity of {}: {:?}", case.name, outcome.passivity.as_ref().map(|p| &p.words));
+    }
+    let diagnosis = outcome.diagnosis;
     let named = diagnosis.findings.iter().map(|f| (f.effect, f.magnitude)).collect();
     let rejected =
         diagnosis.rejected.iter().map(|r| format!("{} ({:.3e}): {}", r.effect, r.magnitude, r.reason)).collect();
@@ -267,6 +324,7 @@ fn run(case: &Case) -> Outcome {
         rejected,
         other_physics,
         form: diagnosis.model_form.is_some(),
+        passivity_right: flagged_active == active || ambiguous,
     }
 }
 
@@ -274,12 +332,13 @@ fn run(case: &Case) -> Outcome {
 fn names_exactly_the_missing_physics_with_its_magnitude() {
     let base_seed = std::env::var("SWG_CORPUS_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0);
     let cases = corpus(base_seed);
-    assert!(cases.len() >= 48);
+    assert!(cases.len() >= 50);
     let outcomes: Vec<Outcome> = cases.par_iter().map(run).collect();
 
     let mut right = 0;
     let mut wrong_physics = 0;
     let mut forms = 0;
+    let mut passivity_wrong = 0;
     let mut false_alarms = 0;
     let mut misses = 0;
     let mut errors = Vec::new();
@@ -309,6 +368,10 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
         if o.right_set() {
             right += 1;
         }
+        if !o.passivity_right {
+            passivity_wrong += 1;
+            println!("    passivity check wrong on {}", o.name);
+        }
         // On a gear of other physics the diagnosis must name no effect it lacks (counted above);
         // a real effect on top of it may be missed (counted, not failed).
         if (!o.right_set() && !o.other_physics) || worst > 0.25 {
@@ -322,12 +385,13 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
     let median_error = errors.get(errors.len() / 2).copied().unwrap_or(0.0);
     let max_error = errors.last().copied().unwrap_or(0.0);
     println!(
-        "corpus seed {base_seed}: {right}/{} right set, {wrong_physics} wrong physics named, {false_alarms} false alarms, {misses} misses, magnitude error median {:.1} % max {:.1} %; model form named on {forms}/{} gears of other physics",
+        "corpus seed {base_seed}: {right}/{} right set, {wrong_physics} wrong physics named, {false_alarms} false alarms, {misses} misses, magnitude error median {:.1} % max {:.1} %; model form named on {forms}/{} gears of other physics; passivity wrong on {passivity_wrong}",
         outcomes.len(),
         100.0 * median_error,
         100.0 * max_error,
         outcomes.iter().filter(|o| o.other_physics).count()
     );
     assert_eq!(wrong_physics, 0, "an effect was named on a gear of other physics");
+    assert_eq!(passivity_wrong, 0, "the passivity check missed an active loop or flagged a passive one");
     assert!(failures.is_empty(), "wrong set or magnitude off by > 25 %: {failures:?}");
 }

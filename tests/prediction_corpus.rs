@@ -15,9 +15,9 @@ pub const MOTIONS: [&str; 5] = ["sine", "biased", "nested", "random", "hold"];
 pub const TRAINING: [&str; 2] = ["sine", "random"];
 pub const SEED: u64 = 11;
 
-/// A genetic gear with decaying memory (r > 0), as bench gears show.
+/// A genetic gear with decaying memory (r > 0) whose loop runs the passive way (h < 0).
 pub fn genetic_gear() -> Params<f64> {
-    Params::from_identifiable(2.2e4, 4.0e9, 0.0, Identifiable { h: 1.5, r: 1.2 }, 1.2e-3).expect("valid gear")
+    Params::from_identifiable(2.2e4, 4.0e9, 0.0, Identifiable { h: -1.5, r: 1.2 }, 1.2e-3).expect("valid gear")
 }
 
 pub fn motion(name: &str) -> Motion {

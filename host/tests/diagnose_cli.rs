@@ -3,8 +3,8 @@ mod common;
 
 use common::{ok, repo, swg_host};
 
-/// A gear with decaying memory, as bench gears show.
-const GEAR: &str = r#"{"model": "genetic-hysteresis", "params": {"c1": 22000.0, "c2": 4.0e9, "c3": 0.0, "alpha": 3050.0, "beta": 1.2, "omega": 1.0}}"#;
+/// A gear with decaying memory, as bench gears show; α < 0 makes its loop passive.
+const GEAR: &str = r#"{"model": "genetic-hysteresis", "params": {"c1": 22000.0, "c2": 4.0e9, "c3": 0.0, "alpha": -3050.0, "beta": 1.2, "omega": 1.0}}"#;
 
 #[test]
 fn finds_friction_and_writes_the_documented_json_and_pictures() {
@@ -85,6 +85,43 @@ fn the_seed_table_can_only_reveal_what_a_loop_table_shows() {
     let backlash = json["rejected"].as_array().unwrap().iter().find(|r| r["effect"] == "backlash").unwrap();
     let half_width = backlash["magnitude"].as_f64().unwrap() / 2.0;
     assert!((half_width - 0.143e-3).abs() < 0.02e-3, "{half_width}");
+    // Its loop runs the active way: at 14 and 16 N·m the unloading branch has less deflection.
+    let passivity = &json["passivity"];
+    assert_eq!(passivity["active"], true, "{passivity}");
+    assert!(passivity["mean_energy_j"].as_f64().unwrap() < 0.0);
+    assert!(passivity["words"].as_str().unwrap().contains("branch labels are swapped"));
+}
+
+#[test]
+fn a_passive_gear_with_damping_seen_at_two_rates_is_passive_and_damped() {
+    let dir = tempfile::tempdir().unwrap();
+    let params = dir.path().join("gear.json");
+    std::fs::write(&params, GEAR).unwrap();
+    let recording = dir.path().join("rec.csv");
+    ok(swg_host(&[
+        "simulate",
+        "--params",
+        params.to_str().unwrap(),
+        "--out",
+        recording.to_str().unwrap(),
+        "--cycles",
+        "3",
+        "--frequency",
+        "0.2,0.6",
+        "--output-bits",
+        "20",
+        "--input-bits",
+        "20",
+        "--torque-noise",
+        "0.03",
+        "--effect",
+        "viscous_damping=20",
+    ]));
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(swg_host(&["diagnose", recording.to_str().unwrap(), "--json"]))).unwrap();
+    let named: Vec<&str> = json["findings"].as_array().unwrap().iter().map(|f| f["effect"].as_str().unwrap()).collect();
+    assert_eq!(named, ["viscous_damping"], "{json:#}");
+    assert_eq!(json["passivity"]["active"], false);
 }
 
 #[test]

@@ -5,7 +5,8 @@ use clap::Args;
 use std::path::PathBuf;
 use swg_host::diagnose::diagnose_dataset;
 use swg_host::report::diagnose::DiagnoseReport;
-use swg_host::report::output::write_atomically;
+use swg_host::report::finite::to_json;
+use swg_host::report::output::Outputs;
 use swg_host::report::params::read_params;
 use swg_host::report::plot::{diagnosis_loop_svg, residuals_svg};
 
@@ -30,22 +31,28 @@ pub struct DiagnoseArgs {
 }
 
 pub fn run(args: DiagnoseArgs) -> Result<()> {
+    let mut outputs = Outputs::new(std::iter::once(args.input.as_path()).chain(args.params.as_deref()));
+    let pictures = args.plot.as_ref().map(|dir| [dir.join("residuals.svg"), dir.join("loop.svg")]);
+    outputs.refuse_inputs(pictures.iter().flatten().map(PathBuf::as_path))?;
     let dataset = args.input_options.read_to_fit(&args.input)?;
     let baseline = args.params.as_deref().map(read_params).transpose()?;
     let outcome = diagnose_dataset(&dataset, baseline, args.seed).with_context(|| args.input.display().to_string())?;
     let report = DiagnoseReport::new(args.input.display().to_string(), dataset.kind(), &outcome);
+    // The text is made of the same figures: a report that is not finite is printed in neither form.
+    let json = to_json("diagnosis", &report)
+        .map_err(|error| anyhow::anyhow!("{error}: {}", report.non_finite_cause()))
+        .with_context(|| args.input.display().to_string())?;
 
-    if let Some(dir) = &args.plot {
+    if let (Some(dir), Some([residuals_path, loop_path])) = (&args.plot, &pictures) {
         let residual_svg = residuals_svg(&outcome.observed, &outcome.before, &outcome.after)?;
         let loop_svg = diagnosis_loop_svg(&outcome.observed, &outcome.diagnosis)?;
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        for (name, svg) in [("residuals.svg", residual_svg), ("loop.svg", loop_svg)] {
-            let path = dir.join(name);
-            write_atomically(&path, svg.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
-        }
+        outputs.create_dir(dir)?;
+        outputs.stage(residuals_path, residual_svg.as_bytes())?;
+        outputs.stage(loop_path, loop_svg.as_bytes())?;
     }
+    outputs.commit()?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        println!("{json}");
     } else {
         print!("{}", report.human());
         if let Some(dir) = &args.plot {

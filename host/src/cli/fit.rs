@@ -8,8 +8,9 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use swg_host::fit::{fit_dataset, FitDatasetError, Identified, ModelChoice, Stage};
 use swg_host::gear::ModelKind;
+use swg_host::report::finite::to_json;
 use swg_host::report::fit::{ComparedReport, FitReport, InputSummary};
-use swg_host::report::output::write_atomically;
+use swg_host::report::output::Outputs;
 use swg_host::report::params::read_model;
 use swg_host::report::plot::{loop_svg, motion_svg, LoopPlot, MotionSeries};
 
@@ -71,6 +72,9 @@ pub fn run(args: FitArgs) -> Result<()> {
             bail!("--plot {}: the picture is written as SVG; name the file *.svg", plot.display());
         }
     }
+    let inputs = std::iter::once(args.input.as_path()).chain(args.compare.iter().map(PathBuf::as_path));
+    let mut outputs = Outputs::new(inputs);
+    outputs.refuse_inputs(args.out.iter().chain(&args.plot).map(PathBuf::as_path))?;
     let dataset = args.input_options.read_to_fit(&args.input)?;
     let compare = args.compare.iter().map(|path| read_model(path)).collect::<Result<Vec<_>, _>>()?;
     let choice = args.model.map_or(ModelChoice::Auto, ModelChoice::from);
@@ -107,7 +111,7 @@ pub fn run(args: FitArgs) -> Result<()> {
     };
     let report =
         FitReport::new(summary, &outcome.identified, outcome.lines.clone(), outcome.three_segment.clone(), compared);
-    let json = serde_json::to_string_pretty(&report)?;
+    let json = to_json("fit", &report).with_context(|| args.input.display().to_string())?;
 
     // Render everything before writing anything.
     let svg = match (&args.plot, &outcome.identified) {
@@ -138,12 +142,14 @@ pub fn run(args: FitArgs) -> Result<()> {
             Some(motion_svg(&title, &time, &data.theta, &data.torque, &[MotionSeries { label: &label, torque }])?)
         }
     };
+    // Every output at the end, or none.
     if let Some(out) = &args.out {
-        write_atomically(out, format!("{json}\n").as_bytes()).with_context(|| format!("writing {}", out.display()))?;
+        outputs.stage(out, format!("{json}\n").as_bytes())?;
     }
     if let (Some(path), Some(svg)) = (&args.plot, svg) {
-        write_atomically(path, svg.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
+        outputs.stage(path, svg.as_bytes())?;
     }
+    outputs.commit()?;
     if args.json {
         println!("{json}");
     } else {

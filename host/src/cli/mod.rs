@@ -48,6 +48,25 @@ impl Cli {
     }
 }
 
+/// The message of `error` and each of its causes, once: `a: b: c`. Library errors write their
+/// cause into their own message (so `to_string` alone is whole) and also give it as their
+/// `source`; a cause whose text the message above it already holds is not repeated.
+pub fn error_chain(error: &anyhow::Error) -> String {
+    let mut text = String::new();
+    let mut above = String::new();
+    for cause in error.chain() {
+        let message = cause.to_string();
+        if text.is_empty() {
+            text.push_str(&message);
+        } else if !above.contains(&message) {
+            text.push_str(": ");
+            text.push_str(&message);
+        }
+        above = message;
+    }
+    text
+}
+
 /// How to read a recording; shared by every subcommand that takes one.
 #[derive(Args, Clone, Debug, Default)]
 pub struct InputOptions {
@@ -64,6 +83,13 @@ impl InputOptions {
         let n = dataset.len();
         if n < MIN_POINTS {
             anyhow::bail!("{}: {n} points, fewer than the {MIN_POINTS} needed to fit the model", path.display());
+        }
+        if let Some(torque) = dataset.constant_torque() {
+            anyhow::bail!(
+                "{}: the torque is {torque} N·m on every sample: a constant torque has no stiffness or \
+                 hysteresis to fit (is torque_nm the sensor's column?)",
+                path.display()
+            );
         }
         Ok(dataset)
     }

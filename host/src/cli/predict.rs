@@ -5,7 +5,8 @@ use clap::Args;
 use std::path::PathBuf;
 use swg_host::input::read_recording;
 use swg_host::predict::predict;
-use swg_host::report::output::write_atomically;
+use swg_host::report::finite::{ensure_finite, to_json};
+use swg_host::report::output::Outputs;
 use swg_host::report::params::read_model;
 use swg_host::report::predict::prediction_csv;
 
@@ -29,21 +30,22 @@ pub struct PredictArgs {
 }
 
 pub fn run(args: PredictArgs) -> Result<()> {
+    let mut outputs = Outputs::new([args.params.as_path(), args.recording.as_path()]);
+    outputs.refuse_inputs(args.out.as_deref()).context("--out")?;
     let model = read_model(&args.params)?;
     let recording = read_recording(&args.recording, args.input_options.ratio)?;
-    if let Some(out) = &args.out {
-        if [&args.params, &args.recording].into_iter().any(|input| same_file(out, input)) {
-            anyhow::bail!("--out {}: that is an input of this command; name another file", out.display());
-        }
-    }
     let prediction = predict(&model, &recording, args.band).with_context(|| args.recording.display().to_string())?;
     let summary = prediction.summary(&recording.torque);
-    let csv = args.out.as_ref().map(|_| prediction_csv(&prediction)).transpose()?;
-    if let (Some(out), Some(csv)) = (&args.out, csv) {
-        write_atomically(out, &csv).with_context(|| format!("writing {}", out.display()))?;
+    let name = || args.recording.display().to_string();
+    let json = to_json("prediction", &summary).with_context(name)?;
+    if let Some(out) = &args.out {
+        ensure_finite("prediction", &prediction.torque).with_context(name)?;
+        ensure_finite("prediction", &prediction.stiffness).with_context(name)?;
+        outputs.stage(out, &prediction_csv(&prediction)?)?;
     }
+    outputs.commit()?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        println!("{json}");
     } else {
         println!(
             "{}: {} samples predicted from rest with {} (reversal band {:.3e} rad)",
@@ -59,12 +61,4 @@ pub fn run(args: PredictArgs) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// Whether two paths name the same file (an output must never replace an input).
-fn same_file(a: &std::path::Path, b: &std::path::Path) -> bool {
-    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    }
 }

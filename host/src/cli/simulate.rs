@@ -4,7 +4,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use swg_host::diagnose::effects::EffectValue;
-use swg_host::report::output::write_atomically;
+use swg_host::report::output::Outputs;
 use swg_host::report::params::{parse_params, read_params};
 use swg_host::simulate::{
     read_physics_params, read_trajectory, simulate_experiment, BoucWen, Experiment, MicroSlip, Motion, Physics,
@@ -139,6 +139,13 @@ fn parse_motion(text: &str) -> Result<MotionArg, String> {
 }
 
 pub fn run(args: SimulateArgs) -> Result<()> {
+    let motion_file = match &args.motion {
+        MotionArg::File(path) => Some(path.as_path()),
+        _ => None,
+    };
+    let inputs = args.params.as_deref().into_iter().chain(args.physics_params.as_deref()).chain(motion_file);
+    let mut outputs = Outputs::new(inputs);
+    outputs.refuse_inputs([args.out.as_path()]).context("--out")?;
     let params = match &args.params {
         Some(path) => {
             if args.physics != PhysicsArg::Genetic {
@@ -189,9 +196,13 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         seed: args.seed,
     };
     let recording = simulate_experiment(&Experiment { simulation, motion, physics })?;
+    if let Some(column) = recording.first_non_finite() {
+        bail!("the simulated recording is not finite: column {column} holds NaN or infinity");
+    }
     let mut text = Vec::new();
     recording.write(&mut text)?;
-    write_atomically(&args.out, &text).with_context(|| format!("writing {}", args.out.display()))?;
+    outputs.stage(&args.out, &text)?;
+    outputs.commit()?;
     let duration = recording.time.last().copied().unwrap_or(0.0);
     println!("wrote {}: {} samples, {duration} s", args.out.display(), recording.time.len());
     Ok(())

@@ -18,6 +18,7 @@ mod extended;
 pub mod form;
 mod locate;
 mod observed;
+pub mod passivity;
 mod search;
 
 pub use effects::Effect;
@@ -125,6 +126,8 @@ pub struct DiagnoseOutcome {
     pub after: Vec<f64>,
     /// Where the baseline's residual concentrates.
     pub locate: Vec<Observation>,
+    /// The energy the gear takes per closed loop, and whether the loop runs the active way.
+    pub passivity: Option<passivity::Passivity>,
 }
 
 /// The `diagnose` pipeline: prepare the data, fit the baseline (unless `baseline` is given),
@@ -151,5 +154,12 @@ pub fn diagnose_dataset(
         source: source.into(),
     })?;
     let locate = locate(&observed, &before);
-    Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate })
+    let passivity = match (dataset, &prepared.segmentation, &prepared.noise) {
+        (Dataset::Recording(recording), Some(segmentation), Some(noise)) => {
+            passivity::of_recording(recording, &segmentation.turning_points, noise)
+        }
+        (Dataset::LoopTable(table), _, _) => passivity::of_loop_table(table),
+        _ => None,
+    };
+    Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity })
 }

@@ -5,7 +5,7 @@ use model_core::Direction;
 use std::fmt;
 use std::path::Path;
 pub use table::InputError;
-use table::{read_text, Table};
+use table::{Row, Table};
 
 /// The four branches of a loading cycle, as named in loop tables.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -104,6 +104,19 @@ impl Dataset {
         self.len() == 0
     }
 
+    /// The torque, when every sample has the same one while the deflection goes both up and
+    /// down (a deflection that never reverses has its own, earlier error).
+    pub fn constant_torque(&self) -> Option<f64> {
+        let (torque, deflection) = match self {
+            Dataset::LoopTable(table) => (&table.torque, &table.deflection),
+            Dataset::Recording(recording) => (&recording.torque, &recording.deflection),
+        };
+        let first = *torque.first()?;
+        let rises = deflection.windows(2).any(|w| w[1] > w[0]);
+        let falls = deflection.windows(2).any(|w| w[1] < w[0]);
+        (rises && falls && torque.iter().all(|&t| t == first)).then_some(first)
+    }
+
     /// `loop_table` or `recording`, as reports name the kind of input.
     pub fn kind(&self) -> &'static str {
         match self {
@@ -113,20 +126,58 @@ impl Dataset {
     }
 }
 
+/// The largest torque any gear could carry, N·m: a value beyond is a reading error.
+pub const MAX_TORQUE_NM: f64 = 1e6;
+/// The largest torsional deflection, rad: a strain wave gear deflects milliradians.
+pub const MAX_DEFLECTION_RAD: f64 = 1.0;
+/// The temperatures a bench can record, °C (absolute zero to a gear long past burning).
+pub const TEMPERATURE_RANGE_C: (f64, f64) = (-273.15, 1000.0);
+
+/// The torque in cell (`row`, `col`): finite and within ±[`MAX_TORQUE_NM`].
+fn torque_at(table: &Table, row: &Row, col: usize) -> Result<f64, InputError> {
+    let torque = table.number(row, col)?;
+    if torque.abs() > MAX_TORQUE_NM {
+        return Err(table.cell_error(row, col, format!("torque of {torque:e} N·m is beyond any gear (|T| ≤ 10⁶ N·m)")));
+    }
+    Ok(torque)
+}
+
+/// Checks a deflection (read from cell `col`, or computed from the angles ending there).
+fn check_deflection(table: &Table, row: &Row, col: usize, deflection: f64, what: &str) -> Result<f64, InputError> {
+    if !deflection.is_finite() || deflection.abs() > MAX_DEFLECTION_RAD {
+        return Err(table.cell_error(
+            row,
+            col,
+            format!(
+                "{what} of {deflection:e} rad is beyond any strain wave gear (|θ| ≤ 1 rad; they deflect milliradians)"
+            ),
+        ));
+    }
+    Ok(deflection)
+}
+
 /// First line of a recording.
 pub const RECORDING_MAGIC: &str = "swg-recording v1";
 
 /// Reads a loop table or a recording, telling them apart by the recording's first line.
 /// `ratio` overrides a recording's `# ratio:` line.
 pub fn read(path: &Path, ratio: Option<f64>) -> Result<Dataset, InputError> {
-    let text = read_text(path)?;
-    let table = Table::parse(path, &text)?;
+    dataset(&Table::open(path)?, ratio)
+}
+
+/// [`read`] of a file's bytes already in memory; `path` names it in errors.
+pub fn parse(path: &Path, bytes: &[u8], ratio: Option<f64>) -> Result<Dataset, InputError> {
+    dataset(&Table::parse_bytes(path, bytes)?, ratio)
+}
+
+fn dataset(table: &Table, ratio: Option<f64>) -> Result<Dataset, InputError> {
+    let path = &table.path;
     let first_comment = table.preamble.first().filter(|(line, _)| *line == 1);
     match first_comment {
         Some((_, comment)) if comment.starts_with("swg-recording") => {
-            Ok(Dataset::Recording(recording_from_table(&table, ratio)?))
+            Ok(Dataset::Recording(recording_from_table(table, ratio)?))
         }
-        _ if table.column("branch").is_some() => Ok(Dataset::LoopTable(loop_table_from_table(&table)?)),
+        _ if table.column("branch").is_some() => Ok(Dataset::LoopTable(loop_table_from_table(table)?)),
         _ if table.column("time_s").is_some() => {
             Err(InputError::at_line(path, 1, format!("a recording must start with the line `# {RECORDING_MAGIC}`")))
         }
@@ -164,8 +215,9 @@ fn loop_table_from_table(table: &Table) -> Result<LoopTable, InputError> {
             table.cell_error(row, branch_col, format!("unknown branch {name:?}; expected one of {}", names.join(", ")))
         })?;
         out.branch.push(branch);
-        out.torque.push(table.number(row, torque_col)?);
-        out.deflection.push(table.number(row, deflection_col)?);
+        out.torque.push(torque_at(table, row, torque_col)?);
+        let deflection = table.number(row, deflection_col)?;
+        out.deflection.push(check_deflection(table, row, deflection_col, deflection, "deflection")?);
         Ok(())
     })?;
     Ok(out)
@@ -183,15 +235,25 @@ fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Re
             ));
         }
     }
-    let mut metadata = Vec::new();
+    let mut metadata: Vec<(String, String)> = Vec::new();
+    let mut key_lines: Vec<u64> = Vec::new();
     let mut ratio_line = None;
     for (line, comment) in preamble {
         if let Some((key, value)) = comment.split_once(':') {
             let (key, value) = (key.trim().to_owned(), value.trim().to_owned());
+            if let Some(first) = metadata.iter().position(|(k, _)| *k == key) {
+                let first_line = key_lines.get(first).copied().unwrap_or_default();
+                return Err(InputError::at_line(
+                    path,
+                    *line,
+                    format!("metadata key `{key}` appears twice, on lines {first_line} and {line}: keep one"),
+                ));
+            }
             if key == "ratio" {
                 ratio_line = Some((*line, value.clone()));
             }
             metadata.push((key, value));
+            key_lines.push(*line);
         }
     }
     let ratio = match (ratio_override, ratio_line) {
@@ -256,25 +318,42 @@ fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Re
             }
         }
         rec.time.push(time);
-        rec.torque.push(table.number(row, torque_col)?);
+        rec.torque.push(torque_at(table, row, torque_col)?);
         let deflection = match (angle_cols, rec.angles.as_mut()) {
             (Some((input_col, output_col)), Some(angles)) => {
                 let input = table.number(row, input_col)?;
                 let output = table.number(row, output_col)?;
                 angles.input.push(input);
                 angles.output.push(output);
-                deflection(input, output, ratio)
+                // Checked only when it is the deflection used (no deflection column).
+                let theta = deflection(input, output, ratio);
+                match deflection_col {
+                    Some(_) => theta,
+                    None => check_deflection(table, row, output_col, theta, "deflection θ_in/N − θ_out")?,
+                }
             }
             _ => 0.0,
         };
         // An explicit deflection column wins over the angles.
         let deflection = match deflection_col {
-            Some(col) => table.number(row, col)?,
+            Some(col) => {
+                let theta = table.number(row, col)?;
+                check_deflection(table, row, col, theta, "deflection")?
+            }
             None => deflection,
         };
         rec.deflection.push(deflection);
         if let (Some(col), Some(temps)) = (temperature_col, rec.temperature.as_mut()) {
-            temps.push(table.number(row, col)?);
+            let celsius = table.number(row, col)?;
+            let (low, high) = TEMPERATURE_RANGE_C;
+            if !(low..=high).contains(&celsius) {
+                return Err(table.cell_error(
+                    row,
+                    col,
+                    format!("temperature of {celsius:e} °C is beyond any bench ({low} to {high} °C)"),
+                ));
+            }
+            temps.push(celsius);
         }
         Ok(())
     })?;
@@ -295,6 +374,24 @@ pub fn deflection(theta_in: f64, theta_out: f64, ratio: f64) -> f64 {
 }
 
 impl Recording {
+    /// The first column holding a number that is not finite, by its name in the file.
+    pub fn first_non_finite(&self) -> Option<&'static str> {
+        let bad = |values: &[f64]| values.iter().any(|v| !v.is_finite());
+        let angles = self.angles.as_ref();
+        [
+            ("ratio", std::slice::from_ref(&self.ratio)),
+            ("time_s", &self.time[..]),
+            ("theta_in_rad", angles.map_or(&[][..], |a| &a.input[..])),
+            ("theta_out_rad", angles.map_or(&[][..], |a| &a.output[..])),
+            ("deflection_rad", &self.deflection[..]),
+            ("torque_nm", &self.torque[..]),
+            ("temperature_c", self.temperature.as_deref().unwrap_or_default()),
+        ]
+        .into_iter()
+        .find(|(_, values)| bad(values))
+        .map(|(name, _)| name)
+    }
+
     /// Writes the recording in format v1 (what `read` reads back exactly).
     pub fn write(&self, mut out: impl std::io::Write) -> std::io::Result<()> {
         writeln!(out, "# {RECORDING_MAGIC}")?;

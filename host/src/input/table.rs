@@ -1,5 +1,13 @@
 //! CSV with `#` comments and columns found by name, with errors that point at the cell.
+//!
+//! One path for every table (loop tables, recordings, `simulate --motion FILE.csv`): the bytes
+//! go through [`Normalised`] first — a UTF-8 byte-order mark removed, CR-only and CRLF line
+//! endings made LF, the blanks before the `#` of an indented comment line and blank-only lines
+//! removed — and then both the preamble scan and the csv reader see the same lines, with the
+//! same line numbers. A file is streamed, never held whole in memory.
 use std::fmt;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
 /// A bad input file: where, and what was expected.
@@ -43,6 +51,13 @@ pub struct Row {
     pub fields: csv::StringRecord,
 }
 
+/// Where a table's text comes from: read again from the start for each pass.
+#[derive(Debug, Clone)]
+enum Source<'a> {
+    Bytes(&'a [u8]),
+    File,
+}
+
 /// A CSV table: the `#` lines before the header, the header, and the data rows, read one at
 /// a time by [`Table::for_each_row`] into one reused record (collecting a record per row
 /// was a quarter of a 20,000-sample fit).
@@ -53,20 +68,158 @@ pub struct Table<'a> {
     pub preamble: Vec<(u64, String)>,
     pub header: Vec<String>,
     pub header_line: u64,
-    text: &'a str,
+    source: Source<'a>,
+}
+
+/// Blanks before a `#` longer than this are kept: such a line is data, not an indented comment.
+const MAX_INDENT: usize = 4096;
+
+/// The bytes every table reader sees (see the module's documentation): a [`Read`] adapter, so
+/// a file is normalised as it streams. Line numbers are kept: `\r\n`, `\r` and `\n` each end
+/// exactly one line.
+pub struct Normalised<R> {
+    inner: R,
+    /// Normalised bytes not yet handed out, from `out[at..]`.
+    out: Vec<u8>,
+    at: usize,
+    /// Nothing read yet (a byte-order mark may follow).
+    start: bool,
+    /// At the start of a line; `indent` holds its blanks so far.
+    line_start: bool,
+    indent: Vec<u8>,
+    /// The previous byte was a `\r` (a `\n` right after it ends no further line).
+    after_cr: bool,
+}
+
+impl<R: BufRead> Normalised<R> {
+    pub fn new(inner: R) -> Self {
+        Normalised { inner, out: Vec::new(), at: 0, start: true, line_start: true, indent: Vec::new(), after_cr: false }
+    }
+
+    /// Normalises the next chunk of `inner` into `out`; false at the end of the input.
+    fn refill(&mut self) -> std::io::Result<bool> {
+        self.out.clear();
+        self.at = 0;
+        while self.out.is_empty() {
+            if self.start {
+                self.start = false;
+                let mut bom = [0u8; 3];
+                let mut len = 0;
+                while len < 3 {
+                    let n = self.inner.read(&mut bom[len..])?;
+                    if n == 0 {
+                        break;
+                    }
+                    len += n;
+                }
+                if bom[..len] != [0xef, 0xbb, 0xbf] {
+                    let head = bom[..len].to_vec();
+                    self.push(&head);
+                }
+                continue;
+            }
+            let chunk = self.inner.fill_buf()?;
+            if chunk.is_empty() {
+                // A last line without its line ending: its blanks are content.
+                let indent = std::mem::take(&mut self.indent);
+                self.out.extend_from_slice(&indent);
+                return Ok(!self.out.is_empty());
+            }
+            let chunk = chunk.to_vec();
+            self.inner.consume(chunk.len());
+            self.push(&chunk);
+        }
+        Ok(true)
+    }
+
+    fn push(&mut self, bytes: &[u8]) {
+        for &byte in bytes {
+            let after_cr = std::mem::replace(&mut self.after_cr, false);
+            match byte {
+                b'\n' if after_cr => {}
+                b'\n' | b'\r' => {
+                    // A blank-only line becomes an empty one.
+                    self.indent.clear();
+                    self.out.push(b'\n');
+                    self.line_start = true;
+                    self.after_cr = byte == b'\r';
+                }
+                b' ' | b'\t' if self.line_start && self.indent.len() < MAX_INDENT => self.indent.push(byte),
+                _ if self.line_start => {
+                    self.line_start = false;
+                    if byte != b'#' {
+                        self.out.append(&mut self.indent);
+                    }
+                    self.indent.clear();
+                    self.out.push(byte);
+                }
+                _ => self.out.push(byte),
+            }
+        }
+    }
+}
+
+impl<R: BufRead> Read for Normalised<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.at >= self.out.len() && !self.refill()? {
+            return Ok(0);
+        }
+        let available = self.out.get(self.at..).unwrap_or_default();
+        let n = available.len().min(buf.len());
+        buf[..n].copy_from_slice(&available[..n]);
+        self.at += n;
+        Ok(n)
+    }
+}
+
+fn open(path: &Path) -> Result<File, InputError> {
+    File::open(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))
 }
 
 impl<'a> Table<'a> {
     /// Parses the header of `text`, read from `path` (named in errors).
     pub fn parse(path: &Path, text: &'a str) -> Result<Table<'a>, InputError> {
-        if text.trim().is_empty() {
-            return Err(InputError::file(path, "the file is empty"));
-        }
+        Table::scan(path, Source::Bytes(text.as_bytes()))
+    }
+
+    /// [`Table::parse`] of bytes that may not be UTF-8 text (an error then names the line).
+    pub fn parse_bytes(path: &Path, bytes: &'a [u8]) -> Result<Table<'a>, InputError> {
+        Table::scan(path, Source::Bytes(bytes))
+    }
+
+    /// Opens the table in the file `path` and parses its header; the rows are streamed from
+    /// the file by [`Table::for_each_row`].
+    pub fn open(path: &Path) -> Result<Table<'static>, InputError> {
+        Table::scan(path, Source::File)
+    }
+
+    /// The normalised bytes of the table, from the start.
+    fn bytes(path: &Path, source: &Source<'a>) -> Result<Box<dyn Read + 'a>, InputError> {
+        Ok(match source {
+            Source::Bytes(bytes) => Box::new(Normalised::new(*bytes)),
+            Source::File => Box::new(Normalised::new(BufReader::with_capacity(1 << 16, open(path)?))),
+        })
+    }
+
+    fn scan(path: &Path, source: Source<'a>) -> Result<Table<'a>, InputError> {
+        let mut lines = BufReader::new(Table::bytes(path, &source)?);
         let mut preamble = Vec::new();
         let mut header_line = None;
-        for (index, line) in text.lines().enumerate() {
-            let number = index as u64 + 1;
-            let trimmed = line.trim();
+        let mut line = Vec::new();
+        let mut number = 0;
+        let mut any_content = false;
+        loop {
+            line.clear();
+            let read =
+                lines.read_until(b'\n', &mut line).map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
+            if read == 0 {
+                break;
+            }
+            number += 1;
+            let text = std::str::from_utf8(&line)
+                .map_err(|_| InputError::at_line(path, number, "the file is not valid UTF-8 text"))?;
+            let trimmed = text.trim();
+            any_content |= !trimmed.is_empty();
             if let Some(comment) = trimmed.strip_prefix('#') {
                 preamble.push((number, comment.trim().to_owned()));
             } else if !trimmed.is_empty() {
@@ -74,10 +227,14 @@ impl<'a> Table<'a> {
                 break;
             }
         }
+        if !any_content {
+            return Err(InputError::file(path, "the file is empty"));
+        }
         let header_line =
             header_line.ok_or_else(|| InputError::file(path, "no header line: the file has only comments"))?;
+        drop(lines);
 
-        let mut reader = Self::reader(text);
+        let mut reader = Self::reader(Table::bytes(path, &source)?);
         let mut header_record = csv::StringRecord::new();
         match reader.read_record(&mut header_record) {
             Ok(true) => {}
@@ -99,22 +256,23 @@ impl<'a> Table<'a> {
                 });
             }
         }
-        Ok(Table { path: path.to_owned(), preamble, header, header_line, text })
+        Ok(Table { path: path.to_owned(), preamble, header, header_line, source })
     }
 
-    fn reader(text: &str) -> csv::Reader<&[u8]> {
+    fn reader<R: Read>(bytes: R) -> csv::Reader<R> {
         csv::ReaderBuilder::new()
             .has_headers(false)
             .comment(Some(b'#'))
             .flexible(true)
             .trim(csv::Trim::All)
-            .from_reader(text.as_bytes())
+            .buffer_capacity(1 << 16)
+            .from_reader(bytes)
     }
 
     /// Calls `each` with every data row in order; blank rows are skipped, a row with another
     /// number of fields than the header is an error.
     pub fn for_each_row(&self, mut each: impl FnMut(&Row) -> Result<(), InputError>) -> Result<(), InputError> {
-        let mut reader = Self::reader(self.text);
+        let mut reader = Self::reader(Table::bytes(&self.path, &self.source)?);
         let mut row = Row { line: 0, fields: csv::StringRecord::new() };
         let mut header_seen = false;
         loop {

@@ -1,5 +1,6 @@
 //! What `diagnose` reports: the JSON document and the text for a person.
 use crate::diagnose::form::{ModelForm, Unexplained};
+use crate::diagnose::passivity::Passivity;
 use crate::diagnose::{
     DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, MAX_HALF_SPREAD, MIN_BIC_DROP,
     MIN_EXPLAINED, MIN_HALF_Z,
@@ -14,6 +15,7 @@ pub struct DiagnoseReport {
     pub input: String,
     pub kind: &'static str,
     pub baseline: ModelSummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseModel>,
     pub locate: Vec<Observation>,
     pub revealable: Vec<Effect>,
@@ -25,9 +27,13 @@ pub struct DiagnoseReport {
     /// Structure left that nothing in the vocabulary explains.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unexplained: Option<Unexplained>,
+    /// ∮T dθ per closed loop; `active` flags a loop that gives energy back.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub passivity: Option<Passivity>,
     pub rejected: Vec<Rejection>,
     #[serde(rename = "final")]
     pub final_model: ModelSummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub held_out: Option<HeldOut>,
     pub criteria: Criteria,
 }
@@ -80,7 +86,7 @@ impl ModelSummary {
 impl DiagnoseReport {
     /// The report for `outcome` of the file `input`.
     pub fn new(input: String, kind: &'static str, outcome: &DiagnoseOutcome) -> DiagnoseReport {
-        let DiagnoseOutcome { observed, diagnosis, before, after, locate } = outcome;
+        let DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity } = outcome;
         DiagnoseReport {
             input,
             kind,
@@ -96,6 +102,7 @@ impl DiagnoseReport {
             findings: diagnosis.findings.clone(),
             model_form: diagnosis.model_form.clone(),
             unexplained: diagnosis.unexplained.clone(),
+            passivity: passivity.clone(),
             rejected: diagnosis.rejected.clone(),
             final_model: ModelSummary::new(&diagnosis.final_fit, after),
             held_out: diagnosis.held_out_rms.map(|(rms_before, rms_after)| HeldOut {
@@ -109,6 +116,29 @@ impl DiagnoseReport {
                 min_half_z: MIN_HALF_Z,
                 max_half_spread: MAX_HALF_SPREAD,
             },
+        }
+    }
+
+    /// Why figures of this report may not be finite, when it can be told: the evidence tests
+    /// divide by the residual's variance and by the torque noise, which a noise-free recording
+    /// leaves at (nearly) zero.
+    pub fn non_finite_cause(&self) -> String {
+        let rms = self.baseline.rms;
+        match self.noise {
+            Some(noise) if !(noise.torque_nm > 0.0) => format!(
+                "the torque noise estimates to {:e} N·m (a noise-free or quantised recording), so the evidence \
+                 tests have no scale; diagnose a measured recording",
+                noise.torque_nm
+            ),
+            None => "the data give no noise estimate, so the evidence tests have no scale".to_owned(),
+            Some(noise) if rms < 1e-3 * noise.torque_nm => format!(
+                "the baseline model fits the data exactly (RMS {rms:e} N·m, noise {:e} N·m): a noise-free \
+                 recording leaves no residual to judge an effect by; diagnose a measured recording",
+                noise.torque_nm
+            ),
+            Some(_) => "an effect's standard error came out zero, so its evidence has no scale (a noise-free, \
+                        simulated recording does this); diagnose a measured recording"
+                .to_owned(),
         }
     }
 
@@ -129,6 +159,10 @@ impl DiagnoseReport {
         let _ = writeln!(s, "\nwhere the residual concentrates");
         for o in &report.locate {
             let _ = writeln!(s, "  - {}", o.words);
+        }
+        if let Some(p) = report.passivity.as_ref().filter(|p| p.active) {
+            let _ = writeln!(s, "\nactive loop: the measurement, not the gear");
+            let _ = writeln!(s, "  {}", p.words);
         }
         if let Some(form) = &report.model_form {
             let _ = writeln!(s, "\nthe model's form is what is missing");
@@ -158,6 +192,9 @@ impl DiagnoseReport {
         }
         if let Some(u) = &report.unexplained {
             let _ = writeln!(s, "\n{}", u.words);
+        }
+        if let Some(p) = report.passivity.as_ref().filter(|p| !p.active) {
+            let _ = writeln!(s, "\nenergy: {}", p.words);
         }
         let fm = &report.final_model;
         let effects = if fm.effects.is_empty() {

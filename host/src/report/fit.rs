@@ -24,7 +24,8 @@ pub struct FitReport {
     /// Unweighted RMS residual, N·m.
     pub rms: f64,
     pub n: usize,
-    /// Noise the residuals were weighted by; `null` for a plain least-squares fit.
+    /// Noise the residuals were weighted by; absent for a plain least-squares fit.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseModel>,
     pub baselines: Vec<BaselineReport>,
     /// Parameter sets given with `--compare`, evaluated on the same data.
@@ -82,6 +83,7 @@ pub struct CandidateReport {
 pub struct InputSummary {
     pub path: String,
     pub kind: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub turning_points: Option<usize>,
 }
 

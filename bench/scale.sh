@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# How `fit --model genetic-loop` and `diagnose` scale (figures, not a test): wall time and peak
+# memory (max RSS, /usr/bin/time -v) on recordings of 10 k, 100 k, 1 M and 10 M samples made
+# by `swg-host simulate` (the seed gear, 0.5 Hz sine at 1 kHz, 20-bit encoders; 10 M samples
+# are ~520 MB of CSV). Prints a Markdown table and keeps it in bench/out/scale.md.
+#   bash bench/scale.sh [SIZES...]      e.g. bash bench/scale.sh 10000 100000
+set -euo pipefail
+cd "$(dirname "$0")/.."
+sizes=("$@")
+if [ ${#sizes[@]} -eq 0 ]; then
+    sizes=(10000 100000 1000000 10000000)
+fi
+cargo build --release --locked -p swg-host --no-default-features --quiet
+bin=${CARGO_TARGET_DIR:-target}/release/swg-host
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+mkdir -p bench/out
+measure() { # prints "seconds MB" of the command, or "failed"
+    if /usr/bin/time -v "$@" >/dev/null 2>"$work/time"; then
+        awk -F': ' '/Elapsed \(wall clock\)/ { n = split($2, p, ":"); s = 0; for (i = 1; i <= n; i++) s = s * 60 + p[i] }
+                    /Maximum resident/ { kb = $2 } END { printf "%.1f s | %.0f MB", s, kb / 1024 }' "$work/time"
+    else
+        echo "failed: $(grep -m1 error "$work/time") |"
+    fi
+}
+{
+    echo "| samples | CSV | fit --model genetic-loop | diagnose |"
+    echo "|---:|---:|---|---|"
+    for n in "${sizes[@]}"; do
+        rec=$work/rec-$n.csv
+        # 0.5 Hz at 1 kHz: 2000 samples a cycle.
+        "$bin" simulate --out "$rec" --cycles $(((n + 1999) / 2000)) --output-bits 20 --input-bits 20 >/dev/null
+        size=$(du -m "$rec" | cut -f1)
+        echo "| $n | ${size} MB | $(measure "$bin" fit "$rec" --model genetic-loop) | $(measure "$bin" diagnose "$rec") |"
+        rm -f "$rec"
+    done
+} | tee bench/out/scale.md

@@ -1,0 +1,121 @@
+//! The fuzz targets of `fuzz/` on stable, in a few seconds: every checked-in corpus input
+//! (`fuzz/corpus/<target>/`), and seeded mutations of each, through the same harness the
+//! cargo-fuzz targets call (`fuzz/src/`, included here by path). No input may panic; the
+//! harness asserts the readers' invariants on what they accept and that every refusal names
+//! the file. Long runs: `bash bench/fuzz.sh` (nightly and cargo-fuzz).
+#[path = "../../fuzz/src/frames.rs"]
+mod frames;
+#[path = "../../fuzz/src/host.rs"]
+mod host;
+
+use std::path::{Path, PathBuf};
+
+/// Mutations of each corpus input, beside the input itself.
+const MUTATIONS: u64 = 300;
+
+type Target = fn(&[u8]);
+
+fn targets() -> [(&'static str, Target); 4] {
+    [
+        ("csv_loop_table", |data| host::csv(data, None)),
+        ("csv_recording", |data| {
+            host::csv(data, None);
+            host::csv(data, Some(50.0));
+        }),
+        ("params", host::params),
+        ("frame_decode", frames::frames),
+    ]
+}
+
+fn corpus(target: &str) -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/corpus").join(target);
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|entry| entry.unwrap().path())
+        .collect();
+    files.sort();
+    files
+}
+
+/// A small deterministic generator (SplitMix64), so that a failure can be replayed.
+struct Mix(u64);
+
+impl Mix {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// The fuzzer's usual moves: flip a bit, delete, insert a byte that matters to the format,
+/// truncate, repeat a piece, or splice in a line of another input.
+fn mutate(data: &[u8], other: &[u8], seed: u64) -> Vec<u8> {
+    const BYTES: &[u8] = b",#\r\n .-+e0159\"\xef\xbb\xbf\x00\xffNaninf";
+    let mut rng = Mix(seed);
+    let mut out = data.to_vec();
+    for _ in 0..1 + rng.below(4) {
+        let at = rng.below(out.len() + 1);
+        match rng.below(6) {
+            0 if !out.is_empty() => {
+                let i = at.min(out.len() - 1);
+                out[i] ^= 1 << rng.below(8);
+            }
+            1 => {
+                let end = (at + 1 + rng.below(8)).min(out.len());
+                out.drain(at..end);
+            }
+            2 => out.insert(at, BYTES[rng.below(BYTES.len())]),
+            3 => out.truncate(at),
+            4 if !out.is_empty() => {
+                let from = rng.below(out.len());
+                let piece: Vec<u8> = out[from..(from + 1 + rng.below(32)).min(out.len())].to_vec();
+                out.splice(at..at, piece);
+            }
+            _ if !other.is_empty() => {
+                let from = rng.below(other.len());
+                let piece: Vec<u8> = other[from..(from + 1 + rng.below(64)).min(other.len())].to_vec();
+                out.splice(at..at, piece);
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+#[test]
+fn the_fuzz_corpus_replays_without_a_panic() {
+    let start = std::time::Instant::now();
+    let mut runs = 0;
+    let mut report = Vec::new();
+    for (name, target) in targets() {
+        let inputs: Vec<(PathBuf, Vec<u8>)> =
+            corpus(name).into_iter().map(|p| (p.clone(), std::fs::read(p).unwrap())).collect();
+        assert!(inputs.len() >= 20, "{name}: only {} corpus inputs", inputs.len());
+        let mut count = 0;
+        for (index, (path, data)) in inputs.iter().enumerate() {
+            let other = &inputs[(index + 1) % inputs.len()].1;
+            for m in 0..=MUTATIONS {
+                let seed = (index as u64) << 32 | m;
+                let input = if m == 0 { data.clone() } else { mutate(data, other, seed) };
+                if std::panic::catch_unwind(|| target(&input)).is_err() {
+                    panic!(
+                        "{name}: {} mutation {m} (seed {seed:#x}) panicked; input: {:?}",
+                        path.display(),
+                        String::from_utf8_lossy(&input)
+                    );
+                }
+                count += 1;
+            }
+        }
+        report.push(format!("{name}: {} inputs, {count} runs", inputs.len()));
+        runs += count;
+    }
+    println!("{} ({runs} runs in {:.2?})", report.join("; "), start.elapsed());
+}
