@@ -9,7 +9,7 @@ mkdir -p bench/out
 cargo build --release --locked -p swg-host >/dev/null
 swg=target/release/swg-host
 
-echo "== corpus accuracy (32 recordings each; right set / false alarms / misses / magnitude error)"
+echo "== corpus accuracy (50 recordings each; right set / wrong physics / false alarms / misses / magnitude error / model form / passivity)"
 for seed in 0 "${@:-1000 2000}"; do
     for s in $seed; do
         SWG_CORPUS_SEED=$s cargo test --release --locked -p swg-system-tests --test diagnose_corpus -- --nocapture 2>&1 \
