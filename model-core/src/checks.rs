@@ -59,6 +59,20 @@ pub const SEED_TABLE_FIT: Params<f64> = Params {
 /// evaluate both sets on a loop of this amplitude.
 pub const SEED_AMPLITUDE: f64 = 1.168e-3;
 
+/// The reference set of the micro-slip kind for tests and benchmarks: 16 elements of rising
+/// stiffness k_i = 120 + 15·i N·m/rad on the slip grid 10⁻⁵ … 2·10⁻³ rad, beside the spring
+/// 6·10³·θ + 1.2·10¹⁰·θ³.
+pub const MICRO_SLIP_SET: crate::memory::SlipParams<f64, 16> = crate::memory::SlipParams {
+    c1: 6.0e3,
+    c2: 1.2e10,
+    c3: 0.0,
+    stiffness: [
+        120.0, 135.0, 150.0, 165.0, 180.0, 195.0, 210.0, 225.0, 240.0, 255.0, 270.0, 285.0, 300.0, 315.0, 330.0, 345.0,
+    ],
+    slip_min: 1.0e-5,
+    slip_max: 2.0e-3,
+};
+
 /// Both reference sets with a short name, for running a check on each.
 pub const REFERENCE_SETS: [(&str, Params<f64>); 2] =
     [("paper Table 2", PAPER_TABLE_2), ("seed table fit", SEED_TABLE_FIT)];

@@ -484,6 +484,20 @@ impl<F: Real, const M: usize> SlipParams<F, M> {
     }
 }
 
+impl<const M: usize> SlipParams<f64, M> {
+    /// The set rounded to f32, as the microcontroller holds it.
+    pub fn to_f32(&self) -> SlipParams<f32, M> {
+        SlipParams {
+            c1: self.c1 as f32,
+            c2: self.c2 as f32,
+            c3: self.c3 as f32,
+            stiffness: self.stiffness.map(|k| k as f32),
+            slip_min: self.slip_min as f32,
+            slip_max: self.slip_max as f32,
+        }
+    }
+}
+
 /// The M elasto-slip elements alone, each with unit stiffness: element i's elastic deflection
 /// e_i (its spring's torque per N·m/rad of k_i). What a fit steps through a recording to build
 /// its columns: T = c1·θ + c2·θ³ + c3·θ⁵ + Σ k_i·e_i is linear in (c1, c2, c3, k_1 … k_M),

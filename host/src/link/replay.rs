@@ -415,23 +415,12 @@ mod tests {
     use crate::link::push::{joint_params, push, JointSettings};
     use crate::simulate::{simulate, Simulation};
 
-    const SEED_PARAMS: Params<f64> = Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 };
+    use model_core::checks::{MICRO_SLIP_SET, SEED_AMPLITUDE as AMPLITUDE, SEED_TABLE_FIT as SEED_PARAMS};
+
     const SEED: GearModel = GearModel::Genetic(SEED_PARAMS);
-    const AMPLITUDE: f64 = 1.168e-3;
 
     fn slip() -> GearModel {
-        let mut stiffness = [0.0; SLIP_ELEMENTS];
-        for (i, k) in stiffness.iter_mut().enumerate() {
-            *k = 120.0 + 15.0 * i as f64;
-        }
-        GearModel::MicroSlip(SlipParams {
-            c1: 6.0e3,
-            c2: 1.2e10,
-            c3: 0.0,
-            stiffness,
-            slip_min: 1.0e-5,
-            slip_max: 2.0e-3,
-        })
+        GearModel::MicroSlip(MICRO_SLIP_SET)
     }
 
     fn recording(input_bits: Option<u32>) -> Recording {

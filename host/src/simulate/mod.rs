@@ -286,14 +286,7 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
 mod tests {
     use super::*;
 
-    const SEED_FIT: Params<f64> = Params {
-        c1: 9017.390264630189,
-        c2: 12248781620.661516,
-        c3: -297350209733149.75,
-        alpha: 48.61317264674619,
-        beta: -2.29817742071738,
-        omega: 1.0,
-    };
+    use model_core::checks::SEED_TABLE_FIT as SEED_FIT;
 
     fn base() -> Simulation {
         Simulation {

@@ -8,9 +8,10 @@ use core::hint::black_box;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use model_core::{checks::SEED_TABLE_FIT, Direction, Model};
+use model_core::checks::{MICRO_SLIP_SET, SEED_TABLE_FIT};
+use model_core::{Direction, Model};
 use swg_joint::{Compensator, FastModel, TURNING_POINTS};
-use swg_protocol::{EvalPath, JointModel, JointParams, SlipModel, MODEL_VERSION, SLIP_ELEMENTS};
+use swg_protocol::{EvalPath, JointModel, JointParams, MODEL_VERSION, SLIP_ELEMENTS};
 
 const INSTRUCTIONS_PER_TICK: u32 = 40;
 const RUNS: u32 = 2000;
@@ -91,21 +92,7 @@ fn main() -> ! {
         torque_limit: 100.0,
         direction_band: 1.0e-6,
     };
-    let mut stiffness = [0.0f32; SLIP_ELEMENTS];
-    for (i, k) in stiffness.iter_mut().enumerate() {
-        *k = 120.0 + 15.0 * i as f32;
-    }
-    let slip = JointParams {
-        model: JointModel::MicroSlip(SlipModel {
-            c1: 6.0e3,
-            c2: 1.2e10,
-            c3: 0.0,
-            stiffness,
-            slip_min: 1.0e-5,
-            slip_max: 2.0e-3,
-        }),
-        ..genetic
-    };
+    let slip = JointParams { model: JointModel::MicroSlip(MICRO_SLIP_SET.to_f32().into()), ..genetic };
 
     // The loop and the black boxes alone, subtracted from every measurement.
     let baseline = ticks(|| {
