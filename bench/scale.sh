@@ -2,7 +2,8 @@
 # How `fit --model genetic-loop` and `diagnose` scale (figures, not a test): wall time and peak
 # memory (max RSS, /usr/bin/time -v) on recordings of 10 k, 100 k, 1 M and 10 M samples made
 # by `swg-host simulate` (the seed gear, 0.5 Hz sine at 1 kHz, 20-bit encoders; 10 M samples
-# are ~520 MB of CSV). Prints a Markdown table and keeps it in bench/out/scale.md.
+# are ~500 MB of CSV; check `df -h /tmp` first). Prints a Markdown table and keeps it in
+# bench/out/scale.md.
 #   bash bench/scale.sh [SIZES...]      e.g. bash bench/scale.sh 10000 100000
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -263,6 +263,11 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
     let mut inverted = slip;
     inverted.slip_max = inverted.slip_min / 2.0;
     let inverted = JointParams { model: JointModel::MicroSlip(inverted), ..good };
+    // Finite, but the model overflows f32 within |θ| ≤ MAX_DEFLECTION: refused, not committed.
+    let overflowing = JointParams { model: JointModel::Genetic(Params { c3: 1.0e38, ..good_model }), ..good };
+    let mut stiff = slip;
+    stiff.stiffness[3] = 1.0e38;
+    let stiff = JointParams { model: JointModel::MicroSlip(stiff), ..good };
     let garbage = [0x13u8; 400];
 
     let cases: Vec<(&str, Vec<u8>, ErrorReply)> = vec![
@@ -298,6 +303,16 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
             encode_to_vec(&Request::WriteParams(inverted)).unwrap(),
             ErrorReply::InvalidParam { field: ParamField::SlipMax, fault: ParamFault::OutOfRange },
         ),
+        (
+            "c3 that overflows f32 in range",
+            encode_to_vec(&Request::WriteParams(overflowing)).unwrap(),
+            ErrorReply::InvalidParam { field: ParamField::C3, fault: ParamFault::OutOfRange },
+        ),
+        (
+            "element stiffness that overflows f32 in range",
+            encode_to_vec(&Request::WriteParams(stiff)).unwrap(),
+            ErrorReply::InvalidParam { field: ParamField::SlipStiffness(3), fault: ParamFault::OutOfRange },
+        ),
         ("line noise", [&garbage[..], &[0u8]].concat(), ErrorReply::FrameTooLong),
     ];
     for (what, bytes, expected) in cases {
@@ -326,6 +341,14 @@ fn push_refuses_values_the_device_would_refuse_and_says_why() {
     let out = swg_host(&["push", params_file.to_str().unwrap(), "--port", &port, "--ratio", "0.5"]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("parameter gear_ratio is out of range"));
+    // A set the joint could not evaluate (c3 = 1e38 overflows 5·c3·θ⁴ in f32): refused before
+    // sending, with the device's reason.
+    let huge_dir = tempfile::tempdir().unwrap();
+    let huge = write_params_file(huge_dir.path(), &Params { c3: 1.0e38, ..SEED });
+    let out = swg_host(&["push", huge.to_str().unwrap(), "--port", &port, "--ratio", "50"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("parameters rejected before sending: parameter c3 is out of range"), "{stderr}");
     // Nothing listens here: a clear error, not a hang.
     let closed = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let out = swg_host(&[

@@ -570,6 +570,7 @@ impl<F: Real> Evaluation<F> {
 #[cfg(any(test, feature = "checks"))]
 pub mod checks;
 pub mod memory;
+pub mod range;
 pub use memory::{GeneticMemory, Hysteretic, MicroSlip, SlipElements, SlipParams, TurningPoint};
 pub mod tolerance;
 

@@ -15,6 +15,7 @@
 extern crate std;
 
 use core::fmt;
+use model_core::range::{self, Culprit};
 use model_core::SlipParams;
 pub use model_core::{Direction, ParamName, Params, MODEL_VERSION};
 use serde::{Deserialize, Serialize};
@@ -137,6 +138,16 @@ pub const GEAR_RATIO_RANGE: core::ops::RangeInclusive<f32> = 1.0..=10_000.0;
 /// Direction bands that make sense for an absolute encoder, rad (≤ 0.1 rad ≈ 5.7°).
 pub const DIRECTION_BAND_RANGE: core::ops::RangeInclusive<f32> = 0.0..=0.1;
 
+/// Largest plausible torsional deflection, rad (≈ 5.7°; strain wave gears deflect a few mrad).
+/// The joint evaluates the model for |θ| up to this and skips a reading beyond it as an
+/// encoder fault; [`JointParams::validate`] refuses a set that overflows f32 anywhere in this
+/// range (model-core's `range`).
+pub const MAX_DEFLECTION: f32 = 0.1;
+
+/// Turning points the genetic model remembers on the joint (as `swg-host`'s
+/// `gear::TURNING_POINTS`): deeper nested excursions retrace reversibly.
+pub const TURNING_POINTS: usize = 16;
+
 impl JointParams {
     /// The checks the firmware applies before it uses a set; the host may run them first.
     pub fn validate(&self) -> Result<(), ErrorReply> {
@@ -188,7 +199,19 @@ impl JointParams {
         if !DIRECTION_BAND_RANGE.contains(&self.direction_band) {
             return Err(out_of_range(ParamField::DirectionBand));
         }
-        Ok(())
+        // Evaluable in f32 over every |θ| ≤ MAX_DEFLECTION and every loop the evaluators can
+        // produce, or refused naming the parameter at fault (out of range).
+        let evaluable = match &self.model {
+            JointModel::Genetic(model) => range::genetic(model, MAX_DEFLECTION, TURNING_POINTS),
+            JointModel::MicroSlip(model) => range::micro_slip(&model.params(), MAX_DEFLECTION),
+        };
+        evaluable.map_err(|culprit| match culprit {
+            Culprit::Param(name) => out_of_range(ParamField::from(name)),
+            Culprit::SlipStiffness(i) => out_of_range(ParamField::SlipStiffness(i as u8)),
+            Culprit::SlipMin => out_of_range(ParamField::SlipMin),
+            Culprit::SlipMax => out_of_range(ParamField::SlipMax),
+            Culprit::Several => ErrorReply::ModelOverflow,
+        })
     }
 }
 

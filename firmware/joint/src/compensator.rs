@@ -6,12 +6,13 @@ use swg_protocol::{
 
 /// Largest plausible torsional deflection, rad (≈ 5.7°; strain wave gears deflect a few mrad).
 /// Beyond it a reading is an encoder fault: the tick is skipped without touching the model's
-/// memory, so one glitch cannot leave a false turning point behind.
-pub const MAX_DEFLECTION: f32 = 0.1;
+/// memory, so one glitch cannot leave a false turning point behind. Within it every accepted
+/// set evaluates in f32 ([`JointParams::validate`] checks that, on the host too).
+pub const MAX_DEFLECTION: f32 = swg_protocol::MAX_DEFLECTION;
 
 /// Turning points the genetic model remembers on the joint (as `swg-host`'s
 /// `gear::TURNING_POINTS`): deeper nested excursions retrace reversibly.
-pub const TURNING_POINTS: usize = 16;
+pub const TURNING_POINTS: usize = swg_protocol::TURNING_POINTS;
 
 /// The installed model's stateful evaluator (model-core's `memory`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -479,7 +480,11 @@ mod tests {
         let mut huge = paper();
         genetic(&mut huge).alpha = f32::MAX;
         genetic(&mut huge).omega = f32::MIN_POSITIVE;
-        assert_eq!(compensator.stage(huge), Err(ErrorReply::ModelOverflow));
+        // Named by the one parameter whose neutral value (α = 0) would make the set evaluable.
+        assert_eq!(
+            compensator.stage(huge),
+            Err(ErrorReply::InvalidParam { field: ParamField::Alpha, fault: ParamFault::OutOfRange })
+        );
         let mut negative = slip();
         if let JointModel::MicroSlip(model) = &mut negative.model {
             model.stiffness[4] = -1.0;
@@ -492,9 +497,143 @@ mod tests {
         if let JointModel::MicroSlip(model) = &mut overflowing.model {
             model.c3 = f32::MAX;
         }
-        assert_eq!(compensator.stage(overflowing), Err(ErrorReply::ModelOverflow));
+        assert_eq!(
+            compensator.stage(overflowing),
+            Err(ErrorReply::InvalidParam { field: ParamField::C3, fault: ParamFault::OutOfRange })
+        );
         assert_eq!(compensator.params(), Some(paper()));
         assert_eq!(compensator.tick(10.0, 0.0995, EvalPath::Direct).torque, before.torque);
+    }
+
+    /// Every parameter of both kinds at a 1e38-class value (ω at 1e-38, where it overflows):
+    /// refused with the parameter named, the old set and its memory active. Before the range
+    /// check (model-core's `range`, through `JointParams::validate`) c1, c2 < 1.1e38, c3 = 1e38,
+    /// β, each k_i and the slip range were accepted, and every tick was then off.
+    #[test]
+    fn a_set_that_overflows_anywhere_in_range_is_refused() {
+        let mut cases: Vec<(JointParams, ParamField)> = Vec::new();
+        for name in model_core::ParamName::ALL {
+            let mut params = paper();
+            let p = genetic(&mut params);
+            match name {
+                model_core::ParamName::C1 => p.c1 = 1.0e38,
+                model_core::ParamName::C2 => p.c2 = 1.0e38,
+                model_core::ParamName::C3 => p.c3 = 1.0e38,
+                model_core::ParamName::Alpha => p.alpha = 1.0e38,
+                model_core::ParamName::Beta => p.beta = 1.0e38,
+                model_core::ParamName::Omega => p.omega = 1.0e-38,
+            }
+            cases.push((params, ParamField::from(name)));
+        }
+        let slip_case = |edit: &dyn Fn(&mut SlipModel), field| {
+            let mut params = slip();
+            if let JointModel::MicroSlip(model) = &mut params.model {
+                edit(model);
+            }
+            (params, field)
+        };
+        cases.push(slip_case(&|m| m.c1 = 1.0e38, ParamField::C1));
+        cases.push(slip_case(&|m| m.c2 = 1.0e38, ParamField::C2));
+        cases.push(slip_case(&|m| m.c3 = 1.0e38, ParamField::C3));
+        for i in 0..SLIP_ELEMENTS {
+            cases.push(slip_case(&|m| m.stiffness[i] = 1.0e38, ParamField::SlipStiffness(i as u8)));
+        }
+        cases.push(slip_case(&|m| m.slip_max = 1.0e38, ParamField::SlipMax));
+        cases.push(slip_case(
+            &|m| {
+                m.slip_min = 1.0e37;
+                m.slip_max = 1.0e38;
+            },
+            ParamField::SlipMin,
+        ));
+        for (bad, field) in cases {
+            let mut compensator = Compensator::new();
+            compensator.stage(paper()).unwrap();
+            let mut twin = compensator.clone();
+            let motion = nested(1.0e-3, 400);
+            for &theta in &motion[..200] {
+                tick_theta(&mut compensator, theta, EvalPath::Fast);
+                tick_theta(&mut twin, theta, EvalPath::Fast);
+            }
+            let refused = Err(ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange });
+            assert_eq!(compensator.stage(bad), refused, "{bad:?}");
+            assert_eq!(compensator.params(), Some(paper()));
+            for &theta in &motion[200..] {
+                let out = tick_theta(&mut compensator, theta, EvalPath::Fast);
+                assert_eq!(out, tick_theta(&mut twin, theta, EvalPath::Fast));
+                assert_eq!(out.compensation, Compensation::Active);
+            }
+        }
+    }
+
+    /// θ = ±MAX_DEFLECTION·(0.75·sin φ + 0.25·sin 9φ) after a ramp: the largest loop the joint
+    /// sees, and nested ones inside it, in both directions.
+    fn full_range(n: usize) -> Vec<f32> {
+        let mut motion = nested(MAX_DEFLECTION, n);
+        motion.extend(nested(MAX_DEFLECTION, n).iter().map(|t| -t));
+        motion.extend((0..=n).map(|i| MAX_DEFLECTION * (2.0 * i as f32 / n as f32 - 1.0)));
+        motion.extend((0..=n).map(|i| MAX_DEFLECTION * (1.0 - 2.0 * i as f32 / n as f32)));
+        motion
+    }
+
+    /// The other side of the check: each parameter pushed by decades to the largest value it
+    /// accepts, and that set evaluated on both paths over the whole range (the largest loop, the
+    /// ends ±MAX_DEFLECTION, nested loops): no tick is off.
+    #[test]
+    fn the_largest_accepted_sets_evaluate_over_the_whole_range() {
+        let evaluate = |params: JointParams| {
+            for path in [EvalPath::Direct, EvalPath::Fast] {
+                let mut compensator = Compensator::new();
+                compensator.stage(params).unwrap();
+                for theta in full_range(400) {
+                    let out = compensator.tick(100.0 * theta, 0.0, path);
+                    assert_ne!(out.compensation, Compensation::Off, "{params:?} {path:?} {theta}: {out:?}");
+                }
+            }
+        };
+        let limit = JointParams { torque_limit: f32::MAX, ..paper() };
+        for name in model_core::ParamName::ALL {
+            let mut last = None;
+            for decade in 0..90 {
+                let mut params = limit;
+                let p = genetic(&mut params);
+                let scale = libm::powf(10.0, decade as f32);
+                match name {
+                    model_core::ParamName::C1 => p.c1 *= scale,
+                    model_core::ParamName::C2 => p.c2 *= scale,
+                    model_core::ParamName::C3 => p.c3 *= scale,
+                    model_core::ParamName::Alpha => p.alpha *= scale,
+                    model_core::ParamName::Beta => p.beta *= scale,
+                    model_core::ParamName::Omega => p.omega /= scale,
+                }
+                if params.validate().is_err() {
+                    break;
+                }
+                last = Some(params);
+            }
+            evaluate(last.unwrap());
+        }
+        let limit = JointParams { torque_limit: f32::MAX, ..slip() };
+        for field in 0..(3 + SLIP_ELEMENTS) {
+            let mut last = None;
+            for decade in 0..90 {
+                let mut params = limit;
+                let scale = libm::powf(10.0, decade as f32);
+                if let JointModel::MicroSlip(m) = &mut params.model {
+                    match field {
+                        0 => m.c1 *= scale,
+                        1 => m.c2 *= scale,
+                        2 => m.c3 = 1.0e10 * scale,
+                        i => m.stiffness[i - 3] *= scale,
+                    }
+                }
+                if params.validate().is_err() {
+                    break;
+                }
+                last = Some(params);
+            }
+            evaluate(last.unwrap());
+        }
     }
 
     #[test]

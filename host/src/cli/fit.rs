@@ -75,7 +75,13 @@ pub fn run(args: FitArgs) -> Result<()> {
     let inputs = std::iter::once(args.input.as_path()).chain(args.compare.iter().map(PathBuf::as_path));
     let mut outputs = Outputs::new(inputs);
     outputs.refuse_inputs(args.out.iter().chain(&args.plot).map(PathBuf::as_path))?;
-    let dataset = args.input_options.read_to_fit(&args.input)?;
+    let mut dataset = args.input_options.read_to_fit(&args.input)?;
+    // The fit reads a recording's time, deflection and torque only: the angles (once the
+    // deflection is formed) and the temperature need not stay in memory beside its columns.
+    if let swg_host::input::Dataset::Recording(recording) = &mut dataset {
+        recording.angles = None;
+        recording.temperature = None;
+    }
     let compare = args.compare.iter().map(|path| read_model(path)).collect::<Result<Vec<_>, _>>()?;
     let choice = args.model.map_or(ModelChoice::Auto, ModelChoice::from);
 

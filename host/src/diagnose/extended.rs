@@ -4,7 +4,6 @@ use super::observed::Observed;
 use crate::fit::basis::Basis;
 use crate::fit::R_LIMIT;
 use crate::numeric::median;
-use crate::prepare::FitData;
 use model_core::{Direction, Libm, Model, Params, Phase};
 
 const GAUSS_NEWTON_ITERATIONS: usize = 10;
@@ -198,18 +197,16 @@ pub fn fit_extended(
             return Err(ExtendedFitError::Unrevealable(*effect));
         }
     }
+    // Buffers every iteration refills: the weights of `subset` and the extra columns.
+    let mut sub_weights: Vec<f64> = subset.iter().map(|&i| weights[i]).collect();
+    let mut extra = vec![Vec::with_capacity(m); width];
     let mut iteration = 0;
     loop {
         iteration += 1;
         let model = Model::new(params)?;
         let k = model.k();
-        let mut sub = FitData {
-            theta: Vec::with_capacity(m),
-            torque: Vec::with_capacity(m),
-            direction: Vec::with_capacity(m),
-            amplitude: Vec::with_capacity(m),
-        };
-        let mut extra = vec![Vec::with_capacity(m); width];
+        let mut basis = Basis::empty(scale, m);
+        extra.iter_mut().for_each(Vec::clear);
         for &i in subset {
             let x = d.theta[i] + kinematic_at(&state, observed, i);
             let elastic = backlash(x, state.backlash);
@@ -219,10 +216,7 @@ pub fn fit_extended(
                 .and_then(|l| l.evaluate_parts(elastic, d.direction[i]))
                 .unwrap_or_default();
             let stiffness = spring.stiffness + hysteresis.stiffness;
-            sub.theta.push(elastic);
-            sub.torque.push(d.torque[i]);
-            sub.direction.push(d.direction[i]);
-            sub.amplitude.push(amplitude);
+            basis.push(elastic, d.torque[i], d.direction[i], amplitude);
             // The effects' columns fill `extra` in order; `width` counted them.
             let mut column = 0;
             let mut push = |value: f64| {
@@ -255,10 +249,10 @@ pub fn fit_extended(
             let phase = Phase::new::<Libm>(elastic / amplitude, d.direction[i]);
             push(k * amplitude * phase.abs_cos * (phase.sin - phase.angle * (-r * phase.angle).exp()));
         }
-        let sub_weights = subset.iter().map(|&i| weights[i]).collect();
-        let basis = Basis::weighted(&sub, scale, sub_weights, extra);
+        let basis = basis.with_weights(sub_weights, extra);
         let solution = basis.solve(r).ok_or(ExtendedFitError::Degenerate)?;
         params = basis.params(r, &solution, reference_amplitude)?;
+        (sub_weights, extra) = basis.into_weights();
         let dof = (m as f64 - (4 + width) as f64).max(1.0);
         let variance = solution.weighted_rss / dof;
         let column_errors: Vec<f64> =

@@ -137,7 +137,7 @@ pub fn diagnose_dataset(
     baseline: Option<Params<f64>>,
     seed: u64,
 ) -> Result<DiagnoseOutcome, DiagnoseError> {
-    let prepared = prepare(dataset)?;
+    let mut prepared = prepare(dataset)?;
     let baseline = match baseline {
         Some(params) => params,
         None => {
@@ -145,7 +145,9 @@ pub fn diagnose_dataset(
             fit(&prepared.data, &options, |_| {})?.params
         }
     };
-    let observed = Observed::new(dataset, &prepared);
+    // The diagnosis holds the samples once: moved from `prepared`, not copied.
+    let data = std::mem::take(&mut prepared.data);
+    let observed = Observed::with_data(dataset, &prepared, data);
     let diagnosis = diagnose(&observed, baseline)?;
     let all: Vec<usize> = (0..observed.data.theta.len()).collect();
     let before = diagnosis.baseline.residuals(&observed, &all).map_err(DiagnoseError::Baseline)?;

@@ -32,14 +32,21 @@ pub struct Observed {
     pub held_out: Vec<usize>,
     /// Effects this data cannot reveal, with why.
     pub cannot_reveal: Vec<(Effect, String)>,
-    /// For each sample of a recording, the two ends of its leg as (deflection, sample index):
-    /// the kinematic error moves the elastic turning points, and with them the amplitude.
-    leg_ends: Option<Vec<[(f64, usize); 2]>>,
+    /// The ends of a recording's legs as (deflection, sample index): the first sample, every
+    /// turning point, the last sample. Leg k (from end k to end k + 1) holds the samples after
+    /// turning point k − 1 up to turning point k. The kinematic error moves the elastic turning
+    /// points, and with them the amplitude.
+    leg_ends: Option<Vec<(f64, usize)>>,
 }
 
 impl Observed {
     pub fn new(dataset: &Dataset, prepared: &Prepared) -> Observed {
-        let data = prepared.data.clone();
+        Observed::with_data(dataset, prepared, prepared.data.clone())
+    }
+
+    /// [`Observed::new`] taking `data`, the prepared samples (`prepared.data`, which the caller
+    /// may have moved out: the diagnosis then holds the samples once).
+    pub fn with_data(dataset: &Dataset, prepared: &Prepared, data: FitData) -> Observed {
         let n = data.theta.len();
         let mut observed = Observed {
             noise: prepared.noise,
@@ -112,13 +119,10 @@ impl Observed {
         self.time = Some(recording.time.clone());
         if let Some(segmentation) = &prepared.segmentation {
             let theta = &recording.deflection;
-            let mut ends = Vec::with_capacity(n);
-            let mut start = (theta[0], 0);
-            for tp in &segmentation.turning_points {
-                ends.resize(tp.index + 1, [start, (tp.deflection, tp.index)]);
-                start = (tp.deflection, tp.index);
-            }
-            ends.resize(n, [start, (theta[n - 1], n - 1)]);
+            let mut ends = Vec::with_capacity(segmentation.turning_points.len() + 2);
+            ends.push((theta[0], 0));
+            ends.extend(segmentation.turning_points.iter().map(|tp| (tp.deflection, tp.index)));
+            ends.push((theta[n - 1], n - 1));
             self.leg_ends = Some(ends);
         }
         match &recording.angles {
@@ -175,7 +179,13 @@ impl Observed {
     pub(super) fn elastic_amplitude(&self, state: &EffectState, i: usize) -> f64 {
         let measured = match &self.leg_ends {
             Some(ends) if state.kinematic != [0.0; 4] => {
-                ends[i].iter().map(|&(theta, j)| (theta + kinematic_at(state, self, j)).abs()).fold(0.0, f64::max)
+                // The leg of sample i ends at the first turning point at or after it.
+                let turning = &ends[1..ends.len() - 1];
+                let leg = turning.partition_point(|&(_, j)| j < i);
+                ends[leg..leg + 2]
+                    .iter()
+                    .map(|&(theta, j)| (theta + kinematic_at(state, self, j)).abs())
+                    .fold(0.0, f64::max)
             }
             _ => self.data.amplitude[i],
         };

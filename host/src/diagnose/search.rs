@@ -30,8 +30,10 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
         let candidates: Vec<Effect> =
             observed.revealable().into_iter().filter(|e| !current.active.contains(e)).collect();
         let variance = current.chi2 / (n as f64 - current.degrees_of_freedom() as f64).max(1.0);
+        // One candidate at a time: each fit holds its columns for every sample, so fitting them
+        // side by side would multiply the memory by the threads (each solve runs in parallel).
         let mut trials: Vec<(Effect, ExtendedFit, Evidence)> = candidates
-            .par_iter()
+            .iter()
             .filter_map(|&effect| {
                 let mut active = current.active.clone();
                 active.push(effect);
@@ -82,7 +84,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             }
         }
         if accepted_fit.is_none() {
-            if let Some((pair, fit)) = consistent_pair(observed, &weights, &current, &strong, variance, ln_n) {
+            if let Some((pair, fit)) = consistent_pair(observed, &all, &weights, &current, &strong, variance, ln_n) {
                 rejected.retain(|r| !pair.iter().any(|(e, _)| *e == r.effect));
                 accepted = pair;
                 accepted_fit = Some(fit);
@@ -173,18 +175,18 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
 /// halves or the rate check of another).
 fn consistent_pair(
     observed: &Observed,
+    all: &[usize],
     weights: &[f64],
     current: &ExtendedFit,
     strong: &[(Effect, ExtendedFit)],
     variance: f64,
     ln_n: f64,
 ) -> Option<(Vec<(Effect, Evidence)>, ExtendedFit)> {
-    let all: Vec<usize> = (0..observed.data.theta.len()).collect();
     for (i, (a, fit_a)) in strong.iter().enumerate() {
         for (b, fit_b) in &strong[i + 1..] {
             let mut active = current.active.clone();
             active.extend([*a, *b]);
-            let Ok(pair) = fit_extended(observed, &all, weights, &active, current) else { continue };
+            let Ok(pair) = fit_extended(observed, all, weights, &active, current) else { continue };
             let mut evidence = Vec::new();
             for (effect, alone_with_other) in [(*a, fit_b), (*b, fit_a)] {
                 let drop = (alone_with_other.chi2 - pair.chi2).max(0.0);
@@ -329,7 +331,15 @@ fn rate_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit, effect: E
 }
 
 fn unweighted_rss(observed: &Observed, fit: &ExtendedFit, subset: &[usize]) -> Result<f64, model_core::Error> {
-    Ok(fit.residuals(observed, subset)?.iter().map(|r| r * r).sum())
+    // Summed in order as they come: the sum over [`ExtendedFit::residuals`], without the vector.
+    let model = Model::new(fit.params)?;
+    subset
+        .iter()
+        .map(|&i| {
+            let r = observed.data.torque[i] - fit.predict(observed, &model, i)?;
+            Ok(r * r)
+        })
+        .sum()
 }
 
 /// RMS on the held-out samples of each model refitted on the training samples only; `None`

@@ -3,12 +3,12 @@
 use super::FitError;
 use crate::numeric::linalg::Cholesky;
 use crate::prepare::FitData;
-use model_core::{shape, Identifiable, Libm, Params, Phase};
+use model_core::{shape, Direction, Identifiable, Libm, Params, Phase};
 
 /// Per-sample quantities that do not depend on r.
 pub struct Basis {
-    /// θ/S for S the largest amplitude: u, u³, u⁵.
-    poly: Vec<[f64; 3]>,
+    /// θ/S for S the largest amplitude: u (u³ and u⁵ are formed where they are needed).
+    poly: Vec<f64>,
     /// Each sample's place on its loop (model-core's [`Phase`]): φ, sin φ, cos φ, in arrays of
     /// their own because the search over r streams through them once per r.
     phase: Vec<f64>,
@@ -35,6 +35,12 @@ struct FixedSums {
     rhs: Vec<f64>,
     /// TᵀWT.
     tt: f64,
+}
+
+/// u, u³, u⁵: the polynomial columns at u = θ/S, formed the same way every time.
+#[inline(always)]
+fn powers(u: f64) -> [f64; 3] {
+    [u, u * u * u, u * u * u * u * u]
 }
 
 /// Column of the hysteresis term in the normal equations.
@@ -66,48 +72,62 @@ impl Basis {
     /// linear columns `extra` (one value per sample each) beside the model's own. The sums are
     /// formed once, for these weights and columns: they are a quarter of a diagnosis.
     pub fn weighted(data: &FitData, scale: f64, weights: Vec<f64>, extra: Vec<Vec<f64>>) -> Basis {
-        let mut b = Basis::unsummed(data, 0..data.theta.len(), scale);
-        b.weight = weights;
-        b.extra = extra;
-        b.refresh_fixed();
-        b
+        Basis::unsummed(data, 0..data.theta.len(), scale).with_weights(weights, extra)
     }
 
     fn unsummed(data: &FitData, indices: impl Iterator<Item = usize>, scale: f64) -> Basis {
-        let mut b = Basis {
-            poly: Vec::new(),
-            phase: Vec::new(),
-            sin: Vec::new(),
-            cos: Vec::new(),
-            amp_abs_cos: Vec::new(),
-            torque: Vec::new(),
-            weight: Vec::new(),
+        let mut b = Basis::empty(scale, indices.size_hint().0);
+        for i in indices {
+            b.push(data.theta[i], data.torque[i], data.direction[i], data.amplitude[i]);
+        }
+        b
+    }
+
+    /// No samples yet, room for `capacity`: fill with [`Basis::push`], then
+    /// [`Basis::with_weights`]. Lets a caller build the columns without a [`FitData`] of them.
+    pub fn empty(scale: f64, capacity: usize) -> Basis {
+        Basis {
+            poly: Vec::with_capacity(capacity),
+            phase: Vec::with_capacity(capacity),
+            sin: Vec::with_capacity(capacity),
+            cos: Vec::with_capacity(capacity),
+            amp_abs_cos: Vec::with_capacity(capacity),
+            torque: Vec::with_capacity(capacity),
+            weight: Vec::with_capacity(capacity),
             phase_range: (f64::INFINITY, f64::NEG_INFINITY),
             scale,
             extra: Vec::new(),
             fixed: FixedSums::default(),
-        };
-        for i in indices {
-            let (theta, amplitude) = (data.theta[i], data.amplitude[i]);
-            let u = theta / scale;
-            b.poly.push([u, u * u * u, u * u * u * u * u]);
-            let phase = Phase::new::<Libm>(theta / amplitude, data.direction[i]);
-            b.phase_range = (b.phase_range.0.min(phase.angle), b.phase_range.1.max(phase.angle));
-            b.phase.push(phase.angle);
-            b.sin.push(phase.sin);
-            b.cos.push(phase.cos);
-            b.amp_abs_cos.push(amplitude * phase.abs_cos);
-            b.torque.push(data.torque[i]);
-            b.weight.push(1.0);
         }
-        b
+    }
+
+    /// Adds one sample (deflection θ, torque, direction, amplitude A), weight 1.
+    pub fn push(&mut self, theta: f64, torque: f64, direction: Direction, amplitude: f64) {
+        self.poly.push(theta / self.scale);
+        let phase = Phase::new::<Libm>(theta / amplitude, direction);
+        self.phase_range = (self.phase_range.0.min(phase.angle), self.phase_range.1.max(phase.angle));
+        self.phase.push(phase.angle);
+        self.sin.push(phase.sin);
+        self.cos.push(phase.cos);
+        self.amp_abs_cos.push(amplitude * phase.abs_cos);
+        self.torque.push(torque);
+        self.weight.push(1.0);
+    }
+
+    /// The pushed samples with `weights` (one per sample) and further linear columns `extra`,
+    /// as [`Basis::weighted`] makes them.
+    pub fn with_weights(mut self, weights: Vec<f64>, extra: Vec<Vec<f64>>) -> Basis {
+        self.weight = weights;
+        self.extra = extra;
+        self.refresh_fixed();
+        self
     }
 
     /// The value of column `column` (not the hysteresis one) at sample `i`.
     #[inline(always)]
     fn column(&self, column: usize, i: usize) -> f64 {
         match column {
-            0..=2 => self.poly[i][column],
+            0..=2 => powers(self.poly[i])[column],
             _ => self.extra[column - 4][i],
         }
     }
@@ -149,7 +169,7 @@ impl Basis {
         for i in range {
             let p = shape(r, self.sin[i], self.cos[i], (-r * self.phase[i] - shift).exp(), e_shift);
             let wb = self.weight[i] * self.amp_abs_cos[i] * p;
-            let poly = &self.poly[i];
+            let poly = powers(self.poly[i]);
             cross[0] += wb * poly[0];
             cross[1] += wb * poly[1];
             cross[2] += wb * poly[2];
@@ -197,6 +217,16 @@ impl Basis {
         }
         let explained: f64 = coef.iter().zip(&rhs).map(|(c, r)| c * r).sum();
         Some(Solution { coef, shift, weighted_rss: (self.fixed.tt - explained).max(0.0), factor })
+    }
+
+    /// The weights and extra columns back, for the next [`Basis::with_weights`] to reuse.
+    pub fn into_weights(self) -> (Vec<f64>, Vec<Vec<f64>>) {
+        (self.weight, self.extra)
+    }
+
+    /// The weights, leaving none: a buffer to fill and give back with [`Basis::set_weights`].
+    pub fn take_weights(&mut self) -> Vec<f64> {
+        std::mem::take(&mut self.weight)
     }
 
     /// Replaces the weights (one per sample).

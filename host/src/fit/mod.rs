@@ -366,7 +366,9 @@ pub fn polish(basis: &Basis, s: f64, half_width: f64, s_limit: f64) -> (f64, usi
 
 /// Total-noise weights 1/(σ_T² + σ_θ²·K²), normalised to a mean of 1.
 fn reweight(basis: &mut Basis, data: &FitData, model: &Model<f64>, noise: &NoiseModel) -> Result<(), FitError> {
-    let mut weights = total_noise_weights(data, model, noise)?;
+    // The new weights go into the old ones' buffer: one weight vector at a time.
+    let mut weights = basis.take_weights();
+    total_noise_weights_into(data, model, noise, &mut weights)?;
     let mean = weights.iter().sum::<f64>() / weights.len() as f64;
     weights.iter_mut().for_each(|w| *w /= mean);
     basis.set_weights(weights);
@@ -380,23 +382,38 @@ pub fn total_noise_weights(
     model: &Model<f64>,
     noise: &NoiseModel,
 ) -> Result<Vec<f64>, model_core::Error> {
+    let mut weights = Vec::with_capacity(data.theta.len());
+    total_noise_weights_into(data, model, noise, &mut weights)?;
+    Ok(weights)
+}
+
+/// [`total_noise_weights`] into `weights` (cleared first).
+fn total_noise_weights_into(
+    data: &FitData,
+    model: &Model<f64>,
+    noise: &NoiseModel,
+    weights: &mut Vec<f64>,
+) -> Result<(), model_core::Error> {
     let (var_t, var_theta) = (noise.torque_nm.powi(2), noise.deflection_rad.powi(2));
-    (0..data.theta.len())
-        .map(|i| {
-            let stiffness = model.stiffness(data.theta[i], data.direction[i], data.amplitude[i])?;
-            Ok(1.0 / (var_t + var_theta * stiffness * stiffness).max(f64::MIN_POSITIVE))
-        })
-        .collect()
+    weights.clear();
+    for i in 0..data.theta.len() {
+        let stiffness = model.stiffness(data.theta[i], data.direction[i], data.amplitude[i])?;
+        weights.push(1.0 / (var_t + var_theta * stiffness * stiffness).max(f64::MIN_POSITIVE));
+    }
+    Ok(())
 }
 
 /// Unweighted residual sum of squares of `model` on `data`, (N·m)².
 pub fn rss(model: &Model<f64>, data: &FitData) -> Result<f64, model_core::Error> {
-    residuals(model, data).map(|r| r.iter().map(|e| e * e).sum())
+    // Summed as they come, in order: the same sum as over [`residuals`], without the vector.
+    (0..data.theta.len()).map(|i| residual(model, data, i).map(|e| e * e)).sum()
+}
+
+fn residual(model: &Model<f64>, data: &FitData, i: usize) -> Result<f64, model_core::Error> {
+    Ok(data.torque[i] - model.torque(data.theta[i], data.direction[i], data.amplitude[i])?)
 }
 
 /// Measured minus modelled torque for every sample, N·m.
 pub fn residuals(model: &Model<f64>, data: &FitData) -> Result<Vec<f64>, model_core::Error> {
-    (0..data.theta.len())
-        .map(|i| Ok(data.torque[i] - model.torque(data.theta[i], data.direction[i], data.amplitude[i])?))
-        .collect()
+    (0..data.theta.len()).map(|i| residual(model, data, i)).collect()
 }

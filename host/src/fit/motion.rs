@@ -237,16 +237,45 @@ pub fn slip_range(motion: &Motion) -> (f64, f64) {
     ((SLIP_MIN_IN_NOISE_SIGMAS * noise).max(1e-3 * half_range), half_range)
 }
 
-/// Each element's unit-stiffness torque e_i along the training samples: the columns of the k_i.
-fn element_columns(motion: &Motion, slip_min: f64, slip_max: f64) -> Result<Vec<[f64; SLIP_ELEMENTS]>, FitError> {
-    let mut elements = SlipElements::<f64, SLIP_ELEMENTS>::new(slip_grid(slip_min, slip_max)?)?;
-    motion.theta[..motion.training]
-        .iter()
-        .map(|&theta| {
-            elements.step(theta)?;
-            Ok(*elements.elastic())
-        })
-        .collect()
+/// Each element's unit-stiffness torque e_i along the training samples, the columns of the
+/// k_i, formed sample by sample for a pass over the samples in order: kept as a matrix, they
+/// would be 16 values a sample. Each pass starts from the elements at rest ([`Self::pass`]).
+#[derive(Clone, Copy)]
+struct ElementRun {
+    at_rest: SlipElements<f64, SLIP_ELEMENTS>,
+}
+
+/// One pass of an [`ElementRun`]: call [`ElementPass::step`] on samples 0, 1, 2, … in order,
+/// then [`ElementPass::finish`] for the first error, if any.
+struct ElementPass {
+    elements: SlipElements<f64, SLIP_ELEMENTS>,
+    error: Option<model_core::Error>,
+}
+
+impl ElementRun {
+    fn new(slip_min: f64, slip_max: f64) -> Result<ElementRun, FitError> {
+        Ok(ElementRun { at_rest: SlipElements::new(slip_grid(slip_min, slip_max)?)? })
+    }
+
+    fn pass(&self) -> ElementPass {
+        ElementPass { elements: self.at_rest, error: None }
+    }
+}
+
+impl ElementPass {
+    /// The elements' e_i after the deflection `theta`, the next sample's.
+    fn step(&mut self, theta: f64) -> [f64; SLIP_ELEMENTS] {
+        if self.error.is_none() {
+            if let Err(error) = self.elements.step(theta) {
+                self.error = Some(error);
+            }
+        }
+        *self.elements.elastic()
+    }
+
+    fn finish(self) -> Result<(), FitError> {
+        self.error.map_or(Ok(()), |error| Err(error.into()))
+    }
 }
 
 /// The micro-slip form with further free columns beside it (the diagnosis' torque effects),
@@ -260,31 +289,36 @@ pub fn micro_slip_with_columns(
     motion.check()?;
     let scale = motion.scale();
     let (slip_min, slip_max) = slip_range(motion);
-    let elastic = element_columns(motion, slip_min, slip_max)?;
+    let run = ElementRun::new(slip_min, slip_max)?;
     let n = 3 + SLIP_ELEMENTS + extra.len();
     let nonnegative: Vec<bool> = (0..n).map(|j| (3..3 + SLIP_ELEMENTS).contains(&j)).collect();
-    let row = |i: usize, x: &mut [f64]| {
+    // Rows are asked for in order, 0, 1, 2, …, once per pass.
+    let row = |pass: &mut ElementPass, i: usize, x: &mut [f64]| {
         let u = motion.theta[i] / scale;
         x[..3].copy_from_slice(&[u, u * u * u, u * u * u * u * u]);
-        for (value, e) in x[3..3 + SLIP_ELEMENTS].iter_mut().zip(&elastic[i]) {
+        for (value, e) in x[3..3 + SLIP_ELEMENTS].iter_mut().zip(&pass.step(motion.theta[i])) {
             *value = e / scale;
         }
         for (value, column) in x[3 + SLIP_ELEMENTS..].iter_mut().zip(extra) {
             *value = column[i];
         }
     };
-    let (gram, rhs) = normal_equations(n, motion.training, Some(weights), motion.torque, row);
+    let mut pass = run.pass();
+    let (gram, rhs) = normal_equations(n, motion.training, Some(weights), motion.torque, |i, x| row(&mut pass, i, x));
+    pass.finish()?;
     let coef = nnls_normal(&gram, &rhs, &nonnegative).ok_or(FitError::Degenerate)?;
     let mut x = vec![0.0; n];
     let mut chi2 = 0.0;
+    let mut pass = run.pass();
     let predicted = (0..motion.training)
         .map(|i| {
-            row(i, &mut x);
+            row(&mut pass, i, &mut x);
             let p: f64 = x.iter().zip(&coef).map(|(a, b)| a * b).sum();
             chi2 += weights[i] * (motion.torque[i] - p).powi(2);
             p
         })
         .collect();
+    pass.finish()?;
     Ok((predicted, chi2))
 }
 
@@ -293,18 +327,20 @@ pub fn fit_micro_slip(motion: &Motion) -> Result<MotionFit, FitError> {
     motion.check()?;
     let scale = motion.scale();
     let (slip_min, slip_max) = slip_range(motion);
-    let elastic = element_columns(motion, slip_min, slip_max)?;
+    let run = ElementRun::new(slip_min, slip_max)?;
     const N: usize = 3 + SLIP_ELEMENTS;
     let nonnegative: Vec<bool> = (0..N).map(|j| j >= 3).collect();
     let solve = |weights: Option<&[f64]>| -> Result<SlipParams<f64, SLIP_ELEMENTS>, FitError> {
+        let mut pass = run.pass();
         let (gram, rhs) = normal_equations(N, motion.training, weights, motion.torque, |i, x| {
             let u = motion.theta[i] / scale;
             x[..3].copy_from_slice(&[u, u * u * u, u * u * u * u * u]);
-            for (value, e) in x[3..].iter_mut().zip(&elastic[i]) {
+            for (value, e) in x[3..].iter_mut().zip(&pass.step(motion.theta[i])) {
                 // e_i/S: the element columns on the scale of the polynomial's.
                 *value = e / scale;
             }
         });
+        pass.finish()?;
         let coef = nnls_normal(&gram, &rhs, &nonnegative).ok_or(FitError::Degenerate)?;
         let mut stiffness = [0.0; SLIP_ELEMENTS];
         for (k, c) in stiffness.iter_mut().zip(&coef[3..]) {

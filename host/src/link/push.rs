@@ -197,6 +197,73 @@ mod tests {
         ));
     }
 
+    /// Every parameter of both kinds at a 1e38-class value (ω at 1e-38): representable in f32,
+    /// but the model would overflow f32 somewhere in the joint's range (or, for the slip range,
+    /// lies beyond it). Refused here before sending, naming the parameter, and by the device
+    /// with the same reply when sent anyway (its `JointParams::validate`, the same code); the
+    /// old set stays active. The reference sets pass both.
+    #[test]
+    fn sets_that_overflow_in_range_are_refused_by_both_ends_with_the_same_reason() {
+        use model_core::checks::{MICRO_SLIP_SET, PAPER_TABLE_2, SEED_TABLE_FIT};
+        let mut link = FakeDevice::new().link();
+        let good = joint_params(&GearModel::Genetic(PAPER_TABLE_2), &SETTINGS).unwrap();
+        push(&mut link, &good).unwrap();
+        for model in [GearModel::Genetic(SEED_TABLE_FIT), GearModel::MicroSlip(MICRO_SLIP_SET)] {
+            let params = joint_params(&model, &SETTINGS).unwrap();
+            link.write_params(&params).unwrap();
+        }
+        link.write_params(&good).unwrap();
+
+        let mut cases: Vec<(GearModel, ParamField)> = Vec::new();
+        for name in model_core::ParamName::ALL {
+            let mut p = PAPER_TABLE_2;
+            match name {
+                model_core::ParamName::C1 => p.c1 = 1e38,
+                model_core::ParamName::C2 => p.c2 = 1e38,
+                model_core::ParamName::C3 => p.c3 = 1e38,
+                model_core::ParamName::Alpha => p.alpha = 1e38,
+                model_core::ParamName::Beta => p.beta = 1e38,
+                model_core::ParamName::Omega => p.omega = 1e-38,
+            }
+            cases.push((GearModel::Genetic(p), ParamField::from(name)));
+        }
+        let slip = |edit: &dyn Fn(&mut SlipParams<f64, SLIP_ELEMENTS>)| {
+            let mut p = MICRO_SLIP_SET;
+            edit(&mut p);
+            GearModel::MicroSlip(p)
+        };
+        cases.push((slip(&|p| p.c1 = 1e38), ParamField::C1));
+        cases.push((slip(&|p| p.c2 = 1e38), ParamField::C2));
+        cases.push((slip(&|p| p.c3 = 1e38), ParamField::C3));
+        for i in 0..SLIP_ELEMENTS {
+            cases.push((slip(&|p| p.stiffness[i] = 1e38), ParamField::SlipStiffness(i as u8)));
+        }
+        cases.push((slip(&|p| p.slip_max = 1e38), ParamField::SlipMax));
+        cases.push((
+            slip(&|p| {
+                p.slip_min = 1e37;
+                p.slip_max = 1e38;
+            }),
+            ParamField::SlipMin,
+        ));
+        for (model, field) in cases {
+            let reason = ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange };
+            let error = joint_params(&model, &SETTINGS).unwrap_err();
+            assert!(matches!(error, PushError::Invalid(r) if r == reason), "{model:?}: {error}");
+            assert_eq!(
+                error.to_string(),
+                format!("parameters rejected before sending: parameter {field} is out of range")
+            );
+            // Sent anyway: the device refuses it with the same reply, the old set stays.
+            let sent = JointParams { model: joint_model(&model).unwrap(), ..good };
+            match link.write_params(&sent) {
+                Err(LinkError::Refused(r)) => assert_eq!(r, reason, "{model:?}"),
+                other => panic!("{model:?}: {other:?}"),
+            }
+            assert_eq!(link.read_params().unwrap(), Some(good));
+        }
+    }
+
     #[test]
     fn the_device_refusing_a_set_is_reported() {
         let mut link = FakeDevice::new().link();

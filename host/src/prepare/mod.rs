@@ -31,7 +31,8 @@ pub struct Prepared {
     pub branch: Vec<Branch>,
     /// Measurement noise, estimated from a recording; `None` for a loop table.
     pub noise: Option<NoiseModel>,
-    /// Direction analysis of a recording.
+    /// Direction analysis of a recording. Its per-sample `direction` and `amplitude` are moved
+    /// into `data` (held once), so here they are empty.
     pub segmentation: Option<Segmentation>,
 }
 
@@ -59,7 +60,7 @@ pub fn from_loop_table(table: &LoopTable) -> Prepared {
 }
 
 pub fn from_recording(recording: &Recording) -> Result<Prepared, SegmentError> {
-    let segmentation = segment(&recording.time, &recording.deflection)?;
+    let mut segmentation = segment(&recording.time, &recording.deflection)?;
     let branch = recording
         .deflection
         .iter()
@@ -72,8 +73,8 @@ pub fn from_recording(recording: &Recording) -> Result<Prepared, SegmentError> {
         data: FitData {
             theta: recording.deflection.clone(),
             torque: recording.torque.clone(),
-            direction: segmentation.direction.clone(),
-            amplitude: segmentation.amplitude.clone(),
+            direction: std::mem::take(&mut segmentation.direction),
+            amplitude: std::mem::take(&mut segmentation.amplitude),
         },
         branch,
         noise: Some(noise),
