@@ -101,7 +101,8 @@ pub fn judge(
         let extra: Vec<&[f64]> = columns.iter().filter(|(e, _)| Some(*e) != skip).map(|(_, c)| c.as_slice()).collect();
         micro_slip_with_columns(&all, weights, &extra).ok()
     };
-    let Some((_, form_chi2)) = with(None) else { return Structure::Noise };
+    let Some(with_all) = with(None) else { return Structure::Noise };
+    let form_chi2 = with_all.1;
     // Each torque effect must still pass on top of the form.
     let kept: Vec<Effect> = final_fit
         .active
@@ -117,8 +118,14 @@ pub fn judge(
         .collect();
     let kept_columns: Vec<&[f64]> =
         columns.iter().filter(|(e, _)| kept.contains(e)).map(|(_, c)| c.as_slice()).collect();
-    let Ok((form_torque, form_chi2)) = micro_slip_with_columns(&all, weights, &kept_columns) else {
-        return Structure::Noise;
+    // Every torque effect kept: the solve with all of them is the form's.
+    let (form_torque, form_chi2) = if kept_columns.len() == columns.len() {
+        with_all
+    } else {
+        match micro_slip_with_columns(&all, weights, &kept_columns) {
+            Ok(form) => form,
+            Err(_) => return Structure::Noise,
+        }
     };
     let form_rss: f64 = form_torque.iter().zip(&data.torque).map(|(p, t)| (t - p).powi(2)).sum();
     let form_rms = (form_rss / n as f64).sqrt();

@@ -117,7 +117,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
     let held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
     let final_residuals = final_fit.residuals(observed, &all).map_err(|e| refit_error(&final_fit.active, e.into()))?;
     match form::judge(observed, &weights, &final_fit, &final_residuals, held_out_rms.map(|h| h.1)) {
-        Structure::Noise => Ok(Diagnosis {
+        structure @ (Structure::Noise | Structure::Unexplained(_)) => Ok(Diagnosis {
             baseline,
             findings,
             rejected,
@@ -125,17 +125,10 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             weights,
             held_out_rms,
             model_form: None,
-            unexplained: None,
-        }),
-        Structure::Unexplained(unexplained) => Ok(Diagnosis {
-            baseline,
-            findings,
-            rejected,
-            final_fit,
-            weights,
-            held_out_rms,
-            model_form: None,
-            unexplained: Some(unexplained),
+            unexplained: match structure {
+                Structure::Unexplained(unexplained) => Some(unexplained),
+                _ => None,
+            },
         }),
         Structure::Form { form: model_form, kept } => {
             // The effects that stood in for the loop's shape are not named; the others stay.

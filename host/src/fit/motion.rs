@@ -278,6 +278,38 @@ impl ElementPass {
     }
 }
 
+/// Sample i's row of the micro-slip form, in order (`pass` steps the elements): θ/S, (θ/S)³,
+/// (θ/S)⁵, each element's e_i/S (on the scale of the polynomial's columns), then `extra`.
+fn slip_row(motion: &Motion, scale: f64, extra: &[&[f64]], pass: &mut ElementPass, i: usize, x: &mut [f64]) {
+    let u = motion.theta[i] / scale;
+    x[..3].copy_from_slice(&[u, u * u * u, u * u * u * u * u]);
+    for (value, e) in x[3..3 + SLIP_ELEMENTS].iter_mut().zip(&pass.step(motion.theta[i])) {
+        *value = e / scale;
+    }
+    for (value, column) in x[3 + SLIP_ELEMENTS..].iter_mut().zip(extra) {
+        *value = column[i];
+    }
+}
+
+/// The coefficients of the micro-slip form (k_i ≥ 0) and of `extra` free columns beside it,
+/// by one weighted non-negative least-squares solve on the training samples.
+fn slip_coefficients(
+    motion: &Motion,
+    scale: f64,
+    run: &ElementRun,
+    weights: Option<&[f64]>,
+    extra: &[&[f64]],
+) -> Result<Vec<f64>, FitError> {
+    let n = 3 + SLIP_ELEMENTS + extra.len();
+    let nonnegative: Vec<bool> = (0..n).map(|j| (3..3 + SLIP_ELEMENTS).contains(&j)).collect();
+    let mut pass = run.pass();
+    let (gram, rhs) = normal_equations(n, motion.training, weights, motion.torque, |i, x| {
+        slip_row(motion, scale, extra, &mut pass, i, x)
+    });
+    pass.finish()?;
+    nnls_normal(&gram, &rhs, &nonnegative).ok_or(FitError::Degenerate)
+}
+
 /// The micro-slip form with further free columns beside it (the diagnosis' torque effects),
 /// in one least-squares solve with the given weights on the training samples: its torque at
 /// each of them and the weighted residual sum of squares.
@@ -290,29 +322,13 @@ pub fn micro_slip_with_columns(
     let scale = motion.scale();
     let (slip_min, slip_max) = slip_range(motion);
     let run = ElementRun::new(slip_min, slip_max)?;
-    let n = 3 + SLIP_ELEMENTS + extra.len();
-    let nonnegative: Vec<bool> = (0..n).map(|j| (3..3 + SLIP_ELEMENTS).contains(&j)).collect();
-    // Rows are asked for in order, 0, 1, 2, …, once per pass.
-    let row = |pass: &mut ElementPass, i: usize, x: &mut [f64]| {
-        let u = motion.theta[i] / scale;
-        x[..3].copy_from_slice(&[u, u * u * u, u * u * u * u * u]);
-        for (value, e) in x[3..3 + SLIP_ELEMENTS].iter_mut().zip(&pass.step(motion.theta[i])) {
-            *value = e / scale;
-        }
-        for (value, column) in x[3 + SLIP_ELEMENTS..].iter_mut().zip(extra) {
-            *value = column[i];
-        }
-    };
-    let mut pass = run.pass();
-    let (gram, rhs) = normal_equations(n, motion.training, Some(weights), motion.torque, |i, x| row(&mut pass, i, x));
-    pass.finish()?;
-    let coef = nnls_normal(&gram, &rhs, &nonnegative).ok_or(FitError::Degenerate)?;
-    let mut x = vec![0.0; n];
+    let coef = slip_coefficients(motion, scale, &run, Some(weights), extra)?;
+    let mut x = vec![0.0; coef.len()];
     let mut chi2 = 0.0;
     let mut pass = run.pass();
     let predicted = (0..motion.training)
         .map(|i| {
-            row(&mut pass, i, &mut x);
+            slip_row(motion, scale, extra, &mut pass, i, &mut x);
             let p: f64 = x.iter().zip(&coef).map(|(a, b)| a * b).sum();
             chi2 += weights[i] * (motion.torque[i] - p).powi(2);
             p
@@ -328,20 +344,8 @@ pub fn fit_micro_slip(motion: &Motion) -> Result<MotionFit, FitError> {
     let scale = motion.scale();
     let (slip_min, slip_max) = slip_range(motion);
     let run = ElementRun::new(slip_min, slip_max)?;
-    const N: usize = 3 + SLIP_ELEMENTS;
-    let nonnegative: Vec<bool> = (0..N).map(|j| j >= 3).collect();
     let solve = |weights: Option<&[f64]>| -> Result<SlipParams<f64, SLIP_ELEMENTS>, FitError> {
-        let mut pass = run.pass();
-        let (gram, rhs) = normal_equations(N, motion.training, weights, motion.torque, |i, x| {
-            let u = motion.theta[i] / scale;
-            x[..3].copy_from_slice(&[u, u * u * u, u * u * u * u * u]);
-            for (value, e) in x[3..].iter_mut().zip(&pass.step(motion.theta[i])) {
-                // e_i/S: the element columns on the scale of the polynomial's.
-                *value = e / scale;
-            }
-        });
-        pass.finish()?;
-        let coef = nnls_normal(&gram, &rhs, &nonnegative).ok_or(FitError::Degenerate)?;
+        let coef = slip_coefficients(motion, scale, &run, weights, &[])?;
         let mut stiffness = [0.0; SLIP_ELEMENTS];
         for (k, c) in stiffness.iter_mut().zip(&coef[3..]) {
             *k = c / scale;

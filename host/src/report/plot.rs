@@ -52,6 +52,27 @@ fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 
 type LoopChart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
+/// A chart of the pictures' common layout: caption, margins, axes and their labels.
+#[allow(clippy::too_many_arguments)]
+fn new_chart<'a, 'b>(
+    area: &'a DrawingArea<SVGBackend<'b>, plotters::coord::Shift>,
+    caption: impl AsRef<str>,
+    caption_size: u32,
+    x: (f64, f64),
+    y: (f64, f64),
+    x_desc: impl AsRef<str>,
+    y_desc: impl AsRef<str>,
+) -> Result<LoopChart<'a, 'b>, Box<dyn std::error::Error>> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption.as_ref(), ("sans-serif", caption_size))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)?;
+    chart.configure_mesh().x_desc(x_desc.as_ref()).y_desc(y_desc.as_ref()).draw()?;
+    Ok(chart)
+}
+
 /// The legend of a loop chart, in its upper left corner.
 fn draw_legend<'a, 'b: 'a>(chart: &mut LoopChart<'a, 'b>) -> DrawResult {
     chart
@@ -84,13 +105,8 @@ fn draw(plot: &LoopPlot, residuals: &[f64], svg: &mut String) -> DrawResult {
 
     let (x_lo, x_hi) = range(data.theta.iter().map(|t| t * MRAD));
     let (y_lo, y_hi) = range(data.torque.iter().copied());
-    let mut chart = ChartBuilder::on(&upper)
-        .caption(plot.title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(64)
-        .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
-    chart.configure_mesh().x_desc("deflection θ (mrad)").y_desc("torque T (N·m)").draw()?;
+    let mut chart =
+        new_chart(&upper, plot.title, 20, (x_lo, x_hi), (y_lo, y_hi), "deflection θ (mrad)", "torque T (N·m)")?;
 
     let grey = RGBColor(90, 90, 90);
     // A loop table's few points must stand out; a recording's thousands must not hide the model.
@@ -168,13 +184,15 @@ fn draw(plot: &LoopPlot, residuals: &[f64], svg: &mut String) -> DrawResult {
     let (r_lo, r_hi) = range(residuals.iter().copied().chain([0.0]));
     let r_max = r_lo.abs().max(r_hi.abs());
     let rms = (residuals.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
-    let mut below = ChartBuilder::on(&lower)
-        .caption(format!("residual, measured − model (RMS {rms:.3} N·m)"), ("sans-serif", 16))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(64)
-        .build_cartesian_2d(x_lo..x_hi, -r_max..r_max)?;
-    below.configure_mesh().x_desc("deflection θ (mrad)").y_desc("residual (N·m)").draw()?;
+    let mut below = new_chart(
+        &lower,
+        format!("residual, measured − model (RMS {rms:.3} N·m)"),
+        16,
+        (x_lo, x_hi),
+        (-r_max, r_max),
+        "deflection θ (mrad)",
+        "residual (N·m)",
+    )?;
     below.draw_series(LineSeries::new([(x_lo, 0.0), (x_hi, 0.0)], BLACK.stroke_width(1)))?;
     below.draw_series((0..n).step_by(stride).map(|i| {
         let color = match data.direction[i] {
@@ -284,17 +302,15 @@ fn draw_diagnosis_loop(
     } else {
         format!("loop, mean stiffness removed: baseline vs with {}", effects.join(" + "))
     };
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(64)
-        .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("deflection θ (mrad)")
-        .y_desc(format!("torque − {mean_stiffness:.4e} N·m/rad · θ (N·m)"))
-        .draw()?;
+    let mut chart = new_chart(
+        &root,
+        title,
+        20,
+        (x_lo, x_hi),
+        (y_lo, y_hi),
+        "deflection θ (mrad)",
+        format!("torque − {mean_stiffness:.4e} N·m/rad · θ (N·m)"),
+    )?;
     let grey = RGBColor(120, 120, 120);
     let orange = RGBColor(230, 120, 0);
     let blue = RGBColor(0, 90, 200);
@@ -365,17 +381,15 @@ fn draw_motion(
     let measured_points = detrend(measured);
     let (x_lo, x_hi) = range(measured_points.iter().map(|p| p.0));
     let (y_lo, y_hi) = range(measured_points.iter().map(|p| p.1));
-    let mut chart = ChartBuilder::on(&upper)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(64)
-        .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("deflection θ (mrad)")
-        .y_desc(format!("T − {stiffness:.0} N·m/rad · θ (N·m)"))
-        .draw()?;
+    let mut chart = new_chart(
+        &upper,
+        title,
+        20,
+        (x_lo, x_hi),
+        (y_lo, y_hi),
+        "deflection θ (mrad)",
+        format!("T − {stiffness:.0} N·m/rad · θ (N·m)"),
+    )?;
     let grey = RGBColor(90, 90, 90);
     chart
         .draw_series(measured_points.iter().map(|&p| Circle::new(p, 2, grey.mix(0.4).filled())))?
@@ -395,13 +409,15 @@ fn draw_motion(
     let (r_lo, r_hi) = range(residuals.iter().flatten().copied().chain([0.0]));
     let r_max = r_lo.abs().max(r_hi.abs());
     let (t_lo, t_hi) = range(time.iter().copied());
-    let mut below = ChartBuilder::on(&lower)
-        .caption("residual, measured − model", ("sans-serif", 16))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(64)
-        .build_cartesian_2d(t_lo..t_hi, -r_max..r_max)?;
-    below.configure_mesh().x_desc("time (s)").y_desc("residual (N·m)").draw()?;
+    let mut below = new_chart(
+        &lower,
+        "residual, measured − model",
+        16,
+        (t_lo, t_hi),
+        (-r_max, r_max),
+        "time (s)",
+        "residual (N·m)",
+    )?;
     below.draw_series(LineSeries::new([(t_lo, 0.0), (t_hi, 0.0)], BLACK.stroke_width(1)))?;
     for ((model, residual), color) in models.iter().zip(&residuals).zip(COLORS.iter().cycle()) {
         let color = *color;
