@@ -9,21 +9,25 @@ mkdir -p bench/out
 cargo build --release --locked -p swg-host >/dev/null
 swg=target/release/swg-host
 
-echo "== corpus accuracy (50 recordings each; right set / wrong physics / false alarms / misses / magnitude error / model form / passivity)"
+echo "== corpus accuracy (58 recordings each; right set / wrong physics / false alarms / misses / told as either of two / magnitude error / model form / passivity)"
 for seed in 0 "${@:-1000 2000}"; do
     for s in $seed; do
-        SWG_CORPUS_SEED=$s cargo test --release --locked -p swg-system-tests --test diagnose_corpus -- --nocapture 2>&1 \
-            | grep -E '^corpus seed' || echo "corpus seed $s: run failed (see cargo test output)"
+        # The test asserts on every seed; on other seeds than its own the counts are the figures,
+        # and the cases that fail its standard are listed under them.
+        out=$(SWG_CORPUS_SEED=$s cargo test --release --locked -p swg-system-tests --test diagnose_corpus -- --nocapture 2>&1 || true)
+        grep -E '^corpus seed' <<<"$out" || echo "corpus seed $s: run failed (see cargo test output)"
+        grep -oE '(wrong set or magnitude|an effect was named on|the passivity check missed).*' <<<"$out" \
+            | sed 's/^/    fails the test: /' || true
     done
 done
 
-echo "== speed: 60,000 samples (15 cycles at 0.25 Hz, 1 kHz), turning input, temperature, two effects"
+echo "== speed: 60,000 samples (10 cycles at 0.25 Hz, then 10 at 0.5 Hz, 1 kHz), turning input, temperature, two effects"
 gear=bench/out/decaying-gear.json
 cat > "$gear" <<'JSON'
 {"model": "genetic-hysteresis", "params": {"c1": 22000.0, "c2": 4.0e9, "c3": 0.0, "alpha": -3050.0, "beta": 1.2, "omega": 1.0}}
 JSON
 recording=bench/out/diagnose-60k.csv
-$swg simulate --params "$gear" --out "$recording" --cycles 15 --frequency 0.25 --rate 1000 \
+$swg simulate --params "$gear" --out "$recording" --cycles 10 --frequency 0.25,0.5 --rate 1000 \
     --output-bits 20 --input-bits 20 --input-speed 3 --temperature 25 --temperature-rise 0.2 \
     --torque-noise 0.05 --seed 5 --effect coulomb_friction=0.05 --effect kinematic_error=3e-6 >/dev/null
 python3 - "$swg" "$recording" <<'PY'

@@ -2,7 +2,10 @@
 # Figures of the joint firmware on the emulated Cortex-M4F (QEMU mps2-an386); not a test.
 #   1. instructions per T_ff + K evaluation on a symmetric loop (direct and fast path), and per
 #      control tick of each stateful kind at its worst (genetic with 16 turning points stored,
-#      fast and direct path; micro-slip with 16 elements):
+#      fast and direct path; micro-slip with 16 elements), and per tick of the torque controller
+#      with its evaluator (model mode, `Controller::tick`): the worst of three ticks from a full
+#      memory, and the mean over 2,000 consecutive ticks of a nested motion from rest (no state
+#      copies subtracted):
 #      QEMU -icount shift=0 makes one instruction 1 ns of virtual time and SysTick run at
 #      25 MHz, so SysTick ticks × 40 = instructions, exactly repeatable (shared/TOOLCHAIN.md).
 #      Instruction counts depend on the compiler version: the toolchain is printed below.
@@ -20,7 +23,7 @@ elf_dir=$FIRMWARE_ELF_DIR
 (cd firmware && thumb_cargo build --locked --release -p swg-firmware-qemu --bins)
 echo "toolchain: $(rustc --version) ($THUMB_ROUTE route)"
 
-echo "== 1. instructions per evaluation (QEMU -icount shift=0, SysTick)"
+echo "== 1. instructions per evaluation, per tick, per controller tick (QEMU -icount shift=0, SysTick; goal: controller + evaluator ≤ 600)"
 timeout 120 qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -nographic -icount shift=0 \
     -semihosting-config enable=on,target=native -kernel "$elf_dir/bench"
 

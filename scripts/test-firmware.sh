@@ -6,6 +6,8 @@
 #   3. the firmware for both boards (QEMU mps2-an386 and STM32F405) builds for thumbv7em
 #   4. model-core's checks and the fast path's error bound on the emulated Cortex-M4F
 #   5. end to end under QEMU: push, read back, replay, bad traffic (host/tests/firmware_e2e.rs)
+#   6. the closed loop in lockstep under QEMU: the firmware's torque controller on the host's
+#      simulated joint, library and `swg-host hil` (host/tests/hil_e2e.rs)
 # Exits non-zero on the first failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -53,5 +55,8 @@ echo "== end to end under QEMU"
 # --nocapture shows the CLI runs with their replay figures (worst and RMS difference).
 # --release: scripts/test.sh has just built the host tests in that profile.
 SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host --test firmware_e2e -- --ignored --nocapture
+
+echo "== closed loop in lockstep under QEMU (swg-host hil)"
+SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host --test hil_e2e -- --ignored --nocapture
 
 echo "== firmware tests passed"

@@ -105,5 +105,10 @@ pub fn run(
     band: f64,
 ) -> Result<Vec<Evaluation<f64>>, (usize, model_core::Error)> {
     let mut evaluator = model.evaluator(band).map_err(|e| (0, e))?;
-    deflection.iter().enumerate().map(|(i, &theta)| evaluator.step(theta).map_err(|e| (i, e))).collect()
+    // Sized up front: collected through a `Result`, the vector would grow by doubling.
+    let mut evaluations = Vec::with_capacity(deflection.len());
+    for (i, &theta) in deflection.iter().enumerate() {
+        evaluations.push(evaluator.step(theta).map_err(|e| (i, e))?);
+    }
+    Ok(evaluations)
 }

@@ -16,6 +16,7 @@ const ALLOWED: &[(&str, &[&str], &[&str])] = &[
     ("simulate", &["input", "diagnose::effects"], &[]),
     ("report", &["diagnose", "fit", "gear", "predict", "prepare", "input", "numeric"], &[]),
     ("link", &["gear", "input"], &["simulate"]),
+    ("hil", &["gear", "input", "simulate", "link", "report"], &["fit"]),
 ];
 
 /// The `crate::x` or `crate::diagnose::effects` paths a file names, outside and inside its

@@ -3,19 +3,19 @@
 //! tests are ignored by a plain `cargo test`; `scripts/test-firmware.sh` builds the firmware
 //! and runs them with `SWG_FIRMWARE_ELF=… cargo test --test firmware_e2e -- --ignored`.
 mod common;
+mod qemu;
+
+use qemu::Qemu;
 
 use common::{swg_host_echoed as swg_host, write_params_file};
 use model_core::checks::{SEED_AMPLITUDE, SEED_TABLE_FIT as SEED};
 use model_core::SlipParams;
 use model_core::{Params, MODEL_VERSION};
 use std::net::TcpListener;
-use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
 use swg_host::gear::{GearModel, SLIP_ELEMENTS};
 use swg_host::link::push::{joint_params, push, JointSettings};
 use swg_host::link::replay::{device_model, replay, samples};
-use swg_host::link::{Link, LinkError};
+use swg_host::link::LinkError;
 use swg_host::simulate::{simulate, Simulation};
 use swg_protocol::{
     encode_to_vec, encode_with_version, ErrorReply, EvalPath, JointModel, JointParams, ParamFault, ParamField, Request,
@@ -26,58 +26,6 @@ use swg_protocol::{
 const RATIO: f64 = 50.0;
 /// A limit above the loop's torque, so that every sample is compared with the model.
 const SETTINGS: JointSettings = JointSettings { gear_ratio: RATIO, torque_limit: 100.0, direction_band: 2.0e-6 };
-
-/// One QEMU running the firmware, its UART0 on a free local TCP port; killed on drop.
-struct Firmware {
-    qemu: Child,
-    port: u16,
-}
-
-impl Firmware {
-    fn boot() -> Firmware {
-        let elf = std::env::var_os("SWG_FIRMWARE_ELF")
-            .map(PathBuf::from)
-            .expect("SWG_FIRMWARE_ELF must name the joint-qemu ELF (see scripts/test-firmware.sh)");
-        // A port that was free a moment ago; tests running in parallel each get their own.
-        let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-        let qemu = Command::new("qemu-system-arm")
-            .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-display", "none", "-monitor", "none"])
-            .args(["-semihosting-config", "enable=on,target=native"])
-            .arg("-serial")
-            .arg(format!("tcp:127.0.0.1:{port},server=on,wait=off,nodelay=on"))
-            .arg("-kernel")
-            .arg(&elf)
-            // defmt frames (binary) on stdout: not needed here.
-            .stdout(Stdio::null())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("qemu-system-arm starts");
-        Firmware { qemu, port }
-    }
-
-    fn address(&self) -> String {
-        format!("tcp://127.0.0.1:{}", self.port)
-    }
-
-    /// Connects, retrying while QEMU opens its port.
-    fn link(&self) -> Link {
-        let start = Instant::now();
-        loop {
-            match Link::open(&self.address(), Duration::from_secs(2)) {
-                Ok(link) => return link,
-                Err(_) if start.elapsed() < Duration::from_secs(10) => std::thread::sleep(Duration::from_millis(50)),
-                Err(error) => panic!("cannot reach the firmware: {error}"),
-            }
-        }
-    }
-}
-
-impl Drop for Firmware {
-    fn drop(&mut self) {
-        let _ = self.qemu.kill();
-        let _ = self.qemu.wait();
-    }
-}
 
 /// Two loops at 1 Hz of the seed model through 20-bit encoders, 1 kHz.
 fn recording() -> swg_host::input::Recording {
@@ -102,13 +50,13 @@ fn recording() -> swg_host::input::Recording {
 #[test]
 #[ignore = "needs QEMU and the firmware ELF: run by scripts/test-firmware.sh"]
 fn push_read_back_and_replay_match_the_host_model() {
-    let firmware = Firmware::boot();
+    let mut firmware = Qemu::boot();
     let dir = tempfile::tempdir().unwrap();
     let params_file = write_params_file(dir.path(), &SEED);
     let recording_file = dir.path().join("loops.csv");
     recording().write(std::fs::File::create(&recording_file).unwrap()).unwrap();
     // Let QEMU open its port before the CLI's single attempt.
-    drop(firmware.link());
+    drop(firmware.ready_link());
 
     let port = firmware.address();
     let pushed = swg_host(&[
@@ -129,7 +77,7 @@ fn push_read_back_and_replay_match_the_host_model() {
     assert!(stdout.contains("committed to flash as record 1"), "{stdout}");
 
     // Read back what the device holds: exactly the f32 set the host computed.
-    let mut link = firmware.link();
+    let mut link = firmware.ready_link();
     let expected = joint_params(&GearModel::Genetic(SEED), &SETTINGS).unwrap();
     assert_eq!(link.read_params().unwrap(), Some(expected));
     drop(link);
@@ -143,7 +91,7 @@ fn push_read_back_and_replay_match_the_host_model() {
 
     // The same through the library, with the details asserted: whole loops, turning points
     // included, every sample within the f32 tolerance, on both paths.
-    let mut link = firmware.link();
+    let mut link = firmware.ready_link();
     let samples = samples(&recording(), expected.gear_ratio).unwrap();
     for path in [EvalPath::Fast, EvalPath::Direct] {
         link.write_params(&expected).unwrap(); // from rest
@@ -191,7 +139,7 @@ fn arbitrary_motions() -> [(&'static str, Vec<(f32, f32)>); 2] {
 #[test]
 #[ignore = "needs QEMU and the firmware ELF: run by scripts/test-firmware.sh"]
 fn both_kinds_follow_arbitrary_motion_as_the_host_model_does() {
-    let firmware = Firmware::boot();
+    let mut firmware = Qemu::boot();
     let dir = tempfile::tempdir().unwrap();
     // The micro-slip kind through the CLI: a params file as `fit --model micro-slip` writes.
     let GearModel::MicroSlip(slip) = slip_model() else { unreachable!() };
@@ -200,14 +148,14 @@ fn both_kinds_follow_arbitrary_motion_as_the_host_model_does() {
         "c1": slip.c1, "c2": slip.c2, "c3": slip.c3, "stiffness": slip.stiffness.to_vec(),
         "slip_min": slip.slip_min, "slip_max": slip.slip_max } });
     std::fs::write(&slip_file, json.to_string()).unwrap();
-    drop(firmware.link());
+    drop(firmware.ready_link());
     let port = firmware.address();
     let pushed =
         swg_host(&["push", slip_file.to_str().unwrap(), "--port", &port, "--ratio", "50", "--torque-limit", "100"]);
     assert!(pushed.status.success());
     assert!(String::from_utf8_lossy(&pushed.stdout).contains("micro-slip c1=6e3"), "{pushed:?}");
 
-    let mut link = firmware.link();
+    let mut link = firmware.ready_link();
     let expected = joint_params(&slip_model(), &SETTINGS).unwrap();
     assert_eq!(link.read_params().unwrap(), Some(expected));
     assert!(matches!(expected.model, JointModel::MicroSlip(_)));
@@ -241,8 +189,8 @@ fn refused(response: Result<Response, LinkError>) -> ErrorReply {
 #[test]
 #[ignore = "needs QEMU and the firmware ELF: run by scripts/test-firmware.sh"]
 fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
-    let firmware = Firmware::boot();
-    let mut link = firmware.link();
+    let mut firmware = Qemu::boot();
+    let mut link = firmware.ready_link();
     let good = joint_params(&GearModel::Genetic(SEED), &SETTINGS).unwrap();
     let JointModel::Genetic(good_model) = good.model else { unreachable!() };
     push(&mut link, &good).unwrap();
@@ -333,8 +281,8 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
 #[test]
 #[ignore = "needs QEMU and the firmware ELF: run by scripts/test-firmware.sh"]
 fn push_refuses_values_the_device_would_refuse_and_says_why() {
-    let firmware = Firmware::boot();
-    drop(firmware.link());
+    let mut firmware = Qemu::boot();
+    drop(firmware.ready_link());
     let dir = tempfile::tempdir().unwrap();
     let params_file = write_params_file(dir.path(), &SEED);
     let port = firmware.address();

@@ -86,7 +86,26 @@ fn sine_through_the_genetic_model_is_byte_for_byte_what_it_was() {
         for explicit in [&[][..], &["--motion", "sine", "--physics", "genetic"][..]] {
             let out = dir.path().join("sine.csv");
             ok(swg_host(&[&["simulate", "--out", out.to_str().unwrap()], args, explicit].concat()));
-            assert_eq!(fnv(&std::fs::read(&out).unwrap()), hash, "{args:?} {explicit:?}");
+            let text = std::fs::read_to_string(&out).unwrap();
+            // The one line added since: the effects the recording was made with.
+            let (effects, rest): (Vec<&str>, Vec<&str>) =
+                text.split_inclusive('\n').partition(|line| line.starts_with("# effects: "));
+            assert_eq!(fnv(rest.concat().as_bytes()), hash, "{args:?} {explicit:?}");
+            let given: Vec<&str> = args.windows(2).filter(|w| w[0] == "--effect").map(|w| w[1]).collect();
+            // NAME=VALUE as numbers: the file writes 1e-4 as 0.0001.
+            let parsed = |list: Vec<&str>| -> Vec<(String, f64)> {
+                list.iter()
+                    .map(|e| e.split_once('=').map(|(n, v)| (n.to_owned(), v.parse().unwrap())).unwrap())
+                    .collect()
+            };
+            match effects[..] {
+                [] => assert!(given.is_empty()),
+                [line] => {
+                    let written = line.trim_start_matches("# effects: ").trim_end().split(' ').collect();
+                    assert_eq!(parsed(written), parsed(given.clone()));
+                }
+                _ => panic!("{effects:?}"),
+            }
         }
     }
 }

@@ -22,8 +22,10 @@ use serde::{Deserialize, Serialize};
 
 /// Version of this message set; bumped on any change to the encoding. Version 2: the model's
 /// kind in [`JointParams::model`] (genetic or micro-slip), the evaluator's memory in
-/// [`Feedforward`].
-pub const PROTOCOL_VERSION: u16 = 2;
+/// [`Feedforward`]. Version 3: the joint's torque controller ([`Request::Configure`],
+/// [`Request::SetReference`], the lockstep [`Request::Control`] and their responses, the
+/// error replies [`ErrorReply::InvalidGain`] and [`ErrorReply::MotorDrive`]).
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Largest encoded frame, delimiter included: the longest message (a micro-slip
 /// [`Response::Params`] with every varint at its maximum) takes 109 bytes (tested), with room
@@ -270,6 +272,150 @@ pub struct Feedforward {
     pub memory: u8,
 }
 
+/// What the joint's torque controller closes its loop on (see `swg-joint`'s `Controller`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ControlMode {
+    /// No command: the motor torque is 0. The state at boot, and the safe mode without a valid
+    /// parameter set (the controller then knows neither the gear ratio nor the deflection).
+    Off,
+    /// Current feed-forward only: motor torque = T_ref / N.
+    OpenLoop,
+    /// The torque loop on one stiffness: T̂ = [`ControllerConfig::stiffness`]·θ.
+    Linear,
+    /// The torque loop on the model: T̂ = T_ff of the installed set's stateful evaluator.
+    Model,
+}
+
+impl ControlMode {
+    /// The name on the command line and in files.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            ControlMode::Off => "off",
+            ControlMode::OpenLoop => "open-loop",
+            ControlMode::Linear => "linear",
+            ControlMode::Model => "model",
+        }
+    }
+}
+
+impl fmt::Display for ControlMode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// The torque controller's mode and gains. With e = T_ref − T̂ and ω the motor's velocity
+/// above the firmware's damping cutoff (3 Hz: the joint's modes, not its slow travel), the
+/// motor torque command is
+///
+/// ```text
+/// u = T_ref/N + s·kp·e + ∫ ki·e dt − damping·ω,   |u| ≤ command_limit
+/// ```
+///
+/// in `Linear` and `Model` modes (s = 1, or in `Model` mode the gain schedule
+/// clamp(stiffness / K, ¼, 2) with K the model's dT/dθ, so that the loop gain stays that of the
+/// nominal stiffness), and u = T_ref/N in `OpenLoop`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ControllerConfig {
+    pub mode: ControlMode,
+    /// Proportional gain, motor N·m per N·m of joint-torque error (≥ 0).
+    pub kp: f32,
+    /// Integral gain, motor N·m per N·m·s of joint-torque error (≥ 0).
+    pub ki: f32,
+    /// Damping of the motor's velocity (above the cutoff), motor N·m per rad/s (≥ 0).
+    pub damping: f32,
+    /// The linear mode's stiffness and the model mode's nominal stiffness, N·m/rad (> 0).
+    pub stiffness: f32,
+    /// |u| is clamped to this, N·m at the motor shaft (> 0).
+    pub command_limit: f32,
+    /// The control period, s (in (0, 1]).
+    pub period: f32,
+}
+
+/// A field of [`ControllerConfig`] named in an error reply.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum GainField {
+    Kp,
+    Ki,
+    Damping,
+    Stiffness,
+    CommandLimit,
+    Period,
+}
+
+impl GainField {
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            GainField::Kp => "kp",
+            GainField::Ki => "ki",
+            GainField::Damping => "damping",
+            GainField::Stiffness => "stiffness",
+            GainField::CommandLimit => "command_limit",
+            GainField::Period => "period",
+        }
+    }
+}
+
+impl fmt::Display for GainField {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl ControllerConfig {
+    /// The checks the firmware applies before it uses a configuration.
+    pub fn validate(&self) -> Result<(), ErrorReply> {
+        let fields = [
+            (GainField::Kp, self.kp, self.kp >= 0.0),
+            (GainField::Ki, self.ki, self.ki >= 0.0),
+            (GainField::Damping, self.damping, self.damping >= 0.0),
+            (GainField::Stiffness, self.stiffness, self.stiffness > 0.0),
+            (GainField::CommandLimit, self.command_limit, self.command_limit > 0.0),
+            (GainField::Period, self.period, self.period > 0.0 && self.period <= 1.0),
+        ];
+        for (field, value, in_range) in fields {
+            if !value.is_finite() {
+                return Err(ErrorReply::InvalidGain { field, fault: ParamFault::NotFinite });
+            }
+            if !in_range {
+                return Err(ErrorReply::InvalidGain { field, fault: ParamFault::OutOfRange });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One lockstep control tick: both encoders' angles (as [`EncoderSample`]) and the joint
+/// torque reference.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ControlSample {
+    /// Input (motor) side, rad, multi-turn.
+    pub input_angle: f32,
+    /// Output side, rad.
+    pub output_angle: f32,
+    /// T_ref, N·m at the joint.
+    pub reference: f32,
+}
+
+/// What one control tick commanded.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ControlOutput {
+    /// The motor torque command u, N·m at the motor shaft: finite, |u| ≤ the command limit.
+    pub command: f32,
+    /// T̂, the joint torque the loop closed on, N·m (0 in `OpenLoop` and `Off`).
+    pub estimate: f32,
+    /// The mode this tick ran: the configured one, or its fallback (`OpenLoop` for a tick
+    /// whose torque estimate is unavailable, `Off` without a valid parameter set).
+    pub mode: ControlMode,
+    /// u was clamped to the command limit.
+    pub saturated: bool,
+}
+
 /// Host → device.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -283,6 +429,13 @@ pub enum Request {
     Commit,
     /// Run one control tick on a recorded sample (replay mode).
     Replay(EncoderSample),
+    /// Set the torque controller's mode and gains; resets its integrator and velocity.
+    Configure(ControllerConfig),
+    /// Set the joint torque reference T_ref, N·m, for the board's own control ticks.
+    SetReference(f32),
+    /// Run one control tick on these angles and reference (lockstep with a simulated plant);
+    /// the command goes to the board's motor drive and comes back in the response.
+    Control(ControlSample),
 }
 
 /// Device → host, one per request.
@@ -299,6 +452,9 @@ pub enum Response {
     },
     Feedforward(Feedforward),
     Error(ErrorReply),
+    /// A [`Request::Configure`] or [`Request::SetReference`] took effect.
+    ControlAccepted,
+    Control(ControlOutput),
 }
 
 /// A parameter named in an error reply: the genetic model's six (in [`ParamName`] order; the
@@ -404,8 +560,15 @@ pub enum ErrorReply {
     NoParams,
     /// Writing flash failed.
     Storage,
-    /// A replayed sample held NaN or infinity.
+    /// A replayed or lockstep control sample held NaN or infinity.
     NonFiniteSample,
+    /// A controller configuration with a gain that is not finite or out of its range.
+    InvalidGain {
+        field: GainField,
+        fault: ParamFault,
+    },
+    /// The board's motor drive refused the command (the tick's command was not applied).
+    MotorDrive,
 }
 
 impl fmt::Display for ErrorReply {
@@ -429,6 +592,11 @@ impl fmt::Display for ErrorReply {
             ErrorReply::NoParams => f.write_str("no valid parameters on the device"),
             ErrorReply::Storage => f.write_str("flash write failed"),
             ErrorReply::NonFiniteSample => f.write_str("encoder sample is not finite"),
+            ErrorReply::InvalidGain { field, fault } => match fault {
+                ParamFault::NotFinite => write!(f, "controller gain {field} is not finite"),
+                ParamFault::OutOfRange => write!(f, "controller gain {field} is out of range"),
+            },
+            ErrorReply::MotorDrive => f.write_str("the motor drive refused the command"),
         }
     }
 }

@@ -98,6 +98,9 @@ fn request_variant(request: &Request) -> usize {
         Request::ReadParams => 2,
         Request::Commit => 3,
         Request::Replay(_) => 4,
+        Request::Configure(_) => 5,
+        Request::SetReference(_) => 6,
+        Request::Control(_) => 7,
     }
 }
 
@@ -109,6 +112,8 @@ fn response_variant(response: &Response) -> usize {
         Response::Committed { .. } => 3,
         Response::Feedforward(_) => 4,
         Response::Error(_) => 5,
+        Response::ControlAccepted => 6,
+        Response::Control(_) => 7,
     }
 }
 
@@ -125,6 +130,8 @@ fn error_variant(error: &ErrorReply) -> usize {
         ErrorReply::NoParams => 8,
         ErrorReply::Storage => 9,
         ErrorReply::NonFiniteSample => 10,
+        ErrorReply::InvalidGain { .. } => 11,
+        ErrorReply::MotorDrive => 12,
     }
 }
 
@@ -145,7 +152,7 @@ fn covers_every_variant<T>(cases: &[(T, &[u8])], variant: fn(&T) -> usize, n: us
 
 // The encoding is the contract with deployed firmware: these bytes must not change without a
 // new PROTOCOL_VERSION. Each frame is COBS(payload ++ CRC-32 LE) 0x00, where the payload is
-// postcard: varint protocol version (2), varint variant index, then the fields in order
+// postcard: varint protocol version (3), varint variant index, then the fields in order
 // (u16/u32 as varints, f32 as 4 bytes little-endian, enums as varint index followed by their
 // fields, Option as 0/1, arrays element by element without a length). The comments give the
 // payload; COBS replaces each 0x00 by the distance to the next one and leads with the distance
@@ -161,44 +168,78 @@ fn covers_every_variant<T>(cases: &[(T, &[u8])], variant: fn(&T) -> usize, n: us
 //   slip_min 2⁻¹⁶ = 37800000 | slip_max 2⁻⁹ = 3b000000 | gear_ratio 80 = 42a00000 |
 //   torque_limit 35.5 = 420e0000 | direction_band 2.5e-6 = 3627c5ac
 
+/// A controller configuration with every field different, exact in f32.
+const DISTINCT_CONFIG: ControllerConfig = ControllerConfig {
+    mode: ControlMode::Model,
+    kp: 0.0625,
+    ki: 2.5,
+    damping: 0.0078125,
+    stiffness: 16384.0,
+    command_limit: 0.75,
+    period: 0.0009765625,
+};
+
 #[test]
 fn golden_requests() {
-    let cases: [(Request, &[u8]); 6] = [
-        // 02 | 00
-        (Request::GetDeviceInfo, &[0x02, 0x02, 0x05, 0x7d, 0x70, 0xef, 0x73, 0x00]),
+    let cases: [(Request, &[u8]); 9] = [
+        // 03 | 00
+        (Request::GetDeviceInfo, &[0x02, 0x03, 0x05, 0x3c, 0x41, 0xf4, 0x6a, 0x00]),
         (
-            // 02 | 01 | the genetic set
+            // 03 | 01 | the genetic set
             Request::WriteParams(DISTINCT_PARAMS),
             &[
-                0x04, 0x02, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7,
+                0x04, 0x03, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7,
                 0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42, 0x01,
-                0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xfd, 0x9c, 0xf4, 0x9a, 0x00,
+                0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xba, 0x0e, 0xb0, 0x35, 0x00,
             ],
         ),
         (
-            // 02 | 01 | the micro-slip set
+            // 03 | 01 | the micro-slip set
             Request::WriteParams(DISTINCT_SLIP_PARAMS),
             &[
-                0x05, 0x02, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35, 0xd6,
+                0x05, 0x03, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35, 0xd6,
                 0x04, 0x80, 0xc8, 0x42, 0x04, 0x40, 0x48, 0x43, 0x04, 0x20, 0x96, 0x43, 0x04, 0x20, 0xc8, 0x43, 0x04,
                 0x20, 0xfa, 0x43, 0x04, 0x10, 0x16, 0x44, 0x04, 0x10, 0x2f, 0x44, 0x04, 0x10, 0x48, 0x44, 0x04, 0x10,
                 0x61, 0x44, 0x04, 0x10, 0x7a, 0x44, 0x04, 0x88, 0x89, 0x44, 0x04, 0x08, 0x96, 0x44, 0x04, 0x88, 0xa2,
                 0x44, 0x04, 0x08, 0xaf, 0x44, 0x04, 0x88, 0xbb, 0x44, 0x04, 0x08, 0xc8, 0x44, 0x01, 0x03, 0x80, 0x37,
-                0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36, 0x41,
-                0x8e, 0x38, 0x92, 0x00,
+                0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36, 0xdc,
+                0x48, 0xa7, 0xe7, 0x00,
             ],
         ),
-        // 02 | 02
-        (Request::ReadParams, &[0x07, 0x02, 0x02, 0x51, 0x11, 0xe1, 0x9d, 0x00]),
-        // 02 | 03
-        (Request::Commit, &[0x07, 0x02, 0x03, 0xc7, 0x21, 0xe6, 0xea, 0x00]),
+        // 03 | 02
+        (Request::ReadParams, &[0x07, 0x03, 0x02, 0x10, 0x20, 0xfa, 0x84, 0x00]),
+        // 03 | 03
+        (Request::Commit, &[0x07, 0x03, 0x03, 0x86, 0x10, 0xfd, 0xf3, 0x00]),
         (
             Request::Replay(EncoderSample { input_angle: 1.0, output_angle: -0.5, path: EvalPath::Fast }),
-            // 02 | 04 | input_angle 1 = 3f800000 | output_angle -0.5 = bf000000 | Fast 01
-            &[0x03, 0x02, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x3c, 0x75, 0x60, 0x53, 0x00],
+            // 03 | 04 | input_angle 1 = 3f800000 | output_angle -0.5 = bf000000 | Fast 01
+            &[0x03, 0x03, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0xfc, 0xaa, 0xee, 0x92, 0x00],
+        ),
+        (
+            Request::Configure(DISTINCT_CONFIG),
+            // 03 | 05 | Model 03 | kp 0.0625 = 3d800000 | ki 2.5 = 40200000 | damping 2⁻⁷ = 3c000000 |
+            // stiffness 16384 = 46800000 | command_limit 0.75 = 3f400000 | period 2⁻¹⁰ = 3a800000
+            &[
+                0x04, 0x03, 0x05, 0x03, 0x01, 0x03, 0x80, 0x3d, 0x01, 0x03, 0x20, 0x40, 0x01, 0x01, 0x02, 0x3c, 0x01,
+                0x03, 0x80, 0x46, 0x01, 0x03, 0x40, 0x3f, 0x01, 0x07, 0x80, 0x3a, 0x9c, 0x9f, 0x72, 0x6d, 0x00,
+            ],
+        ),
+        (
+            Request::SetReference(-7.25),
+            // 03 | 06 | -7.25 = c0e80000
+            &[0x03, 0x03, 0x06, 0x01, 0x07, 0xe8, 0xc0, 0xf9, 0x9d, 0xd5, 0xb5, 0x00],
+        ),
+        (
+            Request::Control(ControlSample { input_angle: 12.5, output_angle: -0.375, reference: 8.75 }),
+            // 03 | 07 | input_angle 12.5 = 41480000 | output_angle -0.375 = bec00000 |
+            // reference 8.75 = 410c0000
+            &[
+                0x03, 0x03, 0x07, 0x01, 0x03, 0x48, 0x41, 0x01, 0x03, 0xc0, 0xbe, 0x01, 0x07, 0x0c, 0x41, 0x9f, 0x9c,
+                0x5c, 0x87, 0x00,
+            ],
         ),
     ];
-    covers_every_variant(&cases, request_variant, 5);
+    covers_every_variant(&cases, request_variant, 8);
     for (request, golden) in cases {
         assert_golden(request, golden);
     }
@@ -206,46 +247,46 @@ fn golden_requests() {
 
 #[test]
 fn golden_responses() {
-    let cases: [(Response, &[u8]); 9] = [
+    let cases: [(Response, &[u8]); 11] = [
         (
             Response::DeviceInfo(DeviceInfo {
                 firmware_version: Version { major: 0, minor: 1, patch: 2 },
                 protocol_version: 300,
                 model_version: 7,
             }),
-            // 02 | 00 | 0.1.2 = 00 01 02 | protocol_version 300 = ac 02 | model_version 07
-            &[0x02, 0x02, 0x01, 0x0a, 0x01, 0x02, 0xac, 0x02, 0x07, 0x0a, 0x6a, 0x5e, 0xcc, 0x00],
+            // 03 | 00 | 0.1.2 = 00 01 02 | protocol_version 300 = ac 02 | model_version 07
+            &[0x02, 0x03, 0x01, 0x09, 0x01, 0x02, 0xac, 0x02, 0x07, 0x94, 0x6a, 0xf4, 0x01, 0x00],
         ),
-        // 02 | 01
-        (Response::ParamsAccepted, &[0x07, 0x02, 0x01, 0xeb, 0x40, 0xe8, 0x04, 0x00]),
+        // 03 | 01
+        (Response::ParamsAccepted, &[0x07, 0x03, 0x01, 0xaa, 0x71, 0xf3, 0x1d, 0x00]),
         (
             Response::Params(Some(DISTINCT_PARAMS)),
-            // 02 | 02 | Some 01 | the genetic set
+            // 03 | 02 | Some 01 | the genetic set
             &[
-                0x05, 0x02, 0x02, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88,
+                0x05, 0x03, 0x02, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88,
                 0xd7, 0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42,
-                0x01, 0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xe5, 0x06, 0xcb, 0x16, 0x00,
+                0x01, 0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0x44, 0x96, 0xdc, 0xfe, 0x00,
             ],
         ),
         (
             Response::Params(Some(DISTINCT_SLIP_PARAMS)),
-            // 02 | 02 | Some 01 | the micro-slip set
+            // 03 | 02 | Some 01 | the micro-slip set
             &[
-                0x06, 0x02, 0x02, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35,
+                0x06, 0x03, 0x02, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35,
                 0xd6, 0x04, 0x80, 0xc8, 0x42, 0x04, 0x40, 0x48, 0x43, 0x04, 0x20, 0x96, 0x43, 0x04, 0x20, 0xc8, 0x43,
                 0x04, 0x20, 0xfa, 0x43, 0x04, 0x10, 0x16, 0x44, 0x04, 0x10, 0x2f, 0x44, 0x04, 0x10, 0x48, 0x44, 0x04,
                 0x10, 0x61, 0x44, 0x04, 0x10, 0x7a, 0x44, 0x04, 0x88, 0x89, 0x44, 0x04, 0x08, 0x96, 0x44, 0x04, 0x88,
                 0xa2, 0x44, 0x04, 0x08, 0xaf, 0x44, 0x04, 0x88, 0xbb, 0x44, 0x04, 0x08, 0xc8, 0x44, 0x01, 0x03, 0x80,
                 0x37, 0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36,
-                0x51, 0xe2, 0x7d, 0x64, 0x00,
+                0x6e, 0x92, 0xb6, 0xea, 0x00,
             ],
         ),
-        // 02 | 02 | None 00
-        (Response::Params(None), &[0x03, 0x02, 0x02, 0x05, 0xfe, 0x6f, 0xf3, 0xce, 0x00]),
+        // 03 | 02 | None 00
+        (Response::Params(None), &[0x03, 0x03, 0x02, 0x05, 0xc9, 0x05, 0x31, 0xcf, 0x00]),
         (
             Response::Committed { sequence: 0x1234_5678 },
-            // 02 | 03 | sequence 0x12345678 = f8 ac d1 91 01
-            &[0x0c, 0x02, 0x03, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x12, 0xd5, 0x88, 0x60, 0x00],
+            // 03 | 03 | sequence 0x12345678 = f8 ac d1 91 01
+            &[0x0c, 0x03, 0x03, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0xa6, 0xde, 0xff, 0xc6, 0x00],
         ),
         (
             Response::Feedforward(Feedforward {
@@ -256,11 +297,11 @@ fn golden_responses() {
                 direction: Some(Direction::Falling),
                 memory: 3,
             }),
-            // 02 | 04 | deflection -2⁻¹⁰ = ba800000 | torque -12.5 = c1480000 |
+            // 03 | 04 | deflection -2⁻¹⁰ = ba800000 | torque -12.5 = c1480000 |
             // stiffness 4e4 = 471c4000 | Clamped 01 | Some 01 Falling 01 | memory 03
             &[
-                0x03, 0x02, 0x04, 0x01, 0x03, 0x80, 0xba, 0x01, 0x03, 0x48, 0xc1, 0x0c, 0x40, 0x1c, 0x47, 0x01, 0x01,
-                0x01, 0x03, 0xcb, 0xcc, 0x89, 0xce, 0x00,
+                0x03, 0x03, 0x04, 0x01, 0x03, 0x80, 0xba, 0x01, 0x03, 0x48, 0xc1, 0x0c, 0x40, 0x1c, 0x47, 0x01, 0x01,
+                0x01, 0x03, 0x2a, 0x7a, 0xdb, 0x21, 0x00,
             ],
         ),
         (
@@ -272,20 +313,35 @@ fn golden_responses() {
                 direction: None,
                 memory: 11,
             }),
-            // 02 | 04 | deflection 2⁻¹¹ = 3a000000 | torque 6.75 = 40d80000 |
+            // 03 | 04 | deflection 2⁻¹¹ = 3a000000 | torque 6.75 = 40d80000 |
             // stiffness 1.2e4 = 463b8000 | Active 00 | None 00 | memory 0b
             &[
-                0x03, 0x02, 0x04, 0x01, 0x01, 0x02, 0x3a, 0x01, 0x03, 0xd8, 0x40, 0x04, 0x80, 0x3b, 0x46, 0x01, 0x06,
-                0x0b, 0x72, 0x91, 0x52, 0x50, 0x00,
+                0x03, 0x03, 0x04, 0x01, 0x01, 0x02, 0x3a, 0x01, 0x03, 0xd8, 0x40, 0x04, 0x80, 0x3b, 0x46, 0x01, 0x06,
+                0x0b, 0x31, 0x5a, 0xf4, 0xd7, 0x00,
             ],
         ),
         (
             Response::Error(ErrorReply::UnsupportedProtocol { got: 7, supported: 2 }),
-            // 02 | 05 | UnsupportedProtocol 03 | got 07 | supported 02
-            &[0x0a, 0x02, 0x05, 0x03, 0x07, 0x02, 0xfd, 0x1d, 0x35, 0x28, 0x00],
+            // 03 | 05 | UnsupportedProtocol 03 | got 07 | supported 02
+            &[0x0a, 0x03, 0x05, 0x03, 0x07, 0x02, 0x4d, 0x34, 0x55, 0x15, 0x00],
+        ),
+        // 03 | 06
+        (Response::ControlAccepted, &[0x07, 0x03, 0x06, 0x09, 0xe4, 0x97, 0x83, 0x00]),
+        (
+            Response::Control(ControlOutput {
+                command: -0.4375,
+                estimate: 9.5,
+                mode: ControlMode::Linear,
+                saturated: true,
+            }),
+            // 03 | 07 | command -0.4375 = bee00000 | estimate 9.5 = 41180000 | Linear 02 | true 01
+            &[
+                0x03, 0x03, 0x07, 0x01, 0x03, 0xe0, 0xbe, 0x01, 0x09, 0x18, 0x41, 0x02, 0x01, 0x13, 0xda, 0x2e, 0x77,
+                0x00,
+            ],
         ),
     ];
-    covers_every_variant(&cases, response_variant, 6);
+    covers_every_variant(&cases, response_variant, 8);
     for (response, golden) in cases {
         assert_golden(response, golden);
     }
@@ -293,38 +349,44 @@ fn golden_responses() {
 
 #[test]
 fn golden_error_replies() {
-    let cases: [(ErrorReply, &[u8]); 12] = [
-        // Each is 02 | 05 (Response::Error) | variant index | fields.
-        (ErrorReply::BadFrame, &[0x03, 0x02, 0x05, 0x05, 0x39, 0xf9, 0xb2, 0x81, 0x00]),
-        (ErrorReply::BadCrc, &[0x08, 0x02, 0x05, 0x01, 0xaf, 0xc9, 0xb5, 0xf6, 0x00]),
-        (ErrorReply::FrameTooLong, &[0x08, 0x02, 0x05, 0x02, 0x15, 0x98, 0xbc, 0x6f, 0x00]),
+    let cases: [(ErrorReply, &[u8]); 14] = [
+        // Each is 03 | 05 (Response::Error) | variant index | fields.
+        (ErrorReply::BadFrame, &[0x03, 0x03, 0x05, 0x05, 0x0e, 0x93, 0x70, 0x80, 0x00]),
+        (ErrorReply::BadCrc, &[0x08, 0x03, 0x05, 0x01, 0x98, 0xa3, 0x77, 0xf7, 0x00]),
+        (ErrorReply::FrameTooLong, &[0x08, 0x03, 0x05, 0x02, 0x22, 0xf2, 0x7e, 0x6e, 0x00]),
         (
             // got 07, supported 02
             ErrorReply::UnsupportedProtocol { got: 7, supported: 2 },
-            &[0x0a, 0x02, 0x05, 0x03, 0x07, 0x02, 0xfd, 0x1d, 0x35, 0x28, 0x00],
+            &[0x0a, 0x03, 0x05, 0x03, 0x07, 0x02, 0x4d, 0x34, 0x55, 0x15, 0x00],
         ),
-        (ErrorReply::UndecodableRequest, &[0x08, 0x02, 0x05, 0x04, 0x20, 0x3d, 0xdf, 0x86, 0x00]),
+        (ErrorReply::UndecodableRequest, &[0x08, 0x03, 0x05, 0x04, 0x17, 0x57, 0x1d, 0x87, 0x00]),
         (
             // got 02, supported 01
             ErrorReply::ModelVersion { got: 2, supported: 1 },
-            &[0x0a, 0x02, 0x05, 0x05, 0x02, 0x01, 0xb0, 0xc4, 0xc6, 0xc8, 0x00],
+            &[0x06, 0x03, 0x05, 0x05, 0x02, 0x01, 0x04, 0xed, 0xa6, 0xf5, 0x00],
         ),
         (
             // field TorqueLimit 07, fault OutOfRange 01
             ErrorReply::InvalidParam { field: ParamField::TorqueLimit, fault: ParamFault::OutOfRange },
-            &[0x0a, 0x02, 0x05, 0x06, 0x07, 0x01, 0xac, 0x8e, 0xf7, 0xb7, 0x00],
+            &[0x0a, 0x03, 0x05, 0x06, 0x07, 0x01, 0x1c, 0xa7, 0x97, 0x8a, 0x00],
         ),
         (
             // field SlipStiffness 09 with element 0d, fault NotFinite 00
             ErrorReply::InvalidParam { field: ParamField::SlipStiffness(13), fault: ParamFault::NotFinite },
-            &[0x06, 0x02, 0x05, 0x06, 0x09, 0x0d, 0x05, 0xc6, 0x95, 0xfe, 0xab, 0x00],
+            &[0x06, 0x03, 0x05, 0x06, 0x09, 0x0d, 0x05, 0x63, 0x46, 0xa2, 0x60, 0x00],
         ),
-        (ErrorReply::ModelOverflow, &[0x08, 0x02, 0x05, 0x07, 0x9a, 0x6c, 0xd6, 0x1f, 0x00]),
-        (ErrorReply::NoParams, &[0x08, 0x02, 0x05, 0x08, 0x0b, 0x71, 0x69, 0x8f, 0x00]),
-        (ErrorReply::Storage, &[0x08, 0x02, 0x05, 0x09, 0x9d, 0x41, 0x6e, 0xf8, 0x00]),
-        (ErrorReply::NonFiniteSample, &[0x08, 0x02, 0x05, 0x0a, 0x27, 0x10, 0x67, 0x61, 0x00]),
+        (ErrorReply::ModelOverflow, &[0x08, 0x03, 0x05, 0x07, 0xad, 0x06, 0x14, 0x1e, 0x00]),
+        (ErrorReply::NoParams, &[0x08, 0x03, 0x05, 0x08, 0x3c, 0x1b, 0xab, 0x8e, 0x00]),
+        (ErrorReply::Storage, &[0x08, 0x03, 0x05, 0x09, 0xaa, 0x2b, 0xac, 0xf9, 0x00]),
+        (ErrorReply::NonFiniteSample, &[0x08, 0x03, 0x05, 0x0a, 0x10, 0x7a, 0xa5, 0x60, 0x00]),
+        (
+            // field Period 05, fault NotFinite 00
+            ErrorReply::InvalidGain { field: GainField::Period, fault: ParamFault::NotFinite },
+            &[0x05, 0x03, 0x05, 0x0b, 0x05, 0x05, 0x5b, 0x66, 0x7e, 0xc7, 0x00],
+        ),
+        (ErrorReply::MotorDrive, &[0x08, 0x03, 0x05, 0x0c, 0x25, 0xdf, 0xc6, 0x89, 0x00]),
     ];
-    covers_every_variant(&cases, error_variant, 11);
+    covers_every_variant(&cases, error_variant, 13);
     for (error, golden) in cases {
         assert_golden(Response::Error(error), golden);
     }
@@ -369,6 +431,21 @@ fn golden_enum_indices() {
     assert_eq!(index_of(Compensation::Off), [2]);
     assert_eq!(index_of(Direction::Rising), [0]);
     assert_eq!(index_of(Direction::Falling), [1]);
+    let modes = [ControlMode::Off, ControlMode::OpenLoop, ControlMode::Linear, ControlMode::Model];
+    for (index, mode) in (0u8..).zip(modes) {
+        assert_eq!(index_of(mode), [index], "{mode:?}");
+    }
+    let gains = [
+        GainField::Kp,
+        GainField::Ki,
+        GainField::Damping,
+        GainField::Stiffness,
+        GainField::CommandLimit,
+        GainField::Period,
+    ];
+    for (index, field) in (0u8..).zip(gains) {
+        assert_eq!(index_of(field), [index], "{field:?}");
+    }
 }
 
 /// Every message, at its longest (varints at their maximum, no zero byte for COBS to
@@ -418,6 +495,17 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
         Request::ReadParams,
         Request::Commit,
         Request::Replay(sample),
+        Request::Configure(ControllerConfig {
+            mode: ControlMode::Model,
+            kp: f32::MIN,
+            ki: f32::MIN,
+            damping: f32::MIN,
+            stiffness: f32::MIN,
+            command_limit: f32::MIN,
+            period: f32::MIN,
+        }),
+        Request::SetReference(f32::MIN),
+        Request::Control(ControlSample { input_angle: f32::MIN, output_angle: f32::MIN, reference: f32::MIN }),
     ];
     let responses = [
         Response::DeviceInfo(DeviceInfo { firmware_version: version, protocol_version: big, model_version: big }),
@@ -433,6 +521,14 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
             field: ParamField::SlipStiffness(u8::MAX),
             fault: ParamFault::OutOfRange,
         }),
+        Response::ControlAccepted,
+        Response::Control(ControlOutput {
+            command: f32::MIN,
+            estimate: f32::MIN,
+            mode: ControlMode::Model,
+            saturated: true,
+        }),
+        Response::Error(ErrorReply::InvalidGain { field: GainField::Period, fault: ParamFault::OutOfRange }),
     ];
     // A message too long for a frame fails here already (encode's payload buffer is sized
     // for MAX_FRAME_LEN); the larger output buffer only keeps that buffer the one limit.
@@ -467,6 +563,9 @@ fn every_message_round_trips() {
         Request::ReadParams,
         Request::Commit,
         Request::Replay(EncoderSample { input_angle: 12.5, output_angle: 0.125, path: EvalPath::Direct }),
+        Request::Configure(DISTINCT_CONFIG),
+        Request::SetReference(3.5),
+        Request::Control(ControlSample { input_angle: -1.5, output_angle: 0.25, reference: -2.0 }),
     ];
     for request in requests {
         let (out, len) = frame_of(&request);
@@ -492,6 +591,14 @@ fn every_message_round_trips() {
             memory: 16,
         }),
         Response::Error(ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
+        Response::ControlAccepted,
+        Response::Control(ControlOutput {
+            command: 0.125,
+            estimate: 0.0,
+            mode: ControlMode::OpenLoop,
+            saturated: false,
+        }),
+        Response::Error(ErrorReply::MotorDrive),
     ];
     for response in responses {
         let (out, len) = frame_of(&response);
@@ -628,4 +735,30 @@ fn micro_slip_validation_names_the_field() {
     // The error names the element.
     let error = ErrorReply::InvalidParam { field: ParamField::SlipStiffness(3), fault: ParamFault::OutOfRange };
     assert_eq!(std::format!("{error}"), "parameter stiffness[3] is out of range");
+}
+
+#[test]
+fn controller_validation_names_the_gain() {
+    assert_eq!(DISTINCT_CONFIG.validate(), Ok(()));
+    let with = |edit: fn(&mut ControllerConfig)| {
+        let mut config = DISTINCT_CONFIG;
+        edit(&mut config);
+        config.validate()
+    };
+    let invalid = |field, fault| Err(ErrorReply::InvalidGain { field, fault });
+    assert_eq!(with(|c| c.kp = f32::NAN), invalid(GainField::Kp, ParamFault::NotFinite));
+    assert_eq!(with(|c| c.kp = -0.5), invalid(GainField::Kp, ParamFault::OutOfRange));
+    assert_eq!(with(|c| c.ki = f32::INFINITY), invalid(GainField::Ki, ParamFault::NotFinite));
+    assert_eq!(with(|c| c.ki = -1.0), invalid(GainField::Ki, ParamFault::OutOfRange));
+    assert_eq!(with(|c| c.damping = -1.0e-3), invalid(GainField::Damping, ParamFault::OutOfRange));
+    assert_eq!(with(|c| c.stiffness = 0.0), invalid(GainField::Stiffness, ParamFault::OutOfRange));
+    assert_eq!(with(|c| c.command_limit = 0.0), invalid(GainField::CommandLimit, ParamFault::OutOfRange));
+    assert_eq!(with(|c| c.period = 0.0), invalid(GainField::Period, ParamFault::OutOfRange));
+    assert_eq!(with(|c| c.period = 1.5), invalid(GainField::Period, ParamFault::OutOfRange));
+    assert_eq!(with(|c| c.period = f32::NEG_INFINITY), invalid(GainField::Period, ParamFault::NotFinite));
+    // Zero gains are allowed: an open loop, or a pure P loop.
+    assert_eq!(with(|c| (c.kp, c.ki, c.damping) = (0.0, 0.0, 0.0)), Ok(()));
+    let error = ErrorReply::InvalidGain { field: GainField::CommandLimit, fault: ParamFault::OutOfRange };
+    assert_eq!(std::format!("{error}"), "controller gain command_limit is out of range");
+    assert_eq!(std::format!("{}", ControlMode::OpenLoop), "open-loop");
 }

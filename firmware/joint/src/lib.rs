@@ -5,19 +5,23 @@
 //! the installed model's stateful evaluator from model-core (`GeneticMemory`: the genetic model
 //! with Madelung's rules, a reversal band against encoder noise; or `MicroSlip`) giving T_ff
 //! and K — with libm, or for the genetic kind by the fast path's elementary functions
-//! ([`fast::FastMath`]) — clamped to the torque limit.
+//! ([`fast::FastMath`]) — clamped to the torque limit. The torque controller
+//! ([`controller::Controller`]) closes its loop on that T_ff (or on one stiffness) and hands the
+//! motor command to the board's [`MotorDrive`].
 //!
 //! Lints: the workspace's (firmware/Cargo.toml and firmware/clippy.toml).
 #![no_std]
 
 pub mod as5047p;
 mod compensator;
+pub mod controller;
 pub mod fast;
 pub mod flash;
 mod server;
 pub mod storage;
 
 pub use compensator::{Compensator, MAX_DEFLECTION, TURNING_POINTS};
+pub use controller::{Controller, MotorDrive, NoDrive};
 pub use fast::FastModel;
 pub use server::Server;
 

@@ -1,14 +1,16 @@
+use crate::controller::{Controller, MotorDrive, NoDrive};
 use crate::{storage::ParamStore, Compensator, FIRMWARE_VERSION};
 use embedded_storage::nor_flash::NorFlash;
 use swg_protocol::{
-    decode, encode, DeviceInfo, ErrorReply, FrameReader, Request, Response, MAX_FRAME_LEN, MODEL_VERSION,
-    PROTOCOL_VERSION,
+    decode, encode, ControlOutput, DeviceInfo, ErrorReply, FrameReader, Request, Response, MAX_FRAME_LEN,
+    MODEL_VERSION, PROTOCOL_VERSION,
 };
 
 /// The device end of the link: bytes in, one response frame per request frame out.
 pub struct Server<F> {
     reader: FrameReader<MAX_FRAME_LEN>,
     compensator: Compensator,
+    controller: Controller,
     store: ParamStore<F>,
 }
 
@@ -21,7 +23,7 @@ impl<F: NorFlash> Server<F> {
             // (e.g. after a model change) leaves the compensation off.
             let _ = compensator.stage(stored.params);
         }
-        Server { reader: FrameReader::new(), compensator, store }
+        Server { reader: FrameReader::new(), compensator, controller: Controller::new(), store }
     }
 
     /// The compensator, for a board's control tick.
@@ -29,12 +31,38 @@ impl<F: NorFlash> Server<F> {
         &mut self.compensator
     }
 
+    /// One control tick of the board's own timer at the reference set over the link: the
+    /// command goes to `drive` (and is returned).
+    pub fn control_tick<D: MotorDrive>(
+        &mut self,
+        input_angle: f32,
+        output_angle: f32,
+        drive: &mut D,
+    ) -> Result<ControlOutput, D::Error> {
+        let output = self.controller.tick_stored(&mut self.compensator, input_angle, output_angle);
+        drive.apply(output.command)?;
+        Ok(output)
+    }
+
     /// Feeds one received byte; when it completes a frame, writes the response frame into
-    /// `out` and returns its length.
+    /// `out` and returns its length. Lockstep control requests go to no motor drive (the
+    /// command only comes back in the response): see [`Server::receive_driving`].
     pub fn receive(&mut self, byte: u8, out: &mut [u8; MAX_FRAME_LEN]) -> Option<usize> {
+        self.receive_driving(byte, out, &mut NoDrive)
+    }
+
+    /// [`Server::receive`], with the command of a lockstep [`Request::Control`] applied to
+    /// `drive` before the response is written (a refused command is answered with
+    /// [`ErrorReply::MotorDrive`]).
+    pub fn receive_driving<D: MotorDrive>(
+        &mut self,
+        byte: u8,
+        out: &mut [u8; MAX_FRAME_LEN],
+        drive: &mut D,
+    ) -> Option<usize> {
         let response = match self.reader.push(byte)? {
             Ok(frame) => match decode::<Request>(frame) {
-                Ok(request) => self.handle(request),
+                Ok(request) => self.handle(request, drive),
                 Err(error) => Response::Error(error.into()),
             },
             Err(error) => Response::Error(error.into()),
@@ -43,7 +71,7 @@ impl<F: NorFlash> Server<F> {
         encode(&response, out).ok()
     }
 
-    fn handle(&mut self, request: Request) -> Response {
+    fn handle<D: MotorDrive>(&mut self, request: Request, drive: &mut D) -> Response {
         match request {
             Request::GetDeviceInfo => Response::DeviceInfo(DeviceInfo {
                 firmware_version: FIRMWARE_VERSION,
@@ -68,6 +96,30 @@ impl<F: NorFlash> Server<F> {
                 }
                 let feedforward = self.compensator.tick(sample.input_angle, sample.output_angle, sample.path);
                 Response::Feedforward(feedforward)
+            }
+            Request::Configure(config) => match self.controller.configure(config) {
+                Ok(()) => Response::ControlAccepted,
+                Err(reason) => Response::Error(reason),
+            },
+            Request::SetReference(reference) => match self.controller.set_reference(reference) {
+                Ok(()) => Response::ControlAccepted,
+                Err(reason) => Response::Error(reason),
+            },
+            Request::Control(sample) => {
+                let finite = [sample.input_angle, sample.output_angle, sample.reference];
+                if !finite.iter().all(|value| value.is_finite()) {
+                    return Response::Error(ErrorReply::NonFiniteSample);
+                }
+                let output = self.controller.tick(
+                    &mut self.compensator,
+                    sample.input_angle,
+                    sample.output_angle,
+                    sample.reference,
+                );
+                match drive.apply(output.command) {
+                    Ok(()) => Response::Control(output),
+                    Err(_) => Response::Error(ErrorReply::MotorDrive),
+                }
             }
         }
     }
@@ -222,5 +274,81 @@ mod tests {
         assert_eq!(request(&mut server, &Request::Replay(nan_sample)), Response::Error(ErrorReply::NonFiniteSample));
         // Same tick result as before: the model's memory saw the same θ again.
         assert_eq!(replay(&mut server), before);
+    }
+
+    /// A drive that records what it was given, and refuses when told to.
+    #[derive(Default)]
+    struct Recorder {
+        applied: Vec<f32>,
+        refuse: bool,
+    }
+
+    impl MotorDrive for Recorder {
+        type Error = ();
+        fn apply(&mut self, torque: f32) -> Result<(), ()> {
+            if self.refuse {
+                return Err(());
+            }
+            self.applied.push(torque);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn control_requests_configure_tick_and_drive() {
+        use swg_protocol::{ControlMode, ControlSample, ControllerConfig, GainField};
+        let config = ControllerConfig {
+            mode: ControlMode::OpenLoop,
+            kp: 0.05,
+            ki: 1.0,
+            damping: 1.0e-3,
+            stiffness: 9000.0,
+            command_limit: 1.0,
+            period: 1.0e-3,
+        };
+        let mut server = server();
+        let mut drive = Recorder::default();
+        let talk = |server: &mut Server<RamFlash<4096>>, drive: &mut Recorder, request: &Request| {
+            let mut out = [0u8; MAX_FRAME_LEN];
+            let mut responses = Vec::new();
+            for byte in frame(request) {
+                if let Some(len) = server.receive_driving(byte, &mut out, drive) {
+                    responses.push(decode::<Response>(&mut out[..len - 1]).unwrap());
+                }
+            }
+            assert_eq!(responses.len(), 1);
+            responses[0]
+        };
+        let sample = ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 10.0 };
+        // Not configured, no parameters: Off, zero command, applied.
+        let Response::Control(out) = talk(&mut server, &mut drive, &Request::Control(sample)) else { panic!() };
+        assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));
+        assert_eq!(talk(&mut server, &mut drive, &Request::Configure(config)), Response::ControlAccepted);
+        assert_eq!(talk(&mut server, &mut drive, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
+        let Response::Control(out) = talk(&mut server, &mut drive, &Request::Control(sample)) else { panic!() };
+        assert_eq!((out.command, out.mode), (10.0 / PARAMS.gear_ratio, ControlMode::OpenLoop));
+        assert_eq!(drive.applied, [0.0, 0.1]);
+        // Bad requests change nothing.
+        let bad = ControllerConfig { period: 0.0, ..config };
+        assert_eq!(
+            talk(&mut server, &mut drive, &Request::Configure(bad)),
+            Response::Error(ErrorReply::InvalidGain { field: GainField::Period, fault: ParamFault::OutOfRange })
+        );
+        let nan = ControlSample { reference: f32::NAN, ..sample };
+        assert_eq!(talk(&mut server, &mut drive, &Request::Control(nan)), Response::Error(ErrorReply::NonFiniteSample));
+        assert_eq!(
+            talk(&mut server, &mut drive, &Request::SetReference(f32::INFINITY)),
+            Response::Error(ErrorReply::NonFiniteSample)
+        );
+        assert_eq!(drive.applied.len(), 2);
+        // The board's own tick runs at the stored reference.
+        assert_eq!(talk(&mut server, &mut drive, &Request::SetReference(-5.0)), Response::ControlAccepted);
+        let out = server.control_tick(0.0, 0.0, &mut drive).unwrap();
+        assert_eq!(out.command, -5.0 / PARAMS.gear_ratio);
+        assert_eq!(drive.applied.last(), Some(&-0.05));
+        // A drive that refuses: the reply says so.
+        drive.refuse = true;
+        assert_eq!(talk(&mut server, &mut drive, &Request::Control(sample)), Response::Error(ErrorReply::MotorDrive));
+        assert!(server.control_tick(0.0, 0.0, &mut drive).is_err());
     }
 }

@@ -11,6 +11,27 @@ use panic_semihosting as _;
 
 pub mod uart;
 
+/// The QEMU board's motor drive: this machine has no motor, the plant is simulated on the host
+/// (`swg-host hil`), and the command reaches it in the lockstep [`swg_protocol::Response::Control`]
+/// that answers each control tick. The drive keeps the last command and counts them (for a
+/// debugger or a log); it never refuses one.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LinkDrive {
+    /// The last motor torque command, N·m at the motor shaft.
+    pub last: f32,
+    /// Commands applied since boot.
+    pub count: u32,
+}
+
+impl swg_joint::MotorDrive for LinkDrive {
+    type Error = core::convert::Infallible;
+    fn apply(&mut self, torque: f32) -> Result<(), Self::Error> {
+        self.last = torque;
+        self.count = self.count.wrapping_add(1);
+        Ok(())
+    }
+}
+
 /// The pattern [`paint_stack`] writes; bench/firmware.sh reads the deepest overwritten word
 /// through QEMU's monitor to measure the stack's high-water mark.
 pub const STACK_PAINT: u32 = 0x5AFE_57AC;

@@ -4,6 +4,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use std::path::PathBuf;
 use swg_host::diagnose::diagnose_dataset;
+use swg_host::input::{Dataset, Recording};
 use swg_host::report::diagnose::DiagnoseReport;
 use swg_host::report::finite::to_json;
 use swg_host::report::output::Outputs;
@@ -34,7 +35,12 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
     let mut outputs = Outputs::new(std::iter::once(args.input.as_path()).chain(args.params.as_deref()));
     let pictures = args.plot.as_ref().map(|dir| [dir.join("residuals.svg"), dir.join("loop.svg")]);
     outputs.refuse_inputs(pictures.iter().flatten().map(PathBuf::as_path))?;
-    let dataset = args.input_options.read_to_fit(&args.input)?;
+    let mut dataset = args.input_options.read_to_fit(&args.input)?;
+    // The diagnosis reads a recording's input angle (the kinematic error) but not its output
+    // angle once the deflection is formed: it need not stay in memory beside the columns.
+    if let Dataset::Recording(Recording { angles: Some(angles), .. }) = &mut dataset {
+        angles.output = Vec::new();
+    }
     let baseline = args.params.as_deref().map(read_params).transpose()?;
     let outcome = diagnose_dataset(&dataset, baseline, args.seed).with_context(|| args.input.display().to_string())?;
     let report = DiagnoseReport::new(args.input.display().to_string(), dataset.kind(), &outcome);

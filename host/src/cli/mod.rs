@@ -2,6 +2,7 @@
 mod diagnose;
 mod fit;
 mod flash;
+mod hil;
 mod predict;
 mod push;
 mod replay;
@@ -32,6 +33,8 @@ enum Command {
     Replay(replay::ReplayArgs),
     /// Write a firmware ELF to a joint board through a debug probe (probe-rs).
     Flash(flash::FlashArgs),
+    /// Run the joint firmware against a simulated joint in lockstep; score each controller mode.
+    Hil(hil::HilArgs),
 }
 
 impl Cli {
@@ -44,6 +47,7 @@ impl Cli {
             Command::Push(args) => push::run(args),
             Command::Replay(args) => replay::run(args),
             Command::Flash(args) => flash::run(args),
+            Command::Hil(args) => hil::run(args),
         }
     }
 }

@@ -98,7 +98,8 @@ pub struct SimulateArgs {
     temperature_rise: f64,
     /// Add a physical effect the model leaves out, NAME=VALUE in SI units (repeatable):
     /// backlash=WIDTH_RAD, coulomb_friction=NM, viscous_damping=NM_S_PER_RAD,
-    /// kinematic_error=RAD (2nd-order amplitude), thermal_drift=PER_K, torque_offset=NM.
+    /// kinematic_error=RAD (2nd-order amplitude), thermal_drift=PER_K, torque_offset=NM,
+    /// channel_delay=S (the torque channel late by S seconds; negative: early).
     #[arg(long = "effect", value_name = "NAME=VALUE")]
     effects: Vec<EffectValue>,
     /// Seed of the noise.

@@ -17,23 +17,39 @@ pub enum Effect {
     ThermalDrift,
     /// Constant zero offset of the torque sensor.
     TorqueOffset,
+    /// The torque channel sampled τ later than the angles (τ < 0: earlier), from a sensor
+    /// filter or a separate clock: the torque seen at t is the gear's at t − τ, which to first
+    /// order is T − τ·K·dθ/dt. It opens (τ < 0) or closes (τ > 0) the loop with the rate.
+    ChannelDelay,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 6] = [
+    pub const ALL: [Effect; 7] = [
         Effect::Backlash,
         Effect::CoulombFriction,
         Effect::ViscousDamping,
         Effect::KinematicError,
         Effect::ThermalDrift,
         Effect::TorqueOffset,
+        Effect::ChannelDelay,
     ];
 
     /// Whether the effect's torque follows the deflection rate (its size, or its sign): it must
     /// then show one magnitude at every rate, when the recording has more than one
     /// ([`crate::diagnose`]'s rate check).
     pub fn is_rate_dependent(self) -> bool {
-        matches!(self, Effect::ViscousDamping | Effect::CoulombFriction)
+        matches!(self, Effect::ViscousDamping | Effect::CoulombFriction | Effect::ChannelDelay)
+    }
+
+    /// The effect whose torque has the same form to within the loop's change of stiffness:
+    /// damping c·dθ/dt and a channel delay −τ·K·dθ/dt. One is named only when it explains the
+    /// recording clearly better than the other ([`crate::diagnose`]'s rival check).
+    pub fn rival(self) -> Option<Effect> {
+        match self {
+            Effect::ViscousDamping => Some(Effect::ChannelDelay),
+            Effect::ChannelDelay => Some(Effect::ViscousDamping),
+            _ => None,
+        }
     }
 
     pub fn name(self) -> &'static str {
@@ -44,6 +60,7 @@ impl Effect {
             Effect::KinematicError => "kinematic_error",
             Effect::ThermalDrift => "thermal_drift",
             Effect::TorqueOffset => "torque_offset",
+            Effect::ChannelDelay => "channel_delay",
         }
     }
 
@@ -55,6 +72,7 @@ impl Effect {
             Effect::ViscousDamping => "N·m·s/rad",
             Effect::KinematicError => "rad",
             Effect::ThermalDrift => "1/K",
+            Effect::ChannelDelay => "s",
         }
     }
 
@@ -67,6 +85,7 @@ impl Effect {
             Effect::KinematicError => "amplitude of the 2nd-order (2 per input revolution) component",
             Effect::ThermalDrift => "relative change of c1 per kelvin",
             Effect::TorqueOffset => "torque sensor zero offset",
+            Effect::ChannelDelay => "delay of the torque channel behind the angles (negative: ahead)",
         }
     }
 }

@@ -69,7 +69,9 @@ fn torque_column(observed: &Observed, effect: Effect) -> Option<Vec<f64>> {
         }
         Effect::ViscousDamping => observed.rate.clone(),
         Effect::ThermalDrift => observed.warming.as_ref().map(|w| w.iter().zip(&d.theta).map(|(w, t)| w * t).collect()),
-        Effect::Backlash | Effect::KinematicError => None,
+        // A delay's torque −τ·K·dθ/dt follows the model's own stiffness, which the form
+        // would have to share: kept as it is, like the deflection effects.
+        Effect::Backlash | Effect::KinematicError | Effect::ChannelDelay => None,
     }
 }
 

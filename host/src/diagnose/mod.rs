@@ -78,6 +78,20 @@ pub struct Rejection {
     pub evidence: Evidence,
 }
 
+/// A torque the recording shows and the model keeps, whose mechanism it cannot tell: either
+/// of two effects of the same form ([`Effect::rival`]), each with its magnitude fitted alone.
+#[derive(Clone, Debug, Serialize)]
+pub struct Undecided {
+    pub effects: [Effect; 2],
+    pub magnitudes: [f64; 2],
+    pub units: [&'static str; 2],
+    /// Why the data cannot tell, and what would.
+    pub words: String,
+    /// Unweighted RSS, (N·m)², before and after keeping it.
+    pub rss_before: f64,
+    pub rss_after: f64,
+}
+
 /// The result of [`diagnose`].
 #[derive(Clone, Debug)]
 pub struct Diagnosis {
@@ -90,6 +104,8 @@ pub struct Diagnosis {
     pub held_out_rms: Option<(f64, f64)>,
     /// The baseline's form is what the recording disagrees with (then no effect is named).
     pub model_form: Option<form::ModelForm>,
+    /// Torques kept in the final model without a name: either of two effects.
+    pub undecided: Vec<Undecided>,
     /// Structure that neither the vocabulary nor a model kind explains.
     pub unexplained: Option<form::Unexplained>,
 }

@@ -80,6 +80,7 @@ impl Observed {
                 }
                 for (effect, why) in [
                     (Effect::ViscousDamping, "a loop table has no time, so no deflection rate"),
+                    (Effect::ChannelDelay, "a loop table has no time, so no deflection rate"),
                     (Effect::KinematicError, "a loop table has no input angle"),
                     (Effect::ThermalDrift, "a loop table has no temperature"),
                 ] {
@@ -102,16 +103,18 @@ impl Observed {
         let (spread, rate_parts) = rate_spread(&self.data, &rate);
         self.rate_spread = Some(spread);
         if spread < MIN_RATE_SPREAD {
-            self.cannot_reveal.push((
-                Effect::ViscousDamping,
-                format!(
-                    "rate-dependent and rate-independent hysteresis cannot be told apart from this data: the \
-                     motion passes each place on the loop at one rate (its frequencies spread {spread:.2}×, \
-                     {MIN_RATE_SPREAD}× needed), so damping and hysteresis open the loop alike; record the same \
-                     loop at a second rate (e.g. half and twice the frequency) to tell them apart. The loop's \
-                     opening is taken for hysteresis shape"
-                ),
-            ));
+            let why = format!(
+                "rate-dependent and rate-independent hysteresis cannot be told apart from this data: the \
+                 motion passes each place on the loop at one rate (its frequencies spread {spread:.2}×, \
+                 {MIN_RATE_SPREAD}× needed), so friction, damping, a channel delay and hysteresis open the loop \
+                 alike; record the same loop at a second rate (e.g. half and twice the frequency) to tell them \
+                 apart. The loop's opening is taken for hysteresis shape"
+            );
+            // Friction's torque follows the rate's sign: at one rate, damping or a delay that the
+            // hysteresis' shape leaves over would be named as friction (seen on the corpus).
+            for effect in Effect::ALL.into_iter().filter(|e| e.is_rate_dependent()) {
+                self.cannot_reveal.push((effect, why.clone()));
+            }
         } else {
             self.rate_parts = Some(rate_parts);
         }
@@ -221,24 +224,25 @@ fn interleaved_cycles(n: usize, turning_points: &[crate::prepare::TurningPoint])
 /// a single-frequency excitation whatever the amplitude, many for several frequencies or a
 /// random motion. Samples with |θ/A| > 0.8 (rate near zero, ω ill-defined) are left out.
 fn rate_spread(data: &FitData, rate: &[f64]) -> (f64, [Vec<usize>; 2]) {
-    let frequency: Vec<(usize, f64)> = (0..rate.len())
-        .filter_map(|i| {
-            let x = data.theta[i] / data.amplitude[i];
-            (x.abs() <= 0.8).then(|| (i, rate[i].abs() / (data.amplitude[i] * (1.0 - x * x).sqrt())))
-        })
-        .filter(|(_, w)| w.is_finite())
-        .collect();
-    if frequency.len() < 20 {
+    // Formed twice, to sort and to split, rather than kept with its index (16 bytes a sample).
+    let frequency = |i: usize| {
+        let x = data.theta[i] / data.amplitude[i];
+        (x.abs() <= 0.8).then(|| rate[i].abs() / (data.amplitude[i] * (1.0 - x * x).sqrt())).filter(|w| w.is_finite())
+    };
+    let mut sorted: Vec<f64> = (0..rate.len()).filter_map(frequency).collect();
+    if sorted.len() < 20 {
         return (1.0, [Vec::new(), Vec::new()]);
     }
-    let mut sorted: Vec<f64> = frequency.iter().map(|(_, w)| *w).collect();
-    sorted.sort_by(f64::total_cmp);
+    // Equal under total_cmp is equal bit for bit: the unstable sort's order is the stable one's.
+    sorted.sort_unstable_by(f64::total_cmp);
     let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q) as usize];
     let spread = at(0.9) / at(0.1).max(f64::MIN_POSITIVE);
     let median = at(0.5);
     let mut parts = [Vec::new(), Vec::new()];
-    for (i, w) in frequency {
-        parts[usize::from(w > median)].push(i);
+    for i in 0..rate.len() {
+        if let Some(w) = frequency(i) {
+            parts[usize::from(w > median)].push(i);
+        }
     }
     (spread, parts)
 }
@@ -251,24 +255,31 @@ fn min_max(values: &[f64]) -> (f64, f64) {
 /// O(n) from running sums: the deflection rate without the encoder's quantisation steps.
 pub fn local_slope(time: &[f64], x: &[f64], half: usize) -> Vec<f64> {
     let n = x.len();
-    let prefix = |f: &dyn Fn(usize) -> f64| {
-        let mut p = Vec::with_capacity(n + 1);
-        p.push(0.0);
-        for i in 0..n {
-            p.push(p[i] + f(i));
-        }
-        p
+    // (t, x, t², t·x) of sample i; times relative to the first sample keep the sums well
+    // conditioned.
+    let terms = |i: usize| {
+        let t = time[i] - time[0];
+        [t, x[i], t * t, t * x[i]]
     };
-    // Times relative to the first sample keep the sums well conditioned.
-    let t = |i: usize| time[i] - time[0];
-    let (st, sx, stt, stx) = (prefix(&|i| t(i)), prefix(&|i| x[i]), prefix(&|i| t(i) * t(i)), prefix(&|i| t(i) * x[i]));
+    // Running sums over samples 0..a and 0..b, the window a..b their difference: two cursors
+    // instead of four prefix arrays (32 bytes a sample), the same additions in the same order.
+    let advance = |(at, sums): &mut (usize, [f64; 4]), to: usize| {
+        while *at < to {
+            sums.iter_mut().zip(terms(*at)).for_each(|(sum, term)| *sum += term);
+            *at += 1;
+        }
+    };
+    let (mut trail, mut lead) = ((0, [0.0; 4]), (0, [0.0; 4]));
     (0..n)
         .map(|i| {
             let (a, b) = (i.saturating_sub(half), (i + half + 1).min(n));
+            advance(&mut trail, a);
+            advance(&mut lead, b);
+            let [st, sx, stt, stx]: [f64; 4] = std::array::from_fn(|k| lead.1[k] - trail.1[k]);
             let m = (b - a) as f64;
-            let (mt, mx) = ((st[b] - st[a]) / m, (sx[b] - sx[a]) / m);
-            let var = (stt[b] - stt[a]) / m - mt * mt;
-            let cov = (stx[b] - stx[a]) / m - mt * mx;
+            let (mt, mx) = (st / m, sx / m);
+            let var = stt / m - mt * mt;
+            let cov = stx / m - mt * mx;
             if var > 0.0 {
                 cov / var
             } else {

@@ -1,11 +1,11 @@
 //! The greedy search: try every revealable effect, accept the one that explains most if the
 //! evidence is strong, repeat.
 use super::effects::Effect;
-use super::extended::{columns, fit_extended, ExtendedFit, ExtendedFitError};
-use super::form::{self, Structure};
-use super::locate::torque;
+use super::extended::{columns, direction_sign, fit_extended, ExtendedFit, ExtendedFitError};
+use super::form::{self, Structure, Unexplained};
+use super::locate::{locate, torque, Observation};
 use super::observed::Observed;
-use super::{DiagnoseError, Diagnosis, Evidence, Finding, Rejection};
+use super::{DiagnoseError, Diagnosis, Evidence, Finding, Rejection, Undecided};
 use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use crate::fit::total_noise_weights;
 use model_core::{Model, Params};
@@ -25,10 +25,15 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
     let mut current = baseline.clone();
     let mut findings = Vec::new();
     let mut rejected = Vec::new();
+    let mut undecided = Vec::new();
     let ln_n = (n as f64).ln();
     loop {
-        let candidates: Vec<Effect> =
-            observed.revealable().into_iter().filter(|e| !current.active.contains(e)).collect();
+        // An effect whose rival stands in the model (undecided between them) is no candidate.
+        let candidates: Vec<Effect> = observed
+            .revealable()
+            .into_iter()
+            .filter(|e| !current.active.iter().any(|a| a == e || a.rival() == Some(*e)))
+            .collect();
         let variance = current.chi2 / (n as f64 - current.degrees_of_freedom() as f64).max(1.0);
         // One candidate at a time: each fit holds its columns for every sample, so fitting them
         // side by side would multiply the memory by the threads (each solve runs in parallel).
@@ -51,14 +56,21 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             })
             .collect();
         trials.sort_by(|a, b| b.2.explained.total_cmp(&a.2.explained));
-        let mut accepted: Vec<(Effect, Evidence)> = Vec::new();
+        let mut accepted: Vec<Accepted> = Vec::new();
         let mut accepted_fit = None;
         // Strong alone but inconsistent: perhaps only because another effect is missing too.
         let mut strong: Vec<(Effect, ExtendedFit)> = Vec::new();
+        // Passes every test, but fits as its rival does where this recording moves the loop.
+        let mut undecided_fit: Option<(Effect, ExtendedFit, String, f64)> = None;
         rejected.clear();
         for (effect, fit, mut evidence) in trials {
             let magnitude = fit.magnitude(effect);
-            let reason = if evidence.delta_bic < MIN_BIC_DROP {
+            let reason = if evidence.delta_bic < 0.0 {
+                Some(format!(
+                    "the information criterion rises by {:.1} (it must drop by more than {MIN_BIC_DROP})",
+                    -evidence.delta_bic
+                ))
+            } else if evidence.delta_bic < MIN_BIC_DROP {
                 Some(format!("information criterion drops by {:.1}, less than {MIN_BIC_DROP}", evidence.delta_bic))
             } else if evidence.explained < MIN_EXPLAINED {
                 Some(format!(
@@ -66,28 +78,46 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                     100.0 * evidence.explained,
                     100.0 * MIN_EXPLAINED
                 ))
-            } else if accepted_fit.is_some() {
+            } else if accepted_fit.is_some() || undecided_fit.is_some() {
                 Some("weaker than the effect accepted in this round; tried again next round".into())
             } else {
                 let reason = halves_check(observed, &weights, &current, &fit, effect, &mut evidence);
                 if reason.is_some() {
                     strong.push((effect, fit.clone()));
                 }
-                reason
+                reason.or_else(|| prediction_check(observed, &weights, &current, &fit))
             };
-            match reason {
-                Some(reason) => rejected.push(Rejection { effect, reason, magnitude, evidence }),
-                None => {
-                    accepted.push((effect, evidence));
+            let rivalry = match reason {
+                None => tell_rivals(observed, &all, &weights, &current, &fit, effect),
+                Some(_) => Rivalry::Named,
+            };
+            match (reason, rivalry) {
+                (Some(reason), _) | (None, Rivalry::Refused(reason)) => {
+                    rejected.push(Rejection { effect, reason, magnitude, evidence })
+                }
+                (None, Rivalry::Undecided { why, rival_magnitude }) => {
+                    undecided_fit = Some((effect, fit, why, rival_magnitude))
+                }
+                (None, Rivalry::Named) => {
+                    accepted.push((effect, evidence, None));
                     accepted_fit = Some(fit);
                 }
             }
         }
         if accepted_fit.is_none() {
             if let Some((pair, fit)) = consistent_pair(observed, &all, &weights, &current, &strong, variance, ln_n) {
-                rejected.retain(|r| !pair.iter().any(|(e, _)| *e == r.effect));
+                rejected.retain(|r| !pair.iter().any(|(e, _, _)| *e == r.effect));
                 accepted = pair;
                 accepted_fit = Some(fit);
+            }
+        }
+        if accepted_fit.is_none() {
+            // The rate-dependent torque is real but its mechanism is not told: the model keeps
+            // it, so that no other effect leans on it, and the report names both candidates.
+            if let Some((effect, fit, why, rival_magnitude)) = undecided_fit {
+                undecided.push(undecide(observed, &all, &current, &fit, effect, why, rival_magnitude)?);
+                current = fit;
+                continue;
             }
         }
         let Some(fit) = accepted_fit else { break };
@@ -95,7 +125,11 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             unweighted_rss(observed, &current, &all).map_err(|source| refit_error(&current.active, source.into()))?;
         let rss_after =
             unweighted_rss(observed, &fit, &all).map_err(|source| refit_error(&fit.active, source.into()))?;
-        for (effect, evidence) in accepted {
+        for (effect, evidence, mechanism_undecided) in accepted {
+            if let Some((why, rival_magnitude)) = mechanism_undecided {
+                undecided.push(undecide(observed, &all, &current, &fit, effect, why, rival_magnitude)?);
+                continue;
+            }
             findings.push(Finding {
                 effect,
                 magnitude: fit.magnitude(effect),
@@ -125,8 +159,9 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             weights,
             held_out_rms,
             model_form: None,
+            undecided,
             unexplained: match structure {
-                Structure::Unexplained(unexplained) => Some(unexplained),
+                Structure::Unexplained(unexplained) => Some(located(observed, unexplained, &final_residuals)),
                 _ => None,
             },
         }),
@@ -156,11 +191,16 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 weights,
                 held_out_rms,
                 model_form: Some(model_form),
+                undecided,
                 unexplained: None,
             })
         }
     }
 }
+
+/// An effect accepted in a round, with its evidence and, when its mechanism stays undecided
+/// ([`Rivalry::Undecided`]), why and its rival's magnitude: it is then kept, not named.
+type Accepted = (Effect, Evidence, Option<(String, f64)>);
 
 /// Two effects, each strong alone but inconsistent alone, fitted together: accepted when the
 /// pair lowers the information criterion, each explains its share on top of the other, and
@@ -174,7 +214,7 @@ fn consistent_pair(
     strong: &[(Effect, ExtendedFit)],
     variance: f64,
     ln_n: f64,
-) -> Option<(Vec<(Effect, Evidence)>, ExtendedFit)> {
+) -> Option<(Vec<Accepted>, ExtendedFit)> {
     for (i, (a, fit_a)) in strong.iter().enumerate() {
         for (b, fit_b) in &strong[i + 1..] {
             let mut active = current.active.clone();
@@ -193,10 +233,13 @@ fn consistent_pair(
                 let passes = e.delta_bic >= MIN_BIC_DROP
                     && e.explained >= MIN_EXPLAINED
                     && halves_check(observed, weights, current, &pair, effect, &mut e).is_none();
-                if !passes {
-                    break;
-                }
-                evidence.push((effect, e));
+                let undecided = match tell_rivals(observed, all, weights, current, &pair, effect) {
+                    _ if !passes => break,
+                    Rivalry::Refused(_) => break,
+                    Rivalry::Undecided { why, rival_magnitude } => Some((why, rival_magnitude)),
+                    Rivalry::Named => None,
+                };
+                evidence.push((effect, e, undecided));
             }
             if evidence.len() == 2 {
                 return Some((evidence, pair));
@@ -204,6 +247,28 @@ fn consistent_pair(
         }
     }
     None
+}
+
+/// Says where the unexplained structure lies (the place on the loop, direction or rate where
+/// the final residual concentrates most) and how much of the residual it is: its variance
+/// beyond the noise's.
+fn located(observed: &Observed, mut unexplained: Unexplained, final_residuals: &[f64]) -> Unexplained {
+    let concentration = |o: &Observation| if o.value > 0.0 { o.value.max(o.value.recip()) } else { 0.0 };
+    let strongest = locate(observed, final_residuals)
+        .into_iter()
+        .filter(|o| o.unit == "ratio" && o.value.is_finite())
+        .max_by(|a, b| concentration(a).total_cmp(&concentration(b)));
+    let beyond_noise = 1.0 - (unexplained.noise_rms / unexplained.rms).powi(2);
+    unexplained.words = match strongest {
+        Some(o) => format!(
+            "{}; it is {:.0} % of the residual's variance; where it concentrates most: {}",
+            unexplained.words,
+            100.0 * beyond_noise,
+            o.words
+        ),
+        None => format!("{}; it is {:.0} % of the residual's variance", unexplained.words, 100.0 * beyond_noise),
+    };
+    unexplained
 }
 
 fn refit_error(active: &[Effect], source: ExtendedFitError) -> DiagnoseError {
@@ -244,6 +309,8 @@ fn halves_check(
         Some(format!("the halves disagree: {ma:.4e} and {mb:.4e} {}", effect.unit()))
     } else if effect.is_rate_dependent() {
         rate_check(observed, weights, fit, effect)
+    } else if effect == Effect::TorqueOffset {
+        offset_check(observed, weights, fit)
     } else {
         None
     }
@@ -257,57 +324,30 @@ fn halves_check(
 /// taken for damping gives a damping that falls as the rate rises, and damping taken for
 /// friction a friction that grows with it. `None` when both parts agree.
 fn rate_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit, effect: Effect) -> Option<String> {
-    // With one rate at each place on the loop there is nothing to compare: damping is then not
-    // revealable at all, and friction's sign is a direction, tested by the halves alone.
+    // A recording with one rate at each place on the loop reveals no rate effect at all; a loop
+    // table has no rate, and friction's sign is then a branch, tested by the halves alone.
     let (Some(parts), Some(rate)) = (&observed.rate_parts, &observed.rate) else {
         return None;
     };
-    let sign = |i: usize| match observed.data.direction[i] {
-        model_core::Direction::Rising => 1.0,
-        model_core::Direction::Falling => -1.0,
-    };
+    let sign = |i: usize| direction_sign(observed.data.direction[i]);
+    let model = Model::new(fit.params).ok()?;
     // The effect's own column and the other rate effect's, per sample.
-    let columns = |i: usize| match effect {
-        Effect::CoulombFriction => [sign(i), rate[i]],
-        _ => [rate[i], sign(i)],
+    let columns = |i: usize| -> Result<[f64; 2], model_core::Error> {
+        Ok(match effect {
+            Effect::CoulombFriction => [sign(i), rate[i]],
+            Effect::ChannelDelay => [-fit.stiffness(observed, &model, i)? * rate[i], sign(i)],
+            _ => [rate[i], sign(i)],
+        })
     };
-    let magnitude = fit.magnitude(effect);
-    let mut estimates = Vec::new();
-    for part in parts {
-        let residuals = fit.residuals(observed, part).ok()?;
-        let (mut g, mut h) = ([[0.0; 2]; 2], [0.0; 2]);
-        for (&i, r) in part.iter().zip(&residuals) {
-            let x = columns(i);
-            let without = r + magnitude * x[0];
-            for a in 0..2 {
-                h[a] += weights[i] * x[a] * without;
-                for b in 0..2 {
-                    g[a][b] += weights[i] * x[a] * x[b];
-                }
-            }
-        }
-        let det = g[0][0] * g[1][1] - g[0][1] * g[1][0];
-        if !(det > 0.0) {
-            return Some("no motion in part of the recording".into());
-        }
-        let estimate = (g[1][1] * h[0] - g[0][1] * h[1]) / det;
-        let other = (g[0][0] * h[1] - g[1][0] * h[0]) / det;
-        let chi2: f64 = part
-            .iter()
-            .zip(&residuals)
-            .map(|(&i, r)| {
-                let x = columns(i);
-                let e = r + (magnitude - estimate) * x[0] - other * x[1];
-                weights[i] * e * e
-            })
-            .sum();
-        let variance = chi2 / (part.len() as f64 - 2.0).max(1.0);
-        let error = (variance * g[1][1] / det).sqrt();
-        estimates.push((estimate, estimate / error));
-    }
-    let [(ms, zs), (mf, zf)] = [estimates[0], estimates[1]];
+    let [(ms, zs), (mf, zf)] = match reestimate(observed, weights, fit, effect, parts, columns) {
+        Ok(estimates) => estimates.map(|(m, error)| (m, m / error)),
+        Err(reason) => return reason,
+    };
     if zs.abs() < MIN_HALF_Z || zf.abs() < MIN_HALF_Z {
-        Some(format!("not clear at both the slower and the faster motion (z = {zs:.1} and {zf:.1})"))
+        Some(format!(
+            "not clear at both the slower and the faster motion ({ms:.3e} and {mf:.3e} {}, z = {zs:.1} and {zf:.1})",
+            effect.unit()
+        ))
     } else if ms.signum() != mf.signum() || (ms - mf).abs() > MAX_HALF_SPREAD * (ms + mf).abs() / 2.0 {
         Some(format!(
             "{ms:.4e} {unit} at the slower and {mf:.4e} {unit} at the faster motion: {}",
@@ -323,6 +363,253 @@ fn rate_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit, effect: E
     }
 }
 
+/// What the loop's stiffness says about a rate effect whose rival this data shows too.
+enum Rivalry {
+    /// It follows the stiffness as its own physics does and its rival does not (or it has no
+    /// rival here): it may be named.
+    Named,
+    /// Both fit alike: the torque is real, its mechanism not told. Why, and the rival's
+    /// magnitude fitted in the effect's place.
+    Undecided {
+        why: String,
+        rival_magnitude: f64,
+    },
+    Refused(String),
+}
+
+/// Damping and a channel delay both grow with the rate; only the delay's torque −τ·K·dθ/dt
+/// also follows the stiffness K. Where the loop moves, it is split into its stiff and its soft
+/// half ([`stiffness_split`]), and each effect's coefficient, fitted in its own place, is
+/// re-estimated on each half with everything else held, beside a friction column. The true
+/// effect's two estimates agree; its rival's differ by the halves' stiffness ratio (a delay
+/// taken for damping shows a larger damping where the loop is stiff, damping taken for a delay
+/// a larger delay where it is soft). An effect is named when its estimates disagree clearly
+/// less than its rival's — by [`MIN_HALF_Z`] standard errors of the log ratio — and by no more
+/// than [`MAX_HALF_SPREAD`]. When neither is clearly closer, the loop's stiffness changes too
+/// little to tell them apart.
+fn tell_rivals(
+    observed: &Observed,
+    all: &[usize],
+    weights: &[f64],
+    current: &ExtendedFit,
+    fit: &ExtendedFit,
+    effect: Effect,
+) -> Rivalry {
+    let Some(rival) = effect.rival().filter(|r| observed.revealable().contains(r) && !fit.active.contains(r)) else {
+        return Rivalry::Named;
+    };
+    let active: Vec<Effect> = fit.active.iter().map(|&e| if e == effect { rival } else { e }).collect();
+    // A rival whose columns cannot be fitted, or no rate to split by: nothing to tell from.
+    let (Ok(rival_fit), Some(split)) =
+        (fit_extended(observed, all, weights, &active, current), stiffness_split(observed, fit))
+    else {
+        return Rivalry::Named;
+    };
+    let (Some(own), Some(other)) = (
+        along_stiffness(observed, weights, fit, effect, &split),
+        along_stiffness(observed, weights, &rival_fit, rival, &split),
+    ) else {
+        return Rivalry::Refused("no motion in part of the loop".into());
+    };
+    let words = |a: &AlongStiffness, e: Effect| {
+        format!("{e} {:.4e} where the loop is stiff and {:.4e} {} where it is soft", a.stiff, a.soft, e.unit())
+    };
+    let both = format!("{}; {} (stiffness {:.2}× apart)", words(&own, effect), words(&other, rival), split.spread);
+    let consistent = own.log_ratio.abs() <= MAX_HALF_SPREAD.ln_1p();
+    let closer = own.log_ratio.abs() + MIN_HALF_Z * own.log_error < other.log_ratio.abs();
+    let farther = other.log_ratio.abs() + MIN_HALF_Z * other.log_error < own.log_ratio.abs();
+    if consistent && closer {
+        Rivalry::Named
+    } else if farther || !consistent {
+        Rivalry::Refused(format!("its torque does not follow the stiffness as {effect}'s would: {both}"))
+    } else {
+        Rivalry::Undecided {
+            why: format!(
+                "{effect} or {rival}: damping c·dθ/dt and a channel delay −τ·K·dθ/dt differ only by the stiffness K, \
+                 which changes too little between the soft and the stiff half of the loop where it moves to tell them \
+                 apart: {both}. A loop reaching further into the stiff region, or the torque channel's delay measured \
+                 on its own, would tell"
+            ),
+            rival_magnitude: rival_fit.magnitude(rival),
+        }
+    }
+}
+
+/// An effect's coefficient re-estimated on the stiff and on the soft half of a loop.
+struct AlongStiffness {
+    stiff: f64,
+    soft: f64,
+    /// ln(stiff / soft) (infinite when the signs differ) and its standard error.
+    log_ratio: f64,
+    log_error: f64,
+}
+
+/// `None` when a half cannot be fitted.
+fn along_stiffness(
+    observed: &Observed,
+    weights: &[f64],
+    fit: &ExtendedFit,
+    effect: Effect,
+    split: &StiffnessSplit,
+) -> Option<AlongStiffness> {
+    let rate = observed.rate.as_ref()?;
+    let sign = |i: usize| direction_sign(observed.data.direction[i]);
+    let columns = |i: usize| -> Result<[f64; 2], model_core::Error> {
+        Ok(match effect {
+            Effect::ChannelDelay => [-split.stiffness[i] * rate[i], sign(i)],
+            _ => [rate[i], sign(i)],
+        })
+    };
+    let [(stiff, stiff_error), (soft, soft_error)] =
+        reestimate(observed, weights, fit, effect, &split.parts, columns).ok()?;
+    let ratio = stiff / soft;
+    Some(AlongStiffness {
+        stiff,
+        soft,
+        log_ratio: if ratio > 0.0 { ratio.ln() } else { f64::INFINITY },
+        log_error: (stiff_error / stiff).hypot(soft_error / soft),
+    })
+}
+
+/// The samples of a recording split at the median stiffness K, each sample weighted by its
+/// rate squared (each part holds half of what the rate columns can learn), the ratio of the
+/// parts' mean K, and K at every sample.
+struct StiffnessSplit {
+    /// Stiff, then soft.
+    parts: [Vec<usize>; 2],
+    spread: f64,
+    stiffness: Vec<f64>,
+}
+
+fn stiffness_split(observed: &Observed, fit: &ExtendedFit) -> Option<StiffnessSplit> {
+    let rate = observed.rate.as_ref()?;
+    let model = Model::new(fit.params).ok()?;
+    let n = observed.data.theta.len();
+    let stiffness: Vec<f64> = (0..n).map(|i| fit.stiffness(observed, &model, i)).collect::<Result<_, _>>().ok()?;
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| stiffness[a].total_cmp(&stiffness[b]));
+    let total: f64 = rate.iter().map(|v| v * v).sum();
+    let mut below = 0.0;
+    let split = order
+        .iter()
+        .position(|&i| {
+            below += rate[i] * rate[i];
+            below >= total / 2.0
+        })
+        .unwrap_or(n);
+    let (soft, stiff) = order.split_at(split);
+    let mean = |part: &[usize]| {
+        let w: f64 = part.iter().map(|&i| rate[i] * rate[i]).sum();
+        part.iter().map(|&i| rate[i] * rate[i] * stiffness[i]).sum::<f64>() / w
+    };
+    let spread = mean(stiff) / mean(soft);
+    Some(StiffnessSplit { parts: [stiff.to_vec(), soft.to_vec()], spread, stiffness })
+}
+
+/// The record of a rate-dependent torque kept in the model without naming its mechanism:
+/// `effect` as fitted, and its rival's magnitude fitted in its place.
+fn undecide(
+    observed: &Observed,
+    all: &[usize],
+    current: &ExtendedFit,
+    fit: &ExtendedFit,
+    effect: Effect,
+    why: String,
+    rival_magnitude: f64,
+) -> Result<Undecided, DiagnoseError> {
+    let rival = effect.rival().unwrap_or(effect);
+    let rss_before =
+        unweighted_rss(observed, current, all).map_err(|source| refit_error(&current.active, source.into()))?;
+    let rss_after = unweighted_rss(observed, fit, all).map_err(|source| refit_error(&fit.active, source.into()))?;
+    Ok(Undecided {
+        effects: [effect, rival],
+        magnitudes: [fit.magnitude(effect), rival_magnitude],
+        units: [effect.unit(), rival.unit()],
+        words: why,
+        rss_before,
+        rss_after,
+    })
+}
+
+/// A torque offset is one constant over the whole loop and at every rate: with everything else
+/// of the fit held, it is re-estimated on the loaded (θ ≥ 0) and the unloaded (θ < 0) side of
+/// the loop, beside a change of the linear stiffness (θ), which takes a tilt, and, with a second
+/// rate, on the slower and the faster motion. A residual that the vocabulary cannot explain (a
+/// delay seen at one rate, say) leans an offset on one side or one rate only. `None` when the
+/// parts agree.
+fn offset_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit) -> Option<String> {
+    let theta = &observed.data.theta;
+    let (loaded, unloaded): (Vec<usize>, Vec<usize>) = (0..theta.len()).partition(|&i| theta[i] >= 0.0);
+    let mut splits = vec![(["θ ≥ 0", "θ < 0"], [loaded, unloaded])];
+    if let Some(parts) = &observed.rate_parts {
+        splits.push((["the slower motion", "the faster motion"], parts.clone()));
+    }
+    let columns = |i: usize| -> Result<[f64; 2], model_core::Error> { Ok([1.0, theta[i]]) };
+    for ([a, b], parts) in splits {
+        let [(ma, za), (mb, zb)] = match reestimate(observed, weights, fit, Effect::TorqueOffset, &parts, columns) {
+            Ok(estimates) => estimates.map(|(m, error)| (m, m / error)),
+            Err(reason) => return reason,
+        };
+        if za.abs() < MIN_HALF_Z || zb.abs() < MIN_HALF_Z {
+            return Some(format!("not clear both at {a} and at {b} (z = {za:.1} and {zb:.1})"));
+        }
+        if ma.signum() != mb.signum() || (ma - mb).abs() > MAX_HALF_SPREAD * (ma + mb).abs() / 2.0 {
+            return Some(format!(
+                "{ma:.4e} N·m at {a} and {mb:.4e} N·m at {b}: not one constant, so the residual has a shape that an \
+                 offset only leans on"
+            ));
+        }
+    }
+    None
+}
+
+/// The effect's magnitude and its standard error, re-estimated on each of two `parts` with everything else
+/// of `fit` held, beside a companion column (the second of `columns`) that takes what another
+/// physics leaves. `Err` carries the reason to reject (or `None`: nothing to judge).
+fn reestimate(
+    observed: &Observed,
+    weights: &[f64],
+    fit: &ExtendedFit,
+    effect: Effect,
+    parts: &[Vec<usize>; 2],
+    columns: impl Fn(usize) -> Result<[f64; 2], model_core::Error>,
+) -> Result<[(f64, f64); 2], Option<String>> {
+    let magnitude = fit.magnitude(effect);
+    let mut estimates = [(0.0, 0.0); 2];
+    for (part, estimated) in parts.iter().zip(&mut estimates) {
+        let residuals = fit.residuals(observed, part).map_err(|_| None)?;
+        let x: Vec<[f64; 2]> = part.iter().map(|&i| columns(i)).collect::<Result<_, _>>().map_err(|_| None)?;
+        let (mut g, mut h) = ([[0.0; 2]; 2], [0.0; 2]);
+        for ((&i, r), x) in part.iter().zip(&residuals).zip(&x) {
+            let without = r + magnitude * x[0];
+            for a in 0..2 {
+                h[a] += weights[i] * x[a] * without;
+                for b in 0..2 {
+                    g[a][b] += weights[i] * x[a] * x[b];
+                }
+            }
+        }
+        let det = g[0][0] * g[1][1] - g[0][1] * g[1][0];
+        if !(det > 0.0) {
+            return Err(Some("no motion in part of the recording".into()));
+        }
+        let estimate = (g[1][1] * h[0] - g[0][1] * h[1]) / det;
+        let other = (g[0][0] * h[1] - g[1][0] * h[0]) / det;
+        let chi2: f64 = part
+            .iter()
+            .zip(&residuals)
+            .zip(&x)
+            .map(|((&i, r), x)| {
+                let e = r + (magnitude - estimate) * x[0] - other * x[1];
+                weights[i] * e * e
+            })
+            .sum();
+        let variance = chi2 / (part.len() as f64 - 2.0).max(1.0);
+        *estimated = (estimate, (variance * g[1][1] / det).sqrt());
+    }
+    Ok(estimates)
+}
+
 fn unweighted_rss(observed: &Observed, fit: &ExtendedFit, subset: &[usize]) -> Result<f64, model_core::Error> {
     // Summed in order as they come: the sum over [`ExtendedFit::residuals`], without the vector.
     let model = Model::new(fit.params)?;
@@ -333,6 +620,20 @@ fn unweighted_rss(observed: &Observed, fit: &ExtendedFit, subset: &[usize]) -> R
             Ok(r * r)
         })
         .sum()
+}
+
+/// An effect that lowers the criterion by bending onto structure it does not stand for (an
+/// offset leaning on a residual the vocabulary cannot explain) predicts no better where it was
+/// not fitted: the effect must lower the RMS on the held-out samples of the models refitted on
+/// the training samples. `None` when it does, or when the data are too few to hold any out.
+fn prediction_check(observed: &Observed, weights: &[f64], current: &ExtendedFit, fit: &ExtendedFit) -> Option<String> {
+    let (without, with) = held_out(observed, weights, current, fit).ok()??;
+    (with >= without).then(|| {
+        format!(
+            "does not predict the held-out samples better (RMS {without:.4e} → {with:.4e} N·m): it lowers the \
+             criterion by leaning on a structure it does not stand for"
+        )
+    })
 }
 
 /// RMS on the held-out samples of each model refitted on the training samples only; `None`
@@ -380,5 +681,10 @@ fn location_words(effect: Effect, fit: &ExtendedFit) -> String {
             "drifts with temperature: the loop's slope changes as the gear warms".into()
         }
         Effect::TorqueOffset => "everywhere: the whole loop is shifted in torque".into(),
+        Effect::ChannelDelay => format!(
+            "grows with the deflection rate times the stiffness: the torque channel runs {:.3} ms {} the angles",
+            1e3 * s.delay.abs(),
+            if s.delay >= 0.0 { "behind" } else { "ahead of" }
+        ),
     }
 }

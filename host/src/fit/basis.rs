@@ -1,29 +1,31 @@
-//! The fit's linear algebra at one r: the model's columns (c1·θ, c2·θ³, c3·θ⁵, the hysteresis
-//! term, and any extra columns the diagnosis adds) and their weighted least-squares solve.
+//! The fit's linear algebra at one r: the model's columns (c1·θ, c2·θ³, c3·θ⁵ and the
+//! hysteresis term) and their weighted least-squares solve, either over samples kept for many
+//! r ([`Basis`]) or summed as the samples come at one r, with further columns the diagnosis
+//! adds ([`NormalEquations`]).
 use super::FitError;
 use crate::numeric::linalg::Cholesky;
 use crate::prepare::FitData;
-use model_core::{shape, Direction, Identifiable, Libm, Params, Phase};
+use model_core::{Direction, Identifiable, Libm, Params, Phase};
+use std::borrow::Cow;
+use std::f64::consts::FRAC_PI_2;
 
-/// Per-sample quantities that do not depend on r.
-pub struct Basis {
-    /// θ/S for S the largest amplitude: u (u³ and u⁵ are formed where they are needed).
-    poly: Vec<f64>,
-    /// Each sample's place on its loop (model-core's [`Phase`]): φ, sin φ, cos φ, in arrays of
-    /// their own because the search over r streams through them once per r.
-    phase: Vec<f64>,
-    sin: Vec<f64>,
-    cos: Vec<f64>,
-    /// A·|cos φ|.
-    amp_abs_cos: Vec<f64>,
-    torque: Vec<f64>,
-    weight: Vec<f64>,
+/// The samples and their weights, and the normal equations' sums that do not depend on r.
+///
+/// The columns are formed where they are summed, sample by sample, from the samples
+/// themselves (θ, T, direction, A): kept per sample (u, φ, sin φ, cos φ, A·|cos φ|, T, w) they
+/// were 56 bytes a sample, over 500 MB at 10 M samples, for a solve that holds only its sums.
+/// Each r then costs an asin and a square root per sample beside its exp.
+pub struct Basis<'a> {
+    /// Borrowed from the fit's data, or owned for a subsample ([`Basis::sampled`]).
+    data: Cow<'a, FitData>,
+    /// One weight per sample; `None` while every weight is 1 (an unweighted fit, or weights
+    /// still to come with [`Basis::set_weights`]): no vector of ones beside the data.
+    weight: Option<Vec<f64>>,
     phase_range: (f64, f64),
     scale: f64,
-    /// Further linear columns (the diagnosis' effects), one value per sample each.
-    extra: Vec<Vec<f64>>,
     /// The normal equations' entries that do not involve the hysteresis column, which alone
-    /// depends on r: computed once per set of weights, so each r costs one exp and a row.
+    /// depends on r: computed once per set of weights, so each r costs one phase, one exp and a
+    /// row of sums per sample.
     fixed: FixedSums,
 }
 
@@ -43,10 +45,41 @@ fn powers(u: f64) -> [f64; 3] {
     [u, u * u * u, u * u * u * u * u]
 }
 
+/// The model's own columns: the three polynomial ones, then the hysteresis one.
+const MODEL_COLUMNS: usize = 4;
 /// Column of the hysteresis term in the normal equations.
 const HYSTERESIS: usize = 3;
 /// Below this many samples one thread accumulates faster than several.
 const PARALLEL_SAMPLES: usize = 16_384;
+/// Every phase φ a sample can have: asin(θ/A) rising, π − asin(θ/A) falling.
+const PHASES: (f64, f64) = (-FRAC_PI_2, 3.0 * FRAC_PI_2);
+
+/// The largest exponent −rφ for φ in `phase_range`: the hysteresis column divided by
+/// e^shift keeps e^(−rφ) ≤ 1, finite for any r.
+fn hysteresis_shift(r: f64, phase_range: (f64, f64)) -> f64 {
+    (-r * phase_range.0).max(-r * phase_range.1)
+}
+
+/// One sample's model columns at r: the polynomial ones and the two factors of the
+/// hysteresis one, A·|cos φ| and p(φ)/e^shift, each caller multiplying them in its own order.
+struct Row {
+    poly: [f64; 3],
+    amp_abs_cos: f64,
+    shape: f64,
+}
+
+impl Row {
+    /// `e_shift` = e^(−shift), see [`hysteresis_shift`].
+    #[inline(always)]
+    fn new(theta: f64, direction: Direction, amplitude: f64, scale: f64, r: f64, shift: f64, e_shift: f64) -> Row {
+        let phase = Phase::new::<Libm>(theta / amplitude, direction);
+        Row {
+            poly: powers(theta / scale),
+            amp_abs_cos: amplitude * phase.abs_cos,
+            shape: phase.shape(r, (-r * phase.angle - shift).exp(), e_shift),
+        }
+    }
+}
 
 /// The weighted least-squares answer at one r.
 pub struct Solution {
@@ -60,100 +93,96 @@ pub struct Solution {
     pub factor: Cholesky,
 }
 
-impl Basis {
-    /// The model's columns at the samples `indices` of `data`, unit weights, θ scaled by `scale`.
-    pub fn new(data: &FitData, indices: impl Iterator<Item = usize>, scale: f64) -> Basis {
-        let mut b = Basis::unsummed(data, indices, scale);
+impl Solution {
+    /// Solves the `dim`×`dim` normal equations `gram`·x = `rhs` (both triangles filled), `tt`
+    /// = TᵀWT, the hysteresis column divided by e^`shift`.
+    fn new(dim: usize, gram: &[f64], rhs: &[f64], tt: f64, shift: f64) -> Option<Solution> {
+        let factor = Cholesky::new(dim, gram)?;
+        let coef = factor.solve(rhs);
+        if !coef.iter().all(|c| c.is_finite()) {
+            return None;
+        }
+        let explained: f64 = coef.iter().zip(rhs).map(|(c, r)| c * r).sum();
+        Some(Solution { coef, shift, weighted_rss: (tt - explained).max(0.0), factor })
+    }
+}
+
+/// The model's parameters from a solution at `r`, θ having been scaled by `scale`.
+pub fn params(scale: f64, r: f64, solution: &Solution, reference_amplitude: f64) -> Result<Params<f64>, FitError> {
+    let [a1, a3, a5, ak] = [solution.coef[0], solution.coef[1], solution.coef[2], solution.coef[3]];
+    let k = ak * (-solution.shift).exp();
+    let s = scale;
+    let params = Params::from_identifiable(
+        a1 / s,
+        a3 / s.powi(3),
+        a5 / s.powi(5),
+        Identifiable { h: k * reference_amplitude, r },
+        reference_amplitude,
+    )?;
+    Ok(params)
+}
+
+impl<'a> Basis<'a> {
+    /// The model's columns on every sample of `data`, unit weights, θ scaled by `scale`.
+    pub fn new(data: &'a FitData, scale: f64) -> Basis<'a> {
+        Basis::from_data(Cow::Borrowed(data), scale)
+    }
+
+    /// The model's columns at the samples `indices` of `data` (a copy of those samples), unit
+    /// weights, θ scaled by `scale`.
+    pub fn sampled(data: &FitData, indices: impl Iterator<Item = usize>, scale: f64) -> Basis<'static> {
+        let capacity = indices.size_hint().0;
+        let mut sample = FitData {
+            theta: Vec::with_capacity(capacity),
+            torque: Vec::with_capacity(capacity),
+            direction: Vec::with_capacity(capacity),
+            amplitude: Vec::with_capacity(capacity),
+        };
+        for i in indices {
+            sample.theta.push(data.theta[i]);
+            sample.torque.push(data.torque[i]);
+            sample.direction.push(data.direction[i]);
+            sample.amplitude.push(data.amplitude[i]);
+        }
+        Basis::from_data(Cow::Owned(sample), scale)
+    }
+
+    fn from_data(data: Cow<'a, FitData>, scale: f64) -> Basis<'a> {
+        let phase_range = data.theta.iter().zip(&data.direction).zip(&data.amplitude).fold(
+            (f64::INFINITY, f64::NEG_INFINITY),
+            |(lo, hi), ((&theta, &direction), &amplitude)| {
+                let angle = Phase::new::<Libm>(theta / amplitude, direction).angle;
+                (lo.min(angle), hi.max(angle))
+            },
+        );
+        let mut b = Basis { data, weight: None, phase_range, scale, fixed: FixedSums::default() };
         b.refresh_fixed();
         b
     }
 
-    /// [`Basis::new`] on every sample of `data`, with `weights` (one per sample) and further
-    /// linear columns `extra` (one value per sample each) beside the model's own. The sums are
-    /// formed once, for these weights and columns: they are a quarter of a diagnosis.
-    pub fn weighted(data: &FitData, scale: f64, weights: Vec<f64>, extra: Vec<Vec<f64>>) -> Basis {
-        Basis::unsummed(data, 0..data.theta.len(), scale).with_weights(weights, extra)
-    }
-
-    fn unsummed(data: &FitData, indices: impl Iterator<Item = usize>, scale: f64) -> Basis {
-        let mut b = Basis::empty(scale, indices.size_hint().0);
-        for i in indices {
-            b.push(data.theta[i], data.torque[i], data.direction[i], data.amplitude[i]);
-        }
-        b
-    }
-
-    /// No samples yet, room for `capacity`: fill with [`Basis::push`], then
-    /// [`Basis::with_weights`]. Lets a caller build the columns without a [`FitData`] of them.
-    pub fn empty(scale: f64, capacity: usize) -> Basis {
-        Basis {
-            poly: Vec::with_capacity(capacity),
-            phase: Vec::with_capacity(capacity),
-            sin: Vec::with_capacity(capacity),
-            cos: Vec::with_capacity(capacity),
-            amp_abs_cos: Vec::with_capacity(capacity),
-            torque: Vec::with_capacity(capacity),
-            weight: Vec::with_capacity(capacity),
-            phase_range: (f64::INFINITY, f64::NEG_INFINITY),
-            scale,
-            extra: Vec::new(),
-            fixed: FixedSums::default(),
-        }
-    }
-
-    /// Adds one sample (deflection θ, torque, direction, amplitude A), weight 1.
-    pub fn push(&mut self, theta: f64, torque: f64, direction: Direction, amplitude: f64) {
-        self.poly.push(theta / self.scale);
-        let phase = Phase::new::<Libm>(theta / amplitude, direction);
-        self.phase_range = (self.phase_range.0.min(phase.angle), self.phase_range.1.max(phase.angle));
-        self.phase.push(phase.angle);
-        self.sin.push(phase.sin);
-        self.cos.push(phase.cos);
-        self.amp_abs_cos.push(amplitude * phase.abs_cos);
-        self.torque.push(torque);
-        self.weight.push(1.0);
-    }
-
-    /// The pushed samples with `weights` (one per sample) and further linear columns `extra`,
-    /// as [`Basis::weighted`] makes them.
-    pub fn with_weights(mut self, weights: Vec<f64>, extra: Vec<Vec<f64>>) -> Basis {
-        self.weight = weights;
-        self.extra = extra;
-        self.refresh_fixed();
-        self
-    }
-
-    /// The value of column `column` (not the hysteresis one) at sample `i`.
     #[inline(always)]
-    fn column(&self, column: usize, i: usize) -> f64 {
-        match column {
-            0..=2 => powers(self.poly[i])[column],
-            _ => self.extra[column - 4][i],
-        }
-    }
-
-    fn dimension(&self) -> usize {
-        4 + self.extra.len()
+    fn weight(&self, i: usize) -> f64 {
+        self.weight.as_ref().map_or(1.0, |w| w[i])
     }
 
     fn refresh_fixed(&mut self) {
-        let dim = self.dimension();
-        let mut fixed = FixedSums { gram: vec![0.0; dim * dim], rhs: vec![0.0; dim], tt: 0.0 };
-        let columns: Vec<usize> = (0..dim).filter(|&c| c != HYSTERESIS).collect();
-        for i in 0..self.torque.len() {
-            let (w, t) = (self.weight[i], self.torque[i]);
-            for &a in &columns {
-                let wa = w * self.column(a, i);
+        const DIM: usize = MODEL_COLUMNS;
+        let mut fixed = FixedSums { gram: vec![0.0; DIM * DIM], rhs: vec![0.0; DIM], tt: 0.0 };
+        for i in 0..self.len() {
+            let (w, t) = (self.weight(i), self.data.torque[i]);
+            let poly = powers(self.data.theta[i] / self.scale);
+            for a in 0..HYSTERESIS {
+                let wa = w * poly[a];
                 fixed.rhs[a] += wa * t;
-                for &b in columns.iter().filter(|&&b| b >= a) {
-                    fixed.gram[a * dim + b] += wa * self.column(b, i);
+                for b in a..HYSTERESIS {
+                    fixed.gram[a * DIM + b] += wa * poly[b];
                 }
             }
             fixed.tt += w * t * t;
         }
-        for a in 0..dim {
+        for a in 0..DIM {
             for b in 0..a {
-                fixed.gram[a * dim + b] = fixed.gram[b * dim + a];
+                fixed.gram[a * DIM + b] = fixed.gram[b * DIM + a];
             }
         }
         self.fixed = fixed;
@@ -161,33 +190,29 @@ impl Basis {
 
     /// Σ w·b·x_a for every column a (the hysteresis column b itself included) and Σ w·b·T,
     /// over samples `range`, with b the hysteresis column at r.
-    fn hysteresis_sums(&self, range: std::ops::Range<usize>, r: f64, shift: f64) -> (Vec<f64>, f64) {
-        let dim = self.dimension();
+    fn hysteresis_sums(&self, range: std::ops::Range<usize>, r: f64, shift: f64) -> ([f64; MODEL_COLUMNS], f64) {
         let e_shift = (-shift).exp();
-        let mut cross = vec![0.0; dim];
+        let mut cross = [0.0; MODEL_COLUMNS];
         let mut bt = 0.0;
+        let d = &*self.data;
         for i in range {
-            let p = shape(r, self.sin[i], self.cos[i], (-r * self.phase[i] - shift).exp(), e_shift);
-            let wb = self.weight[i] * self.amp_abs_cos[i] * p;
-            let poly = powers(self.poly[i]);
-            cross[0] += wb * poly[0];
-            cross[1] += wb * poly[1];
-            cross[2] += wb * poly[2];
-            cross[HYSTERESIS] += wb * self.amp_abs_cos[i] * p;
-            for (sum, column) in cross[4..].iter_mut().zip(&self.extra) {
-                *sum += wb * column[i];
-            }
-            bt += wb * self.torque[i];
+            let row = Row::new(d.theta[i], d.direction[i], d.amplitude[i], self.scale, r, shift, e_shift);
+            let wb = self.weight(i) * row.amp_abs_cos * row.shape;
+            cross[0] += wb * row.poly[0];
+            cross[1] += wb * row.poly[1];
+            cross[2] += wb * row.poly[2];
+            cross[HYSTERESIS] += wb * row.amp_abs_cos * row.shape;
+            bt += wb * d.torque[i];
         }
         (cross, bt)
     }
 
-    /// Weighted least squares at `r` over the model's four columns and the extra ones.
+    /// Weighted least squares at `r` over the model's four columns.
     pub fn solve(&self, r: f64) -> Option<Solution> {
         use rayon::prelude::*;
-        // Largest exponent −rφ over the data: dividing by e^shift keeps e^(−rφ) ≤ 1.
-        let shift = (-r * self.phase_range.0).max(-r * self.phase_range.1);
-        let n = self.torque.len();
+        // Over the data's own phases: the tightest shift.
+        let shift = hysteresis_shift(r, self.phase_range);
+        let n = self.len();
         let (cross, bt) = if n < PARALLEL_SAMPLES {
             self.hysteresis_sums(0..n, r, shift)
         } else {
@@ -202,46 +227,35 @@ impl Basis {
                     (a, x + y)
                 })?
         };
-        let dim = self.dimension();
+        const DIM: usize = MODEL_COLUMNS;
         let mut m = self.fixed.gram.clone();
         for (a, value) in cross.iter().enumerate() {
-            m[a * dim + HYSTERESIS] = *value;
-            m[HYSTERESIS * dim + a] = *value;
+            m[a * DIM + HYSTERESIS] = *value;
+            m[HYSTERESIS * DIM + a] = *value;
         }
         let mut rhs = self.fixed.rhs.clone();
         rhs[HYSTERESIS] = bt;
-        let factor = Cholesky::new(dim, &m)?;
-        let coef = factor.solve(&rhs);
-        if !coef.iter().all(|c| c.is_finite()) {
-            return None;
-        }
-        let explained: f64 = coef.iter().zip(&rhs).map(|(c, r)| c * r).sum();
-        Some(Solution { coef, shift, weighted_rss: (self.fixed.tt - explained).max(0.0), factor })
-    }
-
-    /// The weights and extra columns back, for the next [`Basis::with_weights`] to reuse.
-    pub fn into_weights(self) -> (Vec<f64>, Vec<Vec<f64>>) {
-        (self.weight, self.extra)
+        Solution::new(DIM, &m, &rhs, self.fixed.tt, shift)
     }
 
     /// The weights, leaving none: a buffer to fill and give back with [`Basis::set_weights`].
     pub fn take_weights(&mut self) -> Vec<f64> {
-        std::mem::take(&mut self.weight)
+        self.weight.take().unwrap_or_default()
     }
 
     /// Replaces the weights (one per sample).
     pub fn set_weights(&mut self, weights: Vec<f64>) {
-        self.weight = weights;
+        self.weight = Some(weights);
         self.refresh_fixed();
     }
 
     /// Number of samples.
     pub fn len(&self) -> usize {
-        self.torque.len()
+        self.data.torque.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.torque.is_empty()
+        self.data.torque.is_empty()
     }
 
     pub fn objective(&self, s: f64) -> f64 {
@@ -249,16 +263,77 @@ impl Basis {
     }
 
     pub fn params(&self, r: f64, solution: &Solution, reference_amplitude: f64) -> Result<Params<f64>, FitError> {
-        let [a1, a3, a5, ak] = [solution.coef[0], solution.coef[1], solution.coef[2], solution.coef[3]];
-        let k = ak * (-solution.shift).exp();
-        let s = self.scale;
-        let params = Params::from_identifiable(
-            a1 / s,
-            a3 / s.powi(3),
-            a5 / s.powi(5),
-            Identifiable { h: k * reference_amplitude, r },
-            reference_amplitude,
-        )?;
-        Ok(params)
+        params(self.scale, r, solution, reference_amplitude)
+    }
+}
+
+/// The normal equations at one r over the model's columns and `extra_columns` more, summed as
+/// the samples come: the diagnosis' Gauss–Newton iterations each form their columns once, and
+/// keeping them per sample (the samples, the extra columns and the weights again) was ≥ 49
+/// bytes a sample, half a gigabyte at 10 M samples, for a solve that holds only these sums.
+pub struct NormalEquations {
+    scale: f64,
+    r: f64,
+    /// Over every phase a sample can have ([`PHASES`]): the data's own are not known before
+    /// the sums start. The Cholesky equilibrates the columns, so this costs no accuracy.
+    shift: f64,
+    e_shift: f64,
+    dim: usize,
+    /// XᵀWX, row-major, the upper triangle while summing.
+    gram: Vec<f64>,
+    /// XᵀWT.
+    rhs: Vec<f64>,
+    /// TᵀWT.
+    tt: f64,
+    /// The row being added.
+    row: Vec<f64>,
+}
+
+impl NormalEquations {
+    /// No samples yet: θ scaled by `scale`, the hysteresis column at `r`, then `extra_columns`.
+    pub fn new(scale: f64, r: f64, extra_columns: usize) -> NormalEquations {
+        let dim = MODEL_COLUMNS + extra_columns;
+        let shift = hysteresis_shift(r, PHASES);
+        NormalEquations {
+            scale,
+            r,
+            shift,
+            e_shift: (-shift).exp(),
+            dim,
+            gram: vec![0.0; dim * dim],
+            rhs: vec![0.0; dim],
+            tt: 0.0,
+            row: vec![0.0; dim],
+        }
+    }
+
+    /// Adds one sample (deflection θ, torque, direction, amplitude A) with `weight`, and its
+    /// values of the extra columns (`extra_columns` of them).
+    pub fn add(&mut self, theta: f64, torque: f64, direction: Direction, amplitude: f64, weight: f64, extra: &[f64]) {
+        let Row { poly, amp_abs_cos, shape } =
+            Row::new(theta, direction, amplitude, self.scale, self.r, self.shift, self.e_shift);
+        self.row[..HYSTERESIS].copy_from_slice(&poly);
+        self.row[HYSTERESIS] = amp_abs_cos * shape;
+        self.row[MODEL_COLUMNS..].copy_from_slice(extra);
+        let dim = self.dim;
+        for a in 0..dim {
+            let wa = weight * self.row[a];
+            self.rhs[a] += wa * torque;
+            for b in a..dim {
+                self.gram[a * dim + b] += wa * self.row[b];
+            }
+        }
+        self.tt += weight * torque * torque;
+    }
+
+    /// Weighted least squares over every sample added.
+    pub fn solve(mut self) -> Option<Solution> {
+        let dim = self.dim;
+        for a in 0..dim {
+            for b in 0..a {
+                self.gram[a * dim + b] = self.gram[b * dim + a];
+            }
+        }
+        Solution::new(dim, &self.gram, &self.rhs, self.tt, self.shift)
     }
 }

@@ -277,7 +277,7 @@ pub fn fit(data: &FitData, options: &FitOptions, mut progress: impl FnMut(Stage)
 
     // Global search on an evenly strided subsample.
     let stride = n.div_ceil(PSO_SAMPLES);
-    let sample = Basis::new(data, (0..n).step_by(stride), scale);
+    let sample = Basis::sampled(data, (0..n).step_by(stride), scale);
     let s_limit = R_LIMIT.asinh();
     let pso_options = PsoOptions {
         particles: options.particles,
@@ -293,12 +293,12 @@ pub fn fit(data: &FitData, options: &FitOptions, mut progress: impl FnMut(Stage)
     );
     let mut evaluations = swarm.evaluations;
 
-    let mut full = Basis::new(data, 0..n, scale);
+    let mut full = Basis::new(data, scale);
     let rounds = if options.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
     let mut s = swarm.best[0];
     // The bracket widens by itself when the minimum lies on its edge.
     let half_width = (3.0 * swarm.spread[0]).clamp(0.02, 0.1);
-    let solve = |full: &Basis, s: f64| -> Result<Params<f64>, FitError> {
+    let solve = |full: &Basis<'_>, s: f64| -> Result<Params<f64>, FitError> {
         let r = s.sinh();
         let solution = full.solve(r).ok_or(FitError::Degenerate)?;
         full.params(r, &solution, reference_amplitude)
@@ -347,7 +347,7 @@ pub fn fit(data: &FitData, options: &FitOptions, mut progress: impl FnMut(Stage)
 }
 
 /// Brent on s = asinh(r) around `s`, widening the bracket while the minimum sits on its edge.
-pub fn polish(basis: &Basis, s: f64, half_width: f64, s_limit: f64) -> (f64, usize) {
+pub fn polish(basis: &Basis<'_>, s: f64, half_width: f64, s_limit: f64) -> (f64, usize) {
     let mut evaluations = 0;
     let (mut center, mut half) = (s, half_width);
     loop {
@@ -365,7 +365,7 @@ pub fn polish(basis: &Basis, s: f64, half_width: f64, s_limit: f64) -> (f64, usi
 }
 
 /// Total-noise weights 1/(σ_T² + σ_θ²·K²), normalised to a mean of 1.
-fn reweight(basis: &mut Basis, data: &FitData, model: &Model<f64>, noise: &NoiseModel) -> Result<(), FitError> {
+fn reweight(basis: &mut Basis<'_>, data: &FitData, model: &Model<f64>, noise: &NoiseModel) -> Result<(), FitError> {
     // The new weights go into the old ones' buffer: one weight vector at a time.
     let mut weights = basis.take_weights();
     total_noise_weights_into(data, model, noise, &mut weights)?;
@@ -396,6 +396,9 @@ fn total_noise_weights_into(
 ) -> Result<(), model_core::Error> {
     let (var_t, var_theta) = (noise.torque_nm.powi(2), noise.deflection_rad.powi(2));
     weights.clear();
+    // At once, not by doubling: the first weights go into an empty buffer (unit weights are
+    // not stored).
+    weights.reserve_exact(data.theta.len());
     for i in 0..data.theta.len() {
         let stiffness = model.stiffness(data.theta[i], data.direction[i], data.amplitude[i])?;
         weights.push(1.0 / (var_t + var_theta * stiffness * stiffness).max(f64::MIN_POSITIVE));

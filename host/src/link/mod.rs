@@ -7,8 +7,8 @@ use std::io::{self, Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
 use swg_protocol::{
-    decode, encode_to_vec, DeviceInfo, EncoderSample, ErrorReply, Feedforward, FrameError, FrameReader, JointParams,
-    Request, Response, MAX_FRAME_LEN,
+    decode, encode_to_vec, ControlOutput, ControlSample, ControllerConfig, DeviceInfo, EncoderSample, ErrorReply,
+    Feedforward, FrameError, FrameReader, JointParams, Request, Response, MAX_FRAME_LEN,
 };
 
 /// Baud rate for serial ports; the joint boards' UARTs are set to the same.
@@ -20,7 +20,7 @@ pub enum LinkError {
     // The cause follows as the error's source (printed by `{:#}` in the binary).
     #[error("cannot open {port}")]
     Open { port: String, source: io::Error },
-    #[error("cannot open serial port {port}")]
+    #[error("cannot open serial port {port} (a joint under QEMU or on the network is tcp://HOST:PORT)")]
     OpenSerial { port: String, source: serialport::Error },
     #[error("link I/O: {0}")]
     Io(#[from] io::Error),
@@ -155,6 +155,22 @@ impl Link {
         match self.call(&Request::Replay(*sample))? {
             Response::Feedforward(feedforward) => Ok(feedforward),
             response => Err(LinkError::Unexpected { request: "replay", response }),
+        }
+    }
+
+    /// Sets the torque controller's mode and gains (its integral and velocity start afresh).
+    pub fn configure(&mut self, config: &ControllerConfig) -> Result<(), LinkError> {
+        match self.call(&Request::Configure(*config))? {
+            Response::ControlAccepted => Ok(()),
+            response => Err(LinkError::Unexpected { request: "configure the controller", response }),
+        }
+    }
+
+    /// One lockstep control tick: angles and reference in, the motor command out.
+    pub fn control(&mut self, sample: &ControlSample) -> Result<ControlOutput, LinkError> {
+        match self.call(&Request::Control(*sample))? {
+            Response::Control(output) => Ok(output),
+            response => Err(LinkError::Unexpected { request: "control tick", response }),
         }
     }
 }

@@ -2,7 +2,7 @@
 use crate::diagnose::form::{ModelForm, Unexplained};
 use crate::diagnose::passivity::Passivity;
 use crate::diagnose::{
-    DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, MAX_HALF_SPREAD, MIN_BIC_DROP,
+    DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, Undecided, MAX_HALF_SPREAD, MIN_BIC_DROP,
     MIN_EXPLAINED, MIN_HALF_Z,
 };
 use crate::prepare::NoiseModel;
@@ -21,6 +21,9 @@ pub struct DiagnoseReport {
     pub revealable: Vec<Effect>,
     pub not_revealable: Vec<NotRevealable>,
     pub findings: Vec<Finding>,
+    /// Torques the final model keeps whose mechanism the data cannot tell (either of two).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub undecided: Vec<Undecided>,
     /// The baseline's form is what the recording disagrees with; no effect is named then.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub model_form: Option<ModelForm>,
@@ -100,6 +103,7 @@ impl DiagnoseReport {
                 .map(|(effect, why)| NotRevealable { effect: *effect, why: why.clone() })
                 .collect(),
             findings: diagnosis.findings.clone(),
+            undecided: diagnosis.undecided.clone(),
             model_form: diagnosis.model_form.clone(),
             unexplained: diagnosis.unexplained.clone(),
             passivity: passivity.clone(),
@@ -172,6 +176,9 @@ impl DiagnoseReport {
                 _ => String::new(),
             };
             let _ = writeln!(s, "  RSS {:.5} → {:.5} (N·m)²{held}", form.rss_before, form.rss_after);
+        } else if report.findings.is_empty() && !report.undecided.is_empty() {
+            let _ =
+                writeln!(s, "\nno effect named: the torque the model lacks is kept, its mechanism undecided (below)");
         } else if report.findings.is_empty() {
             let _ = writeln!(s, "\nno missing physics found: no effect passed the evidence tests");
         } else {
@@ -190,6 +197,16 @@ impl DiagnoseReport {
                 );
             }
         }
+        for u in &report.undecided {
+            let [a, b] = u.effects;
+            let _ = writeln!(s, "\nkept in the model, mechanism undecided: {a} or {b}");
+            let _ = writeln!(
+                s,
+                "  {a} {:.4e} {} or {b} {:.4e} {}; RSS {:.5} → {:.5} (N·m)²",
+                u.magnitudes[0], u.units[0], u.magnitudes[1], u.units[1], u.rss_before, u.rss_after
+            );
+            let _ = writeln!(s, "  {}", u.words);
+        }
         if let Some(u) = &report.unexplained {
             let _ = writeln!(s, "\n{}", u.words);
         }
@@ -200,7 +217,11 @@ impl DiagnoseReport {
         let effects = if fm.effects.is_empty() {
             "no effects".to_string()
         } else {
-            fm.effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(" + ")
+            let words = |e: &Effect| match report.undecided.iter().find(|u| u.effects[0] == *e) {
+                Some(u) => format!("{} (or {}: undecided)", u.effects[0], u.effects[1]),
+                None => e.name().to_owned(),
+            };
+            fm.effects.iter().map(words).collect::<Vec<_>>().join(" + ")
         };
         let _ = writeln!(s, "\nfinal model (baseline + {effects}): RSS {:.5} (N·m)², RMS {:.4} N·m", fm.rss, fm.rms);
         if let Some(h) = &report.held_out {
@@ -218,8 +239,16 @@ impl DiagnoseReport {
         }
         if !report.not_revealable.is_empty() {
             let _ = writeln!(s, "\ncannot be told from this data");
+            // Effects refused for one reason share one line.
+            let mut shown: Vec<&str> = Vec::new();
             for r in &report.not_revealable {
-                let _ = writeln!(s, "  - {}: {}", r.effect, r.why);
+                if shown.contains(&r.why.as_str()) {
+                    continue;
+                }
+                shown.push(&r.why);
+                let same: Vec<&str> =
+                    report.not_revealable.iter().filter(|o| o.why == r.why).map(|o| o.effect.name()).collect();
+                let _ = writeln!(s, "  - {}: {}", same.join(", "), r.why);
             }
         }
         s

@@ -436,3 +436,72 @@ fn draw_motion(
     root.present()?;
     Ok(())
 }
+
+/// One controller mode's run for [`control_svg`]: per control tick, the time, the true torque
+/// error against the reference, and the true deflection and torque.
+pub struct ControlSeries<'a> {
+    pub label: &'a str,
+    /// s.
+    pub time: &'a [f64],
+    /// T_true − T_ref, N·m.
+    pub error: &'a [f64],
+    /// rad.
+    pub deflection: &'a [f64],
+    /// N·m.
+    pub torque: &'a [f64],
+}
+
+/// The torque error against time for each mode (above), and the torque loop each mode drove
+/// the gear through, T against θ (below).
+pub fn control_svg(title: &str, runs: &[ControlSeries]) -> Result<String, PlotError> {
+    let mut svg = String::new();
+    drawn("control picture", draw_control(title, runs, &mut svg))?;
+    Ok(svg)
+}
+
+fn draw_control(title: &str, runs: &[ControlSeries], svg: &mut String) -> DrawResult {
+    const COLORS: [RGBColor; 3] = [RGBColor(120, 120, 120), RGBColor(210, 60, 0), RGBColor(0, 90, 200)];
+    const POINTS: usize = 3000;
+    let root = SVGBackend::with_string(svg, (960, 900)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (upper, lower) = root.split_vertically(450);
+    let thinned =
+        |values: &[f64]| -> Vec<usize> { (0..values.len()).step_by(values.len().div_ceil(POINTS).max(1)).collect() };
+    let (t_lo, t_hi) = range(runs.iter().flat_map(|r| r.time.iter().copied()));
+    let (e_lo, e_hi) = range(runs.iter().flat_map(|r| r.error.iter().copied()).chain([0.0]));
+    let mut chart = new_chart(&upper, title, 20, (t_lo, t_hi), (e_lo, e_hi), "time (s)", "T_true − T_ref (N·m)")?;
+    for (run, color) in runs.iter().zip(COLORS.iter().cycle()) {
+        let color = *color;
+        let shown = thinned(run.time);
+        chart
+            .draw_series(LineSeries::new(shown.iter().map(|&i| (run.time[i], run.error[i])), color.stroke_width(1)))?
+            .label(run.label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    }
+    draw_legend(&mut chart)?;
+    let (x_lo, x_hi) = range(runs.iter().flat_map(|r| r.deflection.iter().map(|d| d * MRAD)));
+    let (y_lo, y_hi) = range(runs.iter().flat_map(|r| r.torque.iter().copied()));
+    let mut below = new_chart(
+        &lower,
+        "the torque loop: true torque against deflection",
+        16,
+        (x_lo, x_hi),
+        (y_lo, y_hi),
+        "deflection θ (mrad)",
+        "T_true (N·m)",
+    )?;
+    for (run, color) in runs.iter().zip(COLORS.iter().cycle()) {
+        let color = *color;
+        let shown = thinned(run.deflection);
+        below
+            .draw_series(LineSeries::new(
+                shown.iter().map(|&i| (run.deflection[i] * MRAD, run.torque[i])),
+                color.stroke_width(1),
+            ))?
+            .label(run.label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    }
+    draw_legend(&mut below)?;
+    root.present()?;
+    Ok(())
+}

@@ -9,7 +9,7 @@ pub mod motion;
 pub mod physics;
 
 use crate::diagnose::effects::{backlash, kinematic_error, Effect, EffectValue};
-use crate::input::{deflection, Angles, Recording};
+use crate::input::{deflection, Angles, Recording, MAX_TORQUE_NM};
 use model_core::{Direction, GeneticMemory, Hysteretic, Model, Params};
 pub use motion::{read_trajectory, Motion, Trajectory};
 use motion::{Played, Timing};
@@ -55,6 +55,11 @@ pub enum SimulateError {
     NeedsTemperature,
     #[error("the recording would have {0} samples; at most {MAX_SAMPLES} are written")]
     TooLong(f64),
+    #[error(
+        "the simulated torque reaches {torque:e} N·m at t = {time} s, beyond any gear (|T| ≤ 10⁶ N·m, what the readers \
+         accept): an effect or parameter is far too large"
+    )]
+    TorqueBeyondAnyGear { torque: f64, time: f64 },
     #[error(transparent)]
     PhysicsParam(#[from] PhysicsParamError),
 }
@@ -111,6 +116,8 @@ impl Simulation {
         for e in &self.effects {
             check("effect value", e.value, true, "finite")?;
         }
+        let delay = self.effect(Effect::ChannelDelay);
+        check("channel delay", delay, delay.abs() <= 1.0, "within ±1 s")?;
         if self.effect(Effect::ThermalDrift) != 0.0 && self.temperature.is_none() {
             return Err(SimulateError::NeedsTemperature);
         }
@@ -198,6 +205,7 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
     let (friction, damping, offset) =
         (sim.effect(Effect::CoulombFriction), sim.effect(Effect::ViscousDamping), sim.effect(Effect::TorqueOffset));
     let (kinematic, thermal) = (sim.effect(Effect::KinematicError), sim.effect(Effect::ThermalDrift));
+    let delay = sim.effect(Effect::ChannelDelay);
     let torque_noise = Normal::new(0.0, sim.torque_noise_nm).map_err(|_| SimulateError::OutOfRange {
         name: "torque noise",
         expected: ">= 0 N·m",
@@ -226,6 +234,10 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
         }
     }
     metadata.push(("seed".into(), sim.seed.to_string()));
+    if !sim.effects.is_empty() {
+        let effects: Vec<String> = sim.effects.iter().map(|e| format!("{}={}", e.effect, e.value)).collect();
+        metadata.push(("effects".into(), effects.join(" ")));
+    }
     match motion {
         Motion::Sine => {}
         Motion::File(trajectory) => metadata.push(("motion".into(), format!("file {}", trajectory.name()))),
@@ -259,12 +271,9 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
             Truth::Memory(memory) => memory.step(elastic)?.torque,
             Truth::Path(gear) => gear.step(elastic),
         };
-        let torque = gear_torque
-            + linear_stiffness * thermal * warming * elastic
-            + friction * sign(rate)
-            + damping * rate
-            + offset
-            + torque_noise.sample(&mut rng);
+        // What the gear transmits; the sensor's offset and noise are added once it is sampled.
+        let torque =
+            gear_torque + linear_stiffness * thermal * warming * elastic + friction * sign(rate) + damping * rate;
         let measured = x - kinematic_error(kinematic, kinematic_phases, theta_in);
         let theta_out = theta_in / sim.ratio - measured;
         let (measured_in, measured_out) = (quantise(theta_in, sim.input_bits), quantise(theta_out, sim.output_bits));
@@ -279,7 +288,36 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
             temps.push((celsius * 100.0).round() / 100.0);
         }
     }
+    if delay != 0.0 {
+        rec.torque = delayed(&rec.time, &rec.torque, delay);
+    }
+    for (torque, &time) in rec.torque.iter_mut().zip(&rec.time) {
+        *torque = *torque + offset + torque_noise.sample(&mut rng);
+        // A recording the readers would refuse is not written.
+        if !(torque.abs() <= MAX_TORQUE_NM) {
+            return Err(SimulateError::TorqueBeyondAnyGear { torque: *torque, time });
+        }
+    }
     Ok(rec)
+}
+
+/// The torque channel sampled `delay` seconds late (early when negative): the value at t − τ,
+/// interpolated linearly between samples and held at the recording's ends.
+fn delayed(time: &[f64], torque: &[f64], delay: f64) -> Vec<f64> {
+    time.iter()
+        .map(|&t| {
+            let at = t - delay;
+            let after = time.partition_point(|&s| s < at);
+            match after {
+                0 => torque[0],
+                n if n == time.len() => torque[n - 1],
+                k => {
+                    let w = (at - time[k - 1]) / (time[k] - time[k - 1]);
+                    torque[k - 1] + w * (torque[k] - torque[k - 1])
+                }
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -351,7 +389,7 @@ mod tests {
     fn every_motion_runs_through_every_physics_with_every_effect() {
         let effects = ["backlash=1e-4", "coulomb_friction=0.2", "viscous_damping=0.3", "kinematic_error=2e-6"]
             .into_iter()
-            .chain(["thermal_drift=0.01", "torque_offset=0.1"])
+            .chain(["thermal_drift=0.01", "torque_offset=0.1", "channel_delay=2e-3"])
             .map(|e| e.parse().unwrap())
             .collect();
         let sim = Simulation {
@@ -375,6 +413,29 @@ mod tests {
                 assert!(peak > 2.0 && peak < 200.0, "{} {}: peak {peak}", motion.name(), experiment.physics.name());
             }
         }
+    }
+
+    #[test]
+    fn a_channel_delay_shows_the_torque_of_tau_earlier() {
+        let quiet = Simulation { frequencies_hz: vec![1.0], ..base() };
+        let delayed = |delay: f64| {
+            let effects = vec![EffectValue { effect: Effect::ChannelDelay, value: delay }];
+            simulate(&Simulation { effects, ..quiet.clone() }).unwrap().torque
+        };
+        let (now, late, early) = (delayed(0.0), delayed(2.5e-3), delayed(-1e-3));
+        // 2.5 samples late: halfway between the torques 2 and 3 samples before; held at the start.
+        for i in 3..now.len() {
+            assert!((late[i] - (now[i - 2] + now[i - 3]) / 2.0).abs() <= 1e-9 * now[i].abs().max(1.0), "sample {i}");
+        }
+        assert_eq!(&late[..3], &[now[0]; 3]);
+        // One sample early; held at the end.
+        for i in 0..now.len() - 1 {
+            assert!((early[i] - now[i + 1]).abs() <= 1e-9 * now[i + 1].abs().max(1.0), "sample {i}");
+        }
+        assert_eq!(early[now.len() - 1], now[now.len() - 1]);
+        let out_of_range = vec![EffectValue { effect: Effect::ChannelDelay, value: 2.0 }];
+        let error = simulate(&Simulation { effects: out_of_range, ..quiet }).unwrap_err();
+        assert!(error.to_string().contains("channel delay"), "{error}");
     }
 
     /// ∮T dθ over samples `from..to` (trapezoids), of the exact motion's deflection.

@@ -1,4 +1,5 @@
-//! Instructions per T_ff + K evaluation and per control tick on the emulated Cortex-M4F. Run
+//! Instructions per T_ff + K evaluation, per compensator tick, and per tick of the torque
+//! controller with its evaluator (`Controller::tick` in model mode) on the emulated Cortex-M4F. Run
 //! under `qemu-system-arm -icount shift=0`: one instruction per ns of virtual time, SysTick at
 //! 25 MHz, so one SysTick tick is 40 instructions, exactly repeatable (bench/firmware.sh).
 #![no_std]
@@ -10,8 +11,8 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use model_core::checks::{MICRO_SLIP_SET, SEED_TABLE_FIT};
 use model_core::{Direction, Model};
-use swg_joint::{Compensator, FastModel, TURNING_POINTS};
-use swg_protocol::{EvalPath, JointModel, JointParams, MODEL_VERSION, SLIP_ELEMENTS};
+use swg_joint::{Compensator, Controller, FastModel, TURNING_POINTS};
+use swg_protocol::{ControlMode, ControllerConfig, EvalPath, JointModel, JointParams, MODEL_VERSION, SLIP_ELEMENTS};
 
 const INSTRUCTIONS_PER_TICK: u32 = 40;
 const RUNS: u32 = 2000;
@@ -38,11 +39,14 @@ fn per_run(total_ticks: u32, baseline_ticks: u32) -> f32 {
 }
 
 /// Instructions of one tick at θ from the compensator state `state` (copied afresh for every
-/// run; the copy is measured alone and subtracted).
+/// run; the copy is measured alone, written exactly as in the timed loop, and subtracted: a
+/// copy passed by value to `black_box` is a second copy the timed loop does not make, and
+/// subtracting it undercounted the tick by about one state copy).
 fn tick_from(state: &Compensator, theta: f32, path: EvalPath) -> f32 {
     let copies = ticks(|| {
         for _ in 0..RUNS {
-            black_box(black_box(state).clone());
+            let compensator = black_box(state).clone();
+            black_box(&compensator);
         }
     });
     let ticked = ticks(|| {
@@ -53,6 +57,80 @@ fn tick_from(state: &Compensator, theta: f32, path: EvalPath) -> f32 {
         }
     });
     per_run(ticked, copies)
+}
+
+/// Instructions of one controller tick (model mode: the evaluator's step, the gain schedule,
+/// the loop, the clamp) at θ from `state`, copied afresh for every run as in [`tick_from`].
+fn control_from(state: &(Controller, Compensator), theta: f32) -> f32 {
+    let copies = ticks(|| {
+        for _ in 0..RUNS {
+            let (controller, compensator) = black_box(state).clone();
+            black_box((&controller, &compensator));
+        }
+    });
+    let ticked = ticks(|| {
+        for _ in 0..RUNS {
+            let (mut controller, mut compensator) = black_box(state).clone();
+            black_box(controller.tick(&mut compensator, black_box(theta) * RATIO, 0.0, black_box(12.5)));
+            black_box((&controller, &compensator));
+        }
+    });
+    per_run(ticked, copies)
+}
+
+/// θ along a nested motion from rest, A·(0.75·sin φ + 0.25·sin 9φ) over two cycles in
+/// [`RUNS`] ticks: a reversal every ~55 ticks, minor loops at many levels.
+fn nested_motion() -> [f32; RUNS as usize] {
+    let mut motion = [0.0f32; RUNS as usize];
+    for (i, theta) in motion.iter_mut().enumerate() {
+        let phase = core::f32::consts::TAU * 2.0 * i as f32 / RUNS as f32;
+        *theta = AMPLITUDE * (0.75 * libm::sinf(phase) + 0.25 * libm::sinf(9.0 * phase));
+    }
+    motion
+}
+
+/// Instructions per tick along `motion`, consecutive ticks from rest with no copies: the
+/// compensator alone, and the controller (model mode) with it.
+fn along(params: JointParams, motion: &[f32; RUNS as usize]) -> (f32, f32) {
+    let baseline = ticks(|| {
+        for &theta in motion {
+            black_box(black_box(theta) * RATIO);
+        }
+    });
+    let mut compensator = Compensator::new();
+    let _ = compensator.stage(params);
+    let alone = ticks(|| {
+        for &theta in motion {
+            black_box(compensator.tick(black_box(theta) * RATIO, 0.0, EvalPath::Fast));
+        }
+    });
+    let mut compensator = Compensator::new();
+    let _ = compensator.stage(params);
+    let (mut controller, mut compensator) = controlling(compensator, 0.0);
+    let controlled = ticks(|| {
+        for &theta in motion {
+            black_box(controller.tick(&mut compensator, black_box(theta) * RATIO, 0.0, black_box(12.5)));
+        }
+    });
+    (per_run(alone, baseline), per_run(controlled, baseline))
+}
+
+/// The controller in model mode after a first tick, with `compensator`.
+fn controlling(compensator: Compensator, last: f32) -> (Controller, Compensator) {
+    let mut controller = Controller::new();
+    let config = ControllerConfig {
+        mode: ControlMode::Model,
+        kp: 0.04,
+        ki: 3.0,
+        damping: 0.015,
+        stiffness: 9000.0,
+        command_limit: 1.0,
+        period: 1.0e-3,
+    };
+    let _ = controller.configure(config);
+    let mut compensator = compensator;
+    controller.tick(&mut compensator, last * RATIO, 0.0, 12.5);
+    (controller, compensator)
 }
 
 /// A motion from rest that leaves the genetic model's stack full: a zigzag of shrinking
@@ -149,5 +227,43 @@ fn main() -> ! {
         big,
         onward.max(reversal).max(big)
     );
+    // The controller with its evaluator, model mode, from the same states: the worst of the
+    // same three ticks for each kind (fast path).
+    let Some((genetic_full, genetic_last)) = full_stack(genetic) else { swg_firmware_qemu::exit(false) };
+    let state = controlling(genetic_full, genetic_last);
+    let genetic_ticks = [
+        control_from(&state, genetic_last * 1.001),
+        control_from(&state, genetic_last - 0.05 * AMPLITUDE * genetic_last.signum()),
+        control_from(&state, 1.05 * AMPLITUDE),
+    ];
+    let Some((slip_full, slip_last)) = full_stack(slip) else { swg_firmware_qemu::exit(false) };
+    let state = controlling(slip_full, slip_last);
+    let slip_ticks = [
+        control_from(&state, slip_last * 1.001),
+        control_from(&state, slip_last - 0.05 * AMPLITUDE * slip_last.signum()),
+        control_from(&state, 1.05 * AMPLITUDE),
+    ];
+    for (kind, [onward, reversal, big]) in
+        [("genetic, 16 turning points", genetic_ticks), ("micro-slip, 16 elements", slip_ticks)]
+    {
+        hprintln!(
+            "controller + evaluator (model mode), {}, per tick: on the branch {}, reversal {}, large step {}; worst {}",
+            kind,
+            onward,
+            reversal,
+            big,
+            onward.max(reversal).max(big)
+        );
+    }
+    let motion = nested_motion();
+    for (kind, params) in [("genetic", genetic), ("micro-slip", slip)] {
+        let (alone, controlled) = along(params, &motion);
+        hprintln!(
+            "{} along a nested motion from rest, mean per tick: compensator {}, controller + evaluator (model mode) {}",
+            kind,
+            alone,
+            controlled
+        );
+    }
     swg_firmware_qemu::exit(true)
 }

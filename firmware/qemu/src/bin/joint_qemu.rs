@@ -1,11 +1,13 @@
-//! The joint firmware on the QEMU mps2-an386 board, in replay mode: the link on UART0
-//! carries both the parameter traffic and the encoder samples, one tick per sample.
+//! The joint firmware on the QEMU mps2-an386 board, in replay and lockstep mode: the link on
+//! UART0 carries the parameter traffic, the encoder samples (one tick per sample) and the
+//! lockstep control ticks of a plant simulated on the host (`swg-host hil`), whose motor
+//! command goes back over the link ([`swg_firmware_qemu::LinkDrive`]).
 #![no_std]
 #![no_main]
 
 use cortex_m_rt::entry;
 use embedded_io::{Read, Write};
-use swg_firmware_qemu::uart::Uart0;
+use swg_firmware_qemu::{uart::Uart0, LinkDrive};
 use swg_joint::{flash::RamFlash, storage::ParamStore, Server};
 use swg_protocol::MAX_FRAME_LEN;
 
@@ -32,9 +34,10 @@ fn main() -> ! {
     );
     let mut response = [0u8; MAX_FRAME_LEN];
     let mut byte = [0u8; 1];
+    let mut drive = LinkDrive::default();
     loop {
         let Ok(1) = uart.read(&mut byte) else { continue };
-        if let Some(len) = server.receive(byte[0], &mut response) {
+        if let Some(len) = server.receive_driving(byte[0], &mut response, &mut drive) {
             let _ = uart.write_all(response.get(..len).unwrap_or_default());
         }
     }

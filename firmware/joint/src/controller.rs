@@ -1,0 +1,361 @@
+//! The joint's torque controller: a loop on the transmitted torque that the gear's deflection
+//! gives, through one stiffness (`Linear`) or the installed model's stateful evaluator
+//! (`Model`, the [`Compensator`]'s T_ff and K), or no loop at all (`OpenLoop`).
+//!
+//! With e = T_ref − T̂, N the installed set's gear ratio and ω the motor's velocity above
+//! [`DAMPING_CUTOFF_HZ`] (successive input angles over the period, minus their first-order
+//! low-pass at that frequency), the motor torque command is
+//!
+//! ```text
+//! u = T_ref/N + s·kp·e + I − damping·ω,   I ← clamp(I + ki·e·period, ±command_limit)
+//! ```
+//!
+//! The damping is passive (it acts on the motor's own velocity, never on the output's, which
+//! would feed the environment's motion back into the motor) and damps the joint's modes (the
+//! motor on the gear, tens of Hz, the output on a stiff contact); above the cutoff only, so
+//! that the motor's slow travel against a compliant environment is not resisted.
+//!
+//! clamped to ±command_limit (the integral is not advanced while u is clamped in the
+//! direction of e). `s` is the gain schedule: 1 in `Linear` mode, and in `Model` mode
+//! clamp(stiffness / K, ¼, 2) with K the model's dT/dθ, so that the loop's gain from motor
+//! angle to torque stays that of the nominal stiffness where the gear stiffens or softens.
+//!
+//! **Safe modes.** Without a valid parameter set the controller commands u = 0 and reports
+//! `Off`, whatever mode is configured: it knows neither N nor the deflection. A tick whose
+//! torque estimate is unavailable (the deflection is beyond `MAX_DEFLECTION` or not finite, an
+//! encoder fault; or, in `Model` mode, the model's torque is clamped at the set's torque
+//! limit or cannot be evaluated) runs `OpenLoop` (u = T_ref/N), with the integral held. The
+//! command is never NaN: a non-finite u (only possible from non-finite inputs, which the
+//! server refuses) becomes 0.
+use crate::{limit, Compensator};
+use swg_protocol::{Compensation, ControlMode, ControlOutput, ControllerConfig, ErrorReply, EvalPath};
+
+/// The gain schedule's range: kp scales by at most 2 and at least ¼ (the gear stiffens about
+/// fourfold from no load to its rated torque).
+pub const SCHEDULE_RANGE: (f32, f32) = (0.25, 2.0);
+
+/// The damping acts on the motor velocity above this frequency, Hz.
+pub const DAMPING_CUTOFF_HZ: f32 = 3.0;
+
+/// Where a board sends the motor torque command.
+pub trait MotorDrive {
+    /// Why a command was not applied; `Debug` so that a board can log it.
+    type Error: core::fmt::Debug;
+    /// Applies `torque`, N·m at the motor shaft: finite and within the configured limit.
+    fn apply(&mut self, torque: f32) -> Result<(), Self::Error>;
+}
+
+/// A drive that applies nothing: for links that only replay (the host's tests).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoDrive;
+
+impl MotorDrive for NoDrive {
+    type Error = core::convert::Infallible;
+    fn apply(&mut self, _torque: f32) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+/// The torque controller's configuration and state.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Controller {
+    config: Option<ControllerConfig>,
+    reference: f32,
+    integral: f32,
+    /// The last input angle, rad, and the motor velocity's low-pass, rad/s.
+    last_input: Option<f32>,
+    slow_velocity: f32,
+}
+
+impl Controller {
+    /// At boot: not configured, u = 0.
+    pub const fn new() -> Self {
+        Controller { config: None, reference: 0.0, integral: 0.0, last_input: None, slow_velocity: 0.0 }
+    }
+
+    /// Validates and installs `config`; the integral and the velocity start afresh.
+    pub fn configure(&mut self, config: ControllerConfig) -> Result<(), ErrorReply> {
+        config.validate()?;
+        *self = Controller { config: Some(config), reference: self.reference, ..Controller::new() };
+        Ok(())
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> Option<ControllerConfig> {
+        self.config
+    }
+
+    /// Sets T_ref, N·m, for [`Controller::tick_stored`]; a value that is not finite is refused.
+    pub fn set_reference(&mut self, reference: f32) -> Result<(), ErrorReply> {
+        if !reference.is_finite() {
+            return Err(ErrorReply::NonFiniteSample);
+        }
+        self.reference = reference;
+        Ok(())
+    }
+
+    /// One tick at the stored reference (a board's own timer tick).
+    pub fn tick_stored(&mut self, compensator: &mut Compensator, input_angle: f32, output_angle: f32) -> ControlOutput {
+        self.tick(compensator, input_angle, output_angle, self.reference)
+    }
+
+    /// One control tick: steps the compensator's model (in every mode, so that its memory
+    /// follows the gear's history whichever mode runs) and computes the motor command.
+    pub fn tick(
+        &mut self,
+        compensator: &mut Compensator,
+        input_angle: f32,
+        output_angle: f32,
+        reference: f32,
+    ) -> ControlOutput {
+        self.reference = reference;
+        let feedforward = compensator.tick(input_angle, output_angle, EvalPath::Fast);
+        let off = ControlOutput { command: 0.0, estimate: 0.0, mode: ControlMode::Off, saturated: false };
+        let (Some(config), Some(params)) = (self.config, compensator.params()) else {
+            self.last_input = None;
+            return off;
+        };
+        let usable = feedforward.compensation != Compensation::Off;
+        let velocity = match self.last_input {
+            Some(last) if input_angle.is_finite() => (input_angle - last) / config.period,
+            _ => self.slow_velocity,
+        };
+        self.last_input = input_angle.is_finite().then_some(input_angle);
+        // First-order low-pass at the cutoff (forward Euler, at most the whole step).
+        let smoothing = limit(core::f32::consts::TAU * DAMPING_CUTOFF_HZ * config.period, 0.0, 1.0);
+        self.slow_velocity += smoothing * (velocity - self.slow_velocity);
+        let fast_velocity = velocity - self.slow_velocity;
+        let feedforward_command = reference / params.gear_ratio;
+        // The torque estimate and the gain schedule, or None for an open-loop tick.
+        let closed = match config.mode {
+            ControlMode::Off => return off,
+            ControlMode::OpenLoop => None,
+            ControlMode::Linear if usable => Some((config.stiffness * feedforward.deflection, 1.0)),
+            ControlMode::Model if feedforward.compensation == Compensation::Active => {
+                let schedule = if feedforward.stiffness > 0.0 {
+                    limit(config.stiffness / feedforward.stiffness, SCHEDULE_RANGE.0, SCHEDULE_RANGE.1)
+                } else {
+                    SCHEDULE_RANGE.1
+                };
+                Some((feedforward.torque, schedule))
+            }
+            ControlMode::Linear | ControlMode::Model => None,
+        };
+        let bound = config.command_limit;
+        let Some((estimate, schedule)) = closed else {
+            let (command, saturated) = clamp(feedforward_command, bound);
+            return ControlOutput { command, estimate: 0.0, mode: ControlMode::OpenLoop, saturated };
+        };
+        let error = reference - estimate;
+        let unclamped =
+            feedforward_command + schedule * config.kp * error + self.integral - config.damping * fast_velocity;
+        let (command, saturated) = clamp(unclamped, bound);
+        // Conditional integration: not further into a clamped command.
+        if !(saturated && (error > 0.0) == (unclamped > 0.0)) {
+            self.integral = limit(self.integral + config.ki * error * config.period, -bound, bound);
+        }
+        if !(self.integral.is_finite() && self.slow_velocity.is_finite()) {
+            self.integral = 0.0;
+            self.slow_velocity = 0.0;
+        }
+        ControlOutput { command, estimate, mode: config.mode, saturated }
+    }
+}
+
+/// `value` within ±`bound`, and whether it was clamped; NaN becomes 0.
+#[inline(always)]
+fn clamp(value: f32, bound: f32) -> (f32, bool) {
+    if value.is_nan() {
+        return (0.0, true);
+    }
+    let clamped = limit(value, -bound, bound);
+    (clamped, clamped != value)
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use model_core::{checks::MICRO_SLIP_SET, Hysteretic, MODEL_VERSION};
+    use swg_protocol::{JointModel, JointParams};
+
+    const RATIO: f32 = 50.0;
+    const PERIOD: f32 = 1.0e-3;
+
+    fn slip() -> JointParams {
+        JointParams {
+            model_version: MODEL_VERSION,
+            model: JointModel::MicroSlip(MICRO_SLIP_SET.to_f32().into()),
+            gear_ratio: RATIO,
+            torque_limit: 60.0,
+            direction_band: 0.0,
+        }
+    }
+
+    /// Gains of the kind `swg-host hil` states, for the test plant below.
+    fn config(mode: ControlMode) -> ControllerConfig {
+        ControllerConfig {
+            mode,
+            kp: 0.04,
+            ki: 3.0,
+            damping: 0.015,
+            stiffness: 9000.0,
+            command_limit: 1.0,
+            period: PERIOD,
+        }
+    }
+
+    fn installed(mode: ControlMode) -> (Controller, Compensator) {
+        let mut compensator = Compensator::new();
+        compensator.stage(slip()).unwrap();
+        let mut controller = Controller::new();
+        controller.configure(config(mode)).unwrap();
+        (controller, compensator)
+    }
+
+    /// A locked-output joint: motor inertia J with Coulomb friction on the test set's gear
+    /// itself (model-core's micro-slip evaluator in f64, as truth), integrated at 10 sub-steps a
+    /// tick. Returns the true torque and the controller's output per tick.
+    fn run_locked(
+        controller: &mut Controller,
+        compensator: &mut Compensator,
+        reference: f32,
+        ticks: usize,
+    ) -> std::vec::Vec<(f64, ControlOutput)> {
+        let mut gear = model_core::MicroSlip::new(MICRO_SLIP_SET).unwrap();
+        let (inertia, friction, ratio) = (1.0e-4f64, 0.02f64, f64::from(RATIO));
+        let (mut angle, mut velocity, mut command, mut torque) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let mut out = std::vec::Vec::new();
+        for _ in 0..ticks {
+            for _ in 0..10 {
+                let h = f64::from(PERIOD) / 10.0;
+                let drive = command - torque / ratio;
+                let resist =
+                    if velocity != 0.0 { friction * velocity.signum() } else { drive.clamp(-friction, friction) };
+                let next = velocity + h * (drive - resist) / inertia;
+                velocity = if velocity != 0.0 && next.signum() != velocity.signum() { 0.0 } else { next };
+                angle += h * velocity;
+                torque = gear.step(angle / ratio).unwrap().torque;
+            }
+            let output = controller.tick(compensator, angle as f32, 0.0, reference);
+            command = f64::from(output.command);
+            out.push((torque, output));
+        }
+        out
+    }
+
+    #[test]
+    fn without_parameters_the_command_is_zero() {
+        let mut controller = Controller::new();
+        controller.configure(config(ControlMode::Model)).unwrap();
+        let mut compensator = Compensator::new();
+        let out = controller.tick(&mut compensator, 0.5, 0.0, 10.0);
+        assert_eq!(out, ControlOutput { command: 0.0, estimate: 0.0, mode: ControlMode::Off, saturated: false });
+        // Not configured: zero too, with parameters.
+        compensator.stage(slip()).unwrap();
+        let out = Controller::new().tick(&mut compensator, 0.5, 0.0, 10.0);
+        assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));
+    }
+
+    #[test]
+    fn open_loop_is_the_feedforward_alone() {
+        let (mut controller, mut compensator) = installed(ControlMode::OpenLoop);
+        let out = controller.tick(&mut compensator, 0.01, 0.0, 10.0);
+        assert_eq!(
+            out,
+            ControlOutput { command: 10.0 / RATIO, estimate: 0.0, mode: ControlMode::OpenLoop, saturated: false }
+        );
+    }
+
+    #[test]
+    fn the_command_is_clamped_and_never_nan() {
+        for mode in [ControlMode::OpenLoop, ControlMode::Linear, ControlMode::Model] {
+            let (mut controller, mut compensator) = installed(mode);
+            // 1000 N·m asked: far beyond the 1 N·m·50 the motor may give.
+            let out = controller.tick(&mut compensator, 0.0, 0.0, 1000.0);
+            assert_eq!((out.command, out.saturated), (1.0, true), "{mode:?}");
+            let out = controller.tick(&mut compensator, 0.0, 0.0, -1000.0);
+            assert_eq!((out.command, out.saturated), (-1.0, true), "{mode:?}");
+            // An encoder fault (deflection beyond MAX_DEFLECTION): open loop for that tick.
+            let out = controller.tick(&mut compensator, 100.0, 0.0, 5.0);
+            assert_eq!((out.command, out.mode), (5.0 / RATIO, ControlMode::OpenLoop), "{mode:?}");
+            // NaN angles (refused by the server, but the tick itself is safe too).
+            let out = controller.tick(&mut compensator, f32::NAN, 0.0, 5.0);
+            assert!(out.command.is_finite() && out.command.abs() <= 1.0, "{mode:?} {out:?}");
+            let out = controller.tick(&mut compensator, 0.0, 0.0, f32::NAN);
+            assert_eq!(out.command, 0.0, "{mode:?} {out:?}");
+        }
+    }
+
+    #[test]
+    fn the_integral_winds_up_no_further_than_the_limit() {
+        let (mut controller, mut compensator) = installed(ControlMode::Linear);
+        for _ in 0..10_000 {
+            controller.tick(&mut compensator, 0.0, 0.0, 1000.0);
+        }
+        // Back at a reachable reference the command leaves the limit within a few ticks.
+        let ticks = (0..50).position(|_| !controller.tick(&mut compensator, 0.0, 0.0, 0.0).saturated);
+        assert!(matches!(ticks, Some(t) if t < 5), "{ticks:?}");
+    }
+
+    #[test]
+    fn model_mode_closes_on_the_models_torque() {
+        let (mut controller, mut compensator) = installed(ControlMode::Model);
+        // θ = 0.4 mrad from rest.
+        let out = controller.tick(&mut compensator, 0.4e-3 * RATIO, 0.0, 0.0);
+        let mut reference = Compensator::new();
+        reference.stage(slip()).unwrap();
+        let expected = reference.tick(0.4e-3 * RATIO, 0.0, EvalPath::Fast);
+        assert_eq!((out.estimate, out.mode), (expected.torque, ControlMode::Model));
+        // The linear mode closes on stiffness·θ instead.
+        let (mut linear, mut compensator) = installed(ControlMode::Linear);
+        let out = linear.tick(&mut compensator, 0.4e-3 * RATIO, 0.0, 0.0);
+        assert!((out.estimate - 9000.0 * 0.4e-3).abs() < 1e-3, "{out:?}");
+    }
+
+    #[test]
+    fn a_mode_switch_starts_afresh() {
+        let (mut controller, mut compensator) = installed(ControlMode::Linear);
+        for _ in 0..100 {
+            controller.tick(&mut compensator, 0.0, 0.0, 5.0);
+        }
+        controller.configure(config(ControlMode::Model)).unwrap();
+        let out = controller.tick(&mut compensator, 0.0, 0.0, 5.0);
+        // Integral and velocity reset: u = T_ref/N + kp·e on the first tick.
+        let expected = 5.0 / RATIO + SCHEDULE_RANGE.0.max(9000.0 / 9000.0) * 0.04 * 5.0;
+        assert!((out.command - expected).abs() < 0.2 * expected, "{out:?} vs {expected}");
+        assert_eq!(out.mode, ControlMode::Model);
+        controller.configure(config(ControlMode::Off)).unwrap();
+        assert_eq!(controller.tick(&mut compensator, 0.0, 0.0, 5.0).command, 0.0);
+        // A refused configuration leaves the last one.
+        let bad = ControllerConfig { kp: f32::NAN, ..config(ControlMode::Model) };
+        assert!(controller.configure(bad).is_err());
+        assert_eq!(controller.config(), Some(config(ControlMode::Off)));
+    }
+
+    /// Closed loop on the test plant: each loop mode settles on a step with the gains above,
+    /// without oscillation once settled; the model mode on the true torque, the linear mode on
+    /// its own estimate (its stiffness is not the gear's); the open loop wherever friction stops it.
+    #[test]
+    fn the_loop_settles_on_a_locked_joint() {
+        for mode in [ControlMode::Linear, ControlMode::Model] {
+            let (mut controller, mut compensator) = installed(mode);
+            let run = run_locked(&mut controller, &mut compensator, 10.0, 2000);
+            let settled = &run[1000..];
+            let (low, high) = settled.iter().fold((f64::MAX, f64::MIN), |(l, h), &(t, _)| (l.min(t), h.max(t)));
+            assert!(high - low < 0.1, "{mode:?}: peak to peak {}", high - low);
+            let (torque, output) = settled[settled.len() - 1];
+            assert!((output.estimate - 10.0).abs() < 0.05, "{mode:?}: {output:?}");
+            assert_eq!(output.mode, mode);
+            if mode == ControlMode::Model {
+                assert!((torque - 10.0).abs() < 0.05, "{mode:?}: true torque {torque}");
+            } else {
+                assert!((torque - 10.0).abs() > 0.5, "linear on another stiffness misses: {torque}");
+            }
+        }
+        let (mut controller, mut compensator) = installed(ControlMode::OpenLoop);
+        let (torque, _) = run_locked(&mut controller, &mut compensator, 10.0, 2000)[1999];
+        // At rest where friction holds the motor: within N·friction = 1 N·m of the reference.
+        assert!((torque - 10.0).abs() <= 1.0 + 1e-6, "{torque}");
+    }
+}
