@@ -10,15 +10,15 @@
 //! u = T_ref/N + s·kp·e + I − damping·ω,   I ← clamp(I + ki·e·period, ±command_limit)
 //! ```
 //!
-//! The damping is passive (it acts on the motor's own velocity, never on the output's, which
-//! would feed the environment's motion back into the motor) and damps the joint's modes (the
-//! motor on the gear, tens of Hz, the output on a stiff contact); above the cutoff only, so
-//! that the motor's slow travel against a compliant environment is not resisted.
-//!
 //! clamped to ±command_limit (the integral is not advanced while u is clamped in the
 //! direction of e). `s` is the gain schedule: 1 in `Linear` mode, and in `Model` mode
 //! clamp(stiffness / K, ¼, 2) with K the model's dT/dθ, so that the loop's gain from motor
 //! angle to torque stays that of the nominal stiffness where the gear stiffens or softens.
+//!
+//! The damping is passive (it acts on the motor's own velocity, never on the output's, which
+//! would feed the environment's motion back into the motor) and damps the joint's modes (the
+//! motor on the gear, tens of Hz, the output on a stiff contact); above the cutoff only, so
+//! that the motor's slow travel against a compliant environment is not resisted.
 //!
 //! **Safe modes.** Without a valid parameter set the controller commands u = 0 and reports
 //! `Off`, whatever mode is configured: it knows neither N nor the deflection. A tick whose
