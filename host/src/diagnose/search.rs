@@ -148,6 +148,16 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
     for finding in &mut findings {
         finding.magnitude = final_fit.magnitude(finding.effect);
     }
+    // Both candidates of an undecided torque, in the final model: effects accepted after it
+    // (friction, say) take what it had stood in for when it was kept.
+    for kept in &mut undecided {
+        let [effect, rival] = kept.effects;
+        kept.magnitudes[0] = final_fit.magnitude(effect);
+        let swapped: Vec<Effect> = final_fit.active.iter().map(|&e| if e == effect { rival } else { e }).collect();
+        if let Ok(rival_fit) = fit_extended(observed, &all, &weights, &swapped, &final_fit) {
+            kept.magnitudes[1] = rival_fit.magnitude(rival);
+        }
+    }
     let held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
     let final_residuals = final_fit.residuals(observed, &all).map_err(|e| refit_error(&final_fit.active, e.into()))?;
     match form::judge(observed, &weights, &final_fit, &final_residuals, held_out_rms.map(|h| h.1)) {
@@ -183,6 +193,8 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             let final_fit = fit_extended(observed, &all, &weights, &kept, &baseline)
                 .map_err(|source| refit_error(&kept, source))?;
             let held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
+            // An undecided torque that stood in for the shape goes with the shape.
+            undecided.retain(|u| kept.contains(&u.effects[0]));
             Ok(Diagnosis {
                 final_fit,
                 baseline,
