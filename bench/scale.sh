@@ -19,9 +19,9 @@ mkdir -p bench/out
 measure() { # prints "seconds MB" of the command, or "failed"
     if /usr/bin/time -v "$@" >/dev/null 2>"$work/time"; then
         awk -F': ' '/Elapsed \(wall clock\)/ { n = split($2, p, ":"); s = 0; for (i = 1; i <= n; i++) s = s * 60 + p[i] }
-                    /Maximum resident/ { kb = $2 } END { printf "%.1f s | %.0f MB", s, kb / 1024 }' "$work/time"
+                    /Maximum resident/ { kb = $2 } END { printf "%.1f s, %.0f MB", s, kb / 1024 }' "$work/time"
     else
-        echo "failed: $(grep -m1 error "$work/time") |"
+        echo "failed: $(grep -m1 error "$work/time")"
     fi
 }
 {

@@ -343,7 +343,7 @@ fn run(case: &Case) -> Outcome {
         let file = std::path::Path::new(&dir).join(format!("{}.csv", case.name.replace([' ', '/', ','], "_")));
         recording.write(std::fs::File::create(file).unwrap()).unwrap();
     }
-    let outcome = diagnose_dataset(&Dataset::Recording(recording), None, 1).unwrap();
+    let outcome = diagnose_dataset(Dataset::Recording(recording), None, 1).unwrap();
     let flagged_active = outcome.passivity.as_ref().is_some_and(|p| p.active);
     // Negative damping or friction (the corpus draws either sign) gives energy back too. A loop
     // whose energy is within 1 % of its work of zero may be called either way.
@@ -483,7 +483,7 @@ fn damping_on_a_linear_gear_is_not_told_from_a_channel_delay() {
         effects: vec![EffectValue { effect: Effect::ViscousDamping, value: 30.0 }],
         seed: 5,
     };
-    let outcome = diagnose_dataset(&Dataset::Recording(simulate(&simulation).unwrap()), None, 1).unwrap();
+    let outcome = diagnose_dataset(Dataset::Recording(simulate(&simulation).unwrap()), None, 1).unwrap();
     let diagnosis = outcome.diagnosis;
     for f in &diagnosis.findings {
         println!("named {} = {:.4e}", f.effect, f.magnitude);

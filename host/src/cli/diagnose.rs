@@ -42,8 +42,9 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
         angles.output = Vec::new();
     }
     let baseline = args.params.as_deref().map(read_params).transpose()?;
-    let outcome = diagnose_dataset(&dataset, baseline, args.seed).with_context(|| args.input.display().to_string())?;
-    let report = DiagnoseReport::new(args.input.display().to_string(), dataset.kind(), &outcome);
+    let kind = dataset.kind();
+    let outcome = diagnose_dataset(dataset, baseline, args.seed).with_context(|| args.input.display().to_string())?;
+    let report = DiagnoseReport::new(args.input.display().to_string(), kind, &outcome);
     // The text is made of the same figures: a report that is not finite is printed in neither form.
     let json = to_json("diagnosis", &report)
         .map_err(|error| anyhow::anyhow!("{error}: {}", report.non_finite_cause()))

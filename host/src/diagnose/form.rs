@@ -131,8 +131,8 @@ pub fn judge(
     };
     let form_rss: f64 = form_torque.iter().zip(&data.torque).map(|(p, t)| (t - p).powi(2)).sum();
     let form_rms = (form_rss / n as f64).sqrt();
-    let held_out = (!observed.held_out.is_empty())
-        .then(|| fit_micro_slip(&motion(observed.training.len())).ok().and_then(|f| f.held_out_rms))
+    let held_out = (!observed.held_out().is_empty())
+        .then(|| fit_micro_slip(&motion(observed.training().len())).ok().and_then(|f| f.held_out_rms))
         .flatten();
     let extra_parameters =
         (3 + crate::gear::SLIP_ELEMENTS + kept_columns.len()).saturating_sub(final_fit.degrees_of_freedom()) as f64;

@@ -147,13 +147,15 @@ pub struct DiagnoseOutcome {
 }
 
 /// The `diagnose` pipeline: prepare the data, fit the baseline (unless `baseline` is given),
-/// search for missing physics, and say where the baseline's residual concentrates.
+/// search for missing physics, and say where the baseline's residual concentrates. Takes the
+/// dataset: the observations keep the recording's time and input angle, and its other columns
+/// are freed before the search (at 10 M samples, 24 bytes a sample less at the peak).
 pub fn diagnose_dataset(
-    dataset: &Dataset,
+    dataset: Dataset,
     baseline: Option<Params<f64>>,
     seed: u64,
 ) -> Result<DiagnoseOutcome, DiagnoseError> {
-    let mut prepared = prepare(dataset)?;
+    let mut prepared = prepare(&dataset)?;
     let baseline = match baseline {
         Some(params) => params,
         None => {
@@ -161,23 +163,24 @@ pub fn diagnose_dataset(
             fit(&prepared.data, &options, |_| {})?.params
         }
     };
-    // The diagnosis holds the samples once: moved from `prepared`, not copied.
-    let data = std::mem::take(&mut prepared.data);
-    let observed = Observed::with_data(dataset, &prepared, data);
-    let diagnosis = diagnose(&observed, baseline)?;
-    let all: Vec<usize> = (0..observed.data.theta.len()).collect();
-    let before = diagnosis.baseline.residuals(&observed, &all).map_err(DiagnoseError::Baseline)?;
-    let after = diagnosis.final_fit.residuals(&observed, &all).map_err(|source| DiagnoseError::Refit {
-        effects: diagnosis.final_fit.active.iter().map(|e| format!(" + {}", e.name())).collect(),
-        source: source.into(),
-    })?;
-    let locate = locate(&observed, &before);
-    let passivity = match (dataset, &prepared.segmentation, &prepared.noise) {
+    // From the recording's own columns, before the observations take what they keep of it.
+    let passivity = match (&dataset, &prepared.segmentation, &prepared.noise) {
         (Dataset::Recording(recording), Some(segmentation), Some(noise)) => {
             passivity::of_recording(recording, &segmentation.turning_points, noise)
         }
         (Dataset::LoopTable(table), _, _) => passivity::of_loop_table(table),
         _ => None,
     };
+    // The diagnosis holds the samples once: moved from `prepared`, not copied.
+    let data = std::mem::take(&mut prepared.data);
+    let observed = Observed::with_data(dataset, &prepared, data);
+    let diagnosis = diagnose(&observed, baseline)?;
+    let before = diagnosis.baseline.residuals(&observed, observed.samples()).map_err(DiagnoseError::Baseline)?;
+    let after =
+        diagnosis.final_fit.residuals(&observed, observed.samples()).map_err(|source| DiagnoseError::Refit {
+            effects: diagnosis.final_fit.active.iter().map(|e| format!(" + {}", e.name())).collect(),
+            source: source.into(),
+        })?;
+    let locate = locate(&observed, &before);
     Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity })
 }

@@ -27,9 +27,10 @@ pub struct Observed {
     pub rate_parts: Option<[Vec<usize>; 2]>,
     /// Ratio of the 90th to the 10th percentile of the motion's instantaneous frequency.
     pub rate_spread: Option<f64>,
-    /// Fit on `training`, judge on `held_out`.
-    pub training: Vec<usize>,
-    pub held_out: Vec<usize>,
+    /// Every sample, in order: the subset the whole-data fits run on.
+    samples: Vec<usize>,
+    /// Fit on [`Observed::training`], judge on [`Observed::held_out`].
+    split: HeldOut,
     /// Effects this data cannot reveal, with why.
     pub cannot_reveal: Vec<(Effect, String)>,
     /// The ends of a recording's legs as (deflection, sample index): the first sample, every
@@ -39,14 +40,42 @@ pub struct Observed {
     leg_ends: Option<Vec<(f64, usize)>>,
 }
 
+/// Which samples a model is fitted on and which it is judged on.
+#[derive(Clone, Debug)]
+enum HeldOut {
+    /// A recording's last quarter, from this sample on: both are slices of the list of every
+    /// sample, so that no further list of indices is kept (8 bytes a sample at 10 M samples).
+    Tail(usize),
+    /// A table's alternate points of each branch.
+    Apart { training: Vec<usize>, held_out: Vec<usize> },
+}
+
 impl Observed {
-    pub fn new(dataset: &Dataset, prepared: &Prepared) -> Observed {
-        Observed::with_data(dataset, prepared, prepared.data.clone())
+    /// Every sample, in order.
+    pub fn samples(&self) -> &[usize] {
+        &self.samples
     }
 
-    /// [`Observed::new`] taking `data`, the prepared samples (`prepared.data`, which the caller
-    /// may have moved out: the diagnosis then holds the samples once).
-    pub fn with_data(dataset: &Dataset, prepared: &Prepared, data: FitData) -> Observed {
+    /// The samples the held-out check fits on.
+    pub fn training(&self) -> &[usize] {
+        match &self.split {
+            HeldOut::Tail(split) => &self.samples[..*split],
+            HeldOut::Apart { training, .. } => training,
+        }
+    }
+
+    /// The samples the held-out check judges on.
+    pub fn held_out(&self) -> &[usize] {
+        match &self.split {
+            HeldOut::Tail(split) => &self.samples[*split..],
+            HeldOut::Apart { held_out, .. } => held_out,
+        }
+    }
+
+    /// What `dataset` offers the diagnosis, with `data`, its prepared samples (moved out of
+    /// `prepared`: the diagnosis holds them once). A recording's time and input angle are
+    /// moved in, and its other columns dropped.
+    pub fn with_data(dataset: Dataset, prepared: &Prepared, data: FitData) -> Observed {
         let n = data.theta.len();
         let mut observed = Observed {
             noise: prepared.noise,
@@ -57,8 +86,8 @@ impl Observed {
             parts: [Vec::new(), Vec::new()],
             rate_parts: None,
             rate_spread: None,
-            training: Vec::new(),
-            held_out: Vec::new(),
+            samples: (0..n).collect(),
+            split: HeldOut::Tail(n),
             cannot_reveal: Vec::new(),
             leg_ends: None,
             data,
@@ -68,16 +97,18 @@ impl Observed {
             Dataset::LoopTable(_) => {
                 // Alternate points of each branch: both parts see every branch.
                 let mut seen = std::collections::HashMap::new();
+                let (mut training, mut held_out) = (Vec::new(), Vec::new());
                 for i in 0..n {
                     let k: &mut usize = seen.entry(prepared.branch[i]).or_default();
                     observed.parts[*k % 2].push(i);
                     if *k % 4 == 3 {
-                        observed.held_out.push(i)
+                        held_out.push(i)
                     } else {
-                        observed.training.push(i)
+                        training.push(i)
                     }
                     *k += 1;
                 }
+                observed.split = HeldOut::Apart { training, held_out };
                 for (effect, why) in [
                     (Effect::ViscousDamping, "a loop table has no time, so no deflection rate"),
                     (Effect::ChannelDelay, "a loop table has no time, so no deflection rate"),
@@ -92,12 +123,10 @@ impl Observed {
         observed
     }
 
-    fn add_recording(&mut self, recording: &Recording, prepared: &Prepared) {
+    fn add_recording(&mut self, recording: Recording, prepared: &Prepared) {
         let n = recording.time.len();
         self.parts = interleaved_cycles(n, prepared.segmentation.as_ref().map_or(&[][..], |s| &s.turning_points));
-        let split = n * 3 / 4;
-        self.training = (0..split).collect();
-        self.held_out = (split..n).collect();
+        self.split = HeldOut::Tail(n * 3 / 4);
         let legs = prepared.segmentation.as_ref().map_or(n, |s| n / (s.turning_points.len() + 1).max(1));
         let rate = local_slope(&recording.time, &recording.deflection, (legs / 50).max(2));
         let (spread, rate_parts) = rate_spread(&self.data, &rate);
@@ -119,7 +148,6 @@ impl Observed {
             self.rate_parts = Some(rate_parts);
         }
         self.rate = Some(rate);
-        self.time = Some(recording.time.clone());
         if let Some(segmentation) = &prepared.segmentation {
             let theta = &recording.deflection;
             let mut ends = Vec::with_capacity(segmentation.turning_points.len() + 2);
@@ -128,11 +156,11 @@ impl Observed {
             ends.push((theta[n - 1], n - 1));
             self.leg_ends = Some(ends);
         }
-        match &recording.angles {
+        match recording.angles {
             Some(angles) => {
                 let (lo, hi) = min_max(&angles.input);
                 if hi - lo >= std::f64::consts::TAU {
-                    self.input_angle = Some(angles.input.clone());
+                    self.input_angle = Some(angles.input);
                 } else {
                     self.cannot_reveal.push((
                         Effect::KinematicError,
@@ -154,6 +182,7 @@ impl Observed {
             }
             None => self.cannot_reveal.push((Effect::ThermalDrift, "the recording has no temperature column".into())),
         }
+        self.time = Some(recording.time);
     }
 
     /// Effects whose signature the data cannot show at all.

@@ -14,14 +14,14 @@ use rayon::prelude::*;
 /// Runs the greedy search for missing physics from the `baseline` parameters.
 pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Diagnosis, DiagnoseError> {
     let n = observed.data.theta.len();
-    let all: Vec<usize> = (0..n).collect();
+    let all = observed.samples();
     let baseline_model = Model::new(baseline_params).map_err(DiagnoseError::Baseline)?;
     let weights = match &observed.noise {
         Some(noise) => total_noise_weights(&observed.data, &baseline_model, noise).map_err(DiagnoseError::Baseline)?,
         None => vec![1.0; n],
     };
     let seed = ExtendedFit::start(baseline_params, baseline_model.r(), n);
-    let baseline = fit_extended(observed, &all, &weights, &[], &seed).map_err(DiagnoseError::BaselineRefit)?;
+    let baseline = fit_extended(observed, all, &weights, &[], &seed).map_err(DiagnoseError::BaselineRefit)?;
     let mut current = baseline.clone();
     let mut findings = Vec::new();
     let mut rejected = Vec::new();
@@ -43,7 +43,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 let mut active = current.active.clone();
                 active.push(effect);
                 // An effect whose columns cannot be fitted is no candidate.
-                let fit = fit_extended(observed, &all, &weights, &active, &current).ok()?;
+                let fit = fit_extended(observed, all, &weights, &active, &current).ok()?;
                 let drop = (current.chi2 - fit.chi2).max(0.0);
                 let evidence = Evidence {
                     delta_bic: drop / variance - columns(effect) as f64 * ln_n,
@@ -88,7 +88,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 reason.or_else(|| prediction_check(observed, &weights, &current, &fit))
             };
             let rivalry = match reason {
-                None => tell_rivals(observed, &all, &weights, &current, &fit, effect),
+                None => tell_rivals(observed, all, &weights, &current, &fit, effect),
                 Some(_) => Rivalry::Named,
             };
             match (reason, rivalry) {
@@ -105,7 +105,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             }
         }
         if accepted_fit.is_none() {
-            if let Some((pair, fit)) = consistent_pair(observed, &all, &weights, &current, &strong, variance, ln_n) {
+            if let Some((pair, fit)) = consistent_pair(observed, all, &weights, &current, &strong, variance, ln_n) {
                 rejected.retain(|r| !pair.iter().any(|(e, _, _)| *e == r.effect));
                 accepted = pair;
                 accepted_fit = Some(fit);
@@ -115,19 +115,19 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             // The rate-dependent torque is real but its mechanism is not told: the model keeps
             // it, so that no other effect leans on it, and the report names both candidates.
             if let Some((effect, fit, why, rival_magnitude)) = undecided_fit {
-                undecided.push(undecide(observed, &all, &current, &fit, effect, why, rival_magnitude)?);
+                undecided.push(undecide(observed, all, &current, &fit, effect, why, rival_magnitude)?);
                 current = fit;
                 continue;
             }
         }
         let Some(fit) = accepted_fit else { break };
         let rss_before =
-            unweighted_rss(observed, &current, &all).map_err(|source| refit_error(&current.active, source.into()))?;
+            unweighted_rss(observed, &current, all).map_err(|source| refit_error(&current.active, source.into()))?;
         let rss_after =
-            unweighted_rss(observed, &fit, &all).map_err(|source| refit_error(&fit.active, source.into()))?;
+            unweighted_rss(observed, &fit, all).map_err(|source| refit_error(&fit.active, source.into()))?;
         for (effect, evidence, mechanism_undecided) in accepted {
             if let Some((why, rival_magnitude)) = mechanism_undecided {
-                undecided.push(undecide(observed, &all, &current, &fit, effect, why, rival_magnitude)?);
+                undecided.push(undecide(observed, all, &current, &fit, effect, why, rival_magnitude)?);
                 continue;
             }
             findings.push(Finding {
@@ -143,7 +143,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
         }
         current = fit;
     }
-    let final_fit = fit_extended(observed, &all, &weights, &current.active, &current)
+    let final_fit = fit_extended(observed, all, &weights, &current.active, &current)
         .map_err(|source| refit_error(&current.active, source))?;
     for finding in &mut findings {
         finding.magnitude = final_fit.magnitude(finding.effect);
@@ -154,12 +154,12 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
         let [effect, rival] = kept.effects;
         kept.magnitudes[0] = final_fit.magnitude(effect);
         let swapped: Vec<Effect> = final_fit.active.iter().map(|&e| if e == effect { rival } else { e }).collect();
-        if let Ok(rival_fit) = fit_extended(observed, &all, &weights, &swapped, &final_fit) {
+        if let Ok(rival_fit) = fit_extended(observed, all, &weights, &swapped, &final_fit) {
             kept.magnitudes[1] = rival_fit.magnitude(rival);
         }
     }
     let held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
-    let final_residuals = final_fit.residuals(observed, &all).map_err(|e| refit_error(&final_fit.active, e.into()))?;
+    let final_residuals = final_fit.residuals(observed, all).map_err(|e| refit_error(&final_fit.active, e.into()))?;
     match form::judge(observed, &weights, &final_fit, &final_residuals, held_out_rms.map(|h| h.1)) {
         structure @ (Structure::Noise | Structure::Unexplained(_)) => Ok(Diagnosis {
             baseline,
@@ -190,8 +190,8 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                     evidence: finding.evidence,
                 });
             }
-            let final_fit = fit_extended(observed, &all, &weights, &kept, &baseline)
-                .map_err(|source| refit_error(&kept, source))?;
+            let final_fit =
+                fit_extended(observed, all, &weights, &kept, &baseline).map_err(|source| refit_error(&kept, source))?;
             let held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
             // An undecided torque that stood in for the shape goes with the shape.
             undecided.retain(|u| kept.contains(&u.effects[0]));
@@ -656,14 +656,14 @@ fn held_out(
     baseline: &ExtendedFit,
     final_fit: &ExtendedFit,
 ) -> Result<Option<(f64, f64)>, DiagnoseError> {
-    if observed.held_out.is_empty() || observed.training.len() < 10 {
+    if observed.held_out().is_empty() || observed.training().len() < 10 {
         return Ok(None);
     }
     let rms = |fit: &ExtendedFit| -> Result<f64, DiagnoseError> {
-        let trained = fit_extended(observed, &observed.training, weights, &fit.active, fit)
+        let trained = fit_extended(observed, observed.training(), weights, &fit.active, fit)
             .map_err(|source| refit_error(&fit.active, source))?;
         let residuals = trained
-            .residuals(observed, &observed.held_out)
+            .residuals(observed, observed.held_out())
             .map_err(|source| refit_error(&fit.active, source.into()))?;
         Ok((residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64).sqrt())
     };
