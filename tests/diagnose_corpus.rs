@@ -1,7 +1,10 @@
 //! The diagnosis on a corpus of simulated recordings: every effect alone and concealed (its
-//! RMS share of the baseline's residual between 0.5× and 1.5× the noise RMS), pairs of effects, and
-//! recordings with none (turning input, several excitation frequencies, a temperature column).
-//! Exactly the right set must be named, each magnitude within 25 % of the truth.
+//! RMS share of the baseline's residual between 0.5× and 1.5× the noise RMS), pairs of effects,
+//! recordings with none (turning input, several excitation frequencies, a temperature column),
+//! active loops, gears of other physics, and channel delays. On every genetic gear exactly the
+//! right set must be found — named, or kept as either of two (damping or a delay) — each
+//! magnitude within 25 % of the truth, but for the cases of stated known limits; no effect may
+//! be named on a gear of other physics or for its rival (wrong physics), on any case.
 //!
 //! Gears, noise, excitation, magnitudes and seeds are drawn at random from the case's seed;
 //! `SWG_CORPUS_SEED=N` shifts every seed, to check the detector on recordings it was never
