@@ -220,6 +220,20 @@ impl<F: Copy> Params<F> {
         }
     }
 
+    /// The set with parameter `name` replaced by `value`.
+    pub fn with(&self, name: ParamName, value: F) -> Params<F> {
+        let mut p = *self;
+        match name {
+            ParamName::C1 => p.c1 = value,
+            ParamName::C2 => p.c2 = value,
+            ParamName::C3 => p.c3 = value,
+            ParamName::Alpha => p.alpha = value,
+            ParamName::Beta => p.beta = value,
+            ParamName::Omega => p.omega = value,
+        }
+        p
+    }
+
     /// Each parameter converted by `convert`, which may refuse one (the first refusal wins).
     pub fn try_map<G, E>(&self, mut convert: impl FnMut(ParamName, F) -> Result<G, E>) -> Result<Params<G>, E> {
         Ok(Params {

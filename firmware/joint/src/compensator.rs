@@ -515,14 +515,7 @@ mod tests {
         for name in model_core::ParamName::ALL {
             let mut params = paper();
             let p = genetic(&mut params);
-            match name {
-                model_core::ParamName::C1 => p.c1 = 1.0e38,
-                model_core::ParamName::C2 => p.c2 = 1.0e38,
-                model_core::ParamName::C3 => p.c3 = 1.0e38,
-                model_core::ParamName::Alpha => p.alpha = 1.0e38,
-                model_core::ParamName::Beta => p.beta = 1.0e38,
-                model_core::ParamName::Omega => p.omega = 1.0e-38,
-            }
+            *p = p.with(name, if name == model_core::ParamName::Omega { 1.0e-38 } else { 1.0e38 });
             cases.push((params, ParamField::from(name)));
         }
         let slip_case = |edit: &dyn Fn(&mut SlipModel), field| {

@@ -7,7 +7,7 @@
 //! parameters, it explains at least [`MIN_EXPLAINED`] of the weighted residual, and it does
 //! better on the last quarter of the recording, held out of both fits.
 use super::effects::Effect;
-use super::extended::ExtendedFit;
+use super::extended::{direction_sign, ExtendedFit};
 use super::observed::Observed;
 use super::{MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::fit::motion::{fit_micro_slip, micro_slip_with_columns, Motion};
@@ -64,9 +64,7 @@ fn torque_column(observed: &Observed, effect: Effect) -> Option<Vec<f64>> {
     let n = d.theta.len();
     match effect {
         Effect::TorqueOffset => Some(vec![1.0; n]),
-        Effect::CoulombFriction => {
-            Some(d.direction.iter().map(|dir| if *dir == model_core::Direction::Rising { 1.0 } else { -1.0 }).collect())
-        }
+        Effect::CoulombFriction => Some(d.direction.iter().map(|&dir| direction_sign(dir)).collect()),
         Effect::ViscousDamping => observed.rate.clone(),
         Effect::ThermalDrift => observed.warming.as_ref().map(|w| w.iter().zip(&d.theta).map(|(w, t)| w * t).collect()),
         // A delay's torque −τ·K·dθ/dt follows the model's own stiffness, which the form

@@ -216,15 +216,7 @@ mod tests {
 
         let mut cases: Vec<(GearModel, ParamField)> = Vec::new();
         for name in model_core::ParamName::ALL {
-            let mut p = PAPER_TABLE_2;
-            match name {
-                model_core::ParamName::C1 => p.c1 = 1e38,
-                model_core::ParamName::C2 => p.c2 = 1e38,
-                model_core::ParamName::C3 => p.c3 = 1e38,
-                model_core::ParamName::Alpha => p.alpha = 1e38,
-                model_core::ParamName::Beta => p.beta = 1e38,
-                model_core::ParamName::Omega => p.omega = 1e-38,
-            }
+            let p = PAPER_TABLE_2.with(name, if name == model_core::ParamName::Omega { 1e-38 } else { 1e38 });
             cases.push((GearModel::Genetic(p), ParamField::from(name)));
         }
         let slip = |edit: &dyn Fn(&mut SlipParams<f64, SLIP_ELEMENTS>)| {
