@@ -62,7 +62,7 @@ fn swg_host_hil_prints_json_and_draws() {
     let params = write_params_file(dir.path(), &passive);
     let plots = dir.path().join("plots");
     let port = qemu.address();
-    // Two seconds: four steps of 0.5 s, each held 0.2 s after its settling time.
+    // Two seconds: four steps of 0.5 s, the limit cycle measured over the last 0.25 s of each.
     let args = ["hil", params.to_str().unwrap(), "--port", &port, "--scenario", "torque-steps", "--seconds", "2"];
     let output = swg_host(&[&args[..], &["--json", "--plot", plots.to_str().unwrap()]].concat());
     let report = json(&output);

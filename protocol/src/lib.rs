@@ -24,8 +24,9 @@ use serde::{Deserialize, Serialize};
 /// kind in [`JointParams::model`] (genetic or micro-slip), the evaluator's memory in
 /// [`Feedforward`]. Version 3: the joint's torque controller ([`Request::Configure`],
 /// [`Request::SetReference`], the lockstep [`Request::Control`] and their responses, the
-/// error replies [`ErrorReply::InvalidGain`] and [`ErrorReply::MotorDrive`]).
-pub const PROTOCOL_VERSION: u16 = 3;
+/// error replies [`ErrorReply::InvalidGain`] and [`ErrorReply::MotorDrive`]). Version 4: the
+/// controller's integral deadband and torsion damping in [`ControllerConfig`].
+pub const PROTOCOL_VERSION: u16 = 4;
 
 /// Largest encoded frame, delimiter included: the longest message (a micro-slip
 /// [`Response::Params`] with every varint at its maximum) takes 109 bytes (tested), with room
@@ -305,17 +306,19 @@ impl fmt::Display for ControlMode {
     }
 }
 
-/// The torque controller's mode and gains. With e = T_ref − T̂ and ω the motor's velocity
-/// above the firmware's damping cutoff (3 Hz: the joint's modes, not its slow travel), the
-/// motor torque command is
+/// The torque controller's mode and gains. With e = T_ref − T̂, N the gear ratio, θ the
+/// deflection and ω the motor's velocity above the firmware's damping cutoff (3 Hz: the
+/// joint's modes, not its slow travel), the motor torque command is
 ///
 /// ```text
-/// u = T_ref/N + s·kp·e + ∫ ki·e dt − damping·ω,   |u| ≤ command_limit
+/// u = T_ref/N + s·kp·e + ∫ ki·e dt + torsion_damping·N·(s·Ṫ_ref/stiffness − θ̇) − damping·ω
 /// ```
 ///
-/// in `Linear` and `Model` modes (s = 1, or in `Model` mode the gain schedule
-/// clamp(stiffness / K, ¼, 2) with K the model's dT/dθ, so that the loop gain stays that of the
-/// nominal stiffness), and u = T_ref/N in `OpenLoop`.
+/// with |u| ≤ command_limit and the integral held while |e| ≤ integral_deadband, in `Linear`
+/// and `Model` modes (s = 1, or in `Model` mode the gain schedule clamp(stiffness / K, ¼, 2)
+/// with K the model's dT/dθ, so that the loop gain stays that of the nominal stiffness and
+/// s·Ṫ_ref/stiffness is the deflection rate the reference asks for), and u = T_ref/N in
+/// `OpenLoop`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ControllerConfig {
@@ -324,8 +327,14 @@ pub struct ControllerConfig {
     pub kp: f32,
     /// Integral gain, motor N·m per N·m·s of joint-torque error (≥ 0).
     pub ki: f32,
+    /// The integral rests while |e| is within this, N·m (≥ 0): about one encoder count of
+    /// torque, so that quantisation and the motor's stiction cannot make it hunt.
+    pub integral_deadband: f32,
     /// Damping of the motor's velocity (above the cutoff), motor N·m per rad/s (≥ 0).
     pub damping: f32,
+    /// Damping of the gear's deflection rate against the one the reference asks for, motor
+    /// N·m per rad/s at the motor (N·θ̇) (≥ 0).
+    pub torsion_damping: f32,
     /// The linear mode's stiffness and the model mode's nominal stiffness, N·m/rad (> 0).
     pub stiffness: f32,
     /// |u| is clamped to this, N·m at the motor shaft (> 0).
@@ -344,6 +353,8 @@ pub enum GainField {
     Stiffness,
     CommandLimit,
     Period,
+    IntegralDeadband,
+    TorsionDamping,
 }
 
 impl GainField {
@@ -355,6 +366,8 @@ impl GainField {
             GainField::Stiffness => "stiffness",
             GainField::CommandLimit => "command_limit",
             GainField::Period => "period",
+            GainField::IntegralDeadband => "integral_deadband",
+            GainField::TorsionDamping => "torsion_damping",
         }
     }
 }
@@ -371,7 +384,9 @@ impl ControllerConfig {
         let fields = [
             (GainField::Kp, self.kp, self.kp >= 0.0),
             (GainField::Ki, self.ki, self.ki >= 0.0),
+            (GainField::IntegralDeadband, self.integral_deadband, self.integral_deadband >= 0.0),
             (GainField::Damping, self.damping, self.damping >= 0.0),
+            (GainField::TorsionDamping, self.torsion_damping, self.torsion_damping >= 0.0),
             (GainField::Stiffness, self.stiffness, self.stiffness > 0.0),
             (GainField::CommandLimit, self.command_limit, self.command_limit > 0.0),
             (GainField::Period, self.period, self.period > 0.0 && self.period <= 1.0),

@@ -90,6 +90,8 @@ pub struct HilReport {
     pub stiffness: f64,
     /// The torque of 2 encoder counts of deflection at that stiffness, N·m: the limit-cycle goal.
     pub two_counts_nm: f64,
+    /// The controller's integral deadband: one encoder count of deflection at that stiffness, N·m.
+    pub integral_deadband_nm: f64,
     pub seconds: f64,
     pub rate_hz: f64,
     pub gains: Gains,
@@ -136,13 +138,16 @@ pub fn run(link: &mut Link, model: &GearModel, options: &HilOptions) -> Result<H
         return Err(HilError::Protocol { device: device.protocol_version });
     }
     let ticks = (options.seconds * options.rate_hz).round() as usize;
+    // The torque measurement's resolution: within it the integral has nothing to act on.
+    let integral_deadband_nm = stiffness * options.plant.deflection_count();
+    let config = |mode| controller_config(mode, &options.gains, stiffness, integral_deadband_nm, period);
     let mut runs = Vec::new();
     let mut wall = Duration::ZERO;
     for &scenario in &options.scenarios {
         for &mode in &options.modes {
             // The model from rest, the controller afresh, the plant at rest.
             link.write_params(&pushed)?;
-            link.configure(&controller_config(mode, &options.gains, stiffness, period))?;
+            link.configure(&config(mode))?;
             let mut plant = Plant::new(options.plant, &options.truth, scenario.environment())?;
             let mut trace = Vec::with_capacity(ticks);
             let start = Instant::now();
@@ -190,14 +195,15 @@ pub fn run(link: &mut Link, model: &GearModel, options: &HilOptions) -> Result<H
             });
         }
     }
-    link.configure(&controller_config(ControlMode::Off, &options.gains, stiffness, period))?;
-    let two_counts_nm = 2.0 * stiffness * options.plant.deflection_count();
+    link.configure(&config(ControlMode::Off))?;
+    let two_counts_nm = 2.0 * integral_deadband_nm;
     Ok(HilReport {
         device,
         pushed,
         runs,
         stiffness,
         two_counts_nm,
+        integral_deadband_nm,
         seconds: options.seconds,
         rate_hz: options.rate_hz,
         gains: options.gains,
@@ -264,18 +270,24 @@ mod tests {
         println!("stiffness {:.0} N·m/rad, 2 counts {:.3} N·m", report.stiffness, report.two_counts_nm);
     }
 
-    /// The stated gains on the simulated plant: every mode stays bounded in every scenario
-    /// (no divergence, the command saturates rarely), and the closed-loop modes settle at
-    /// constant references.
+    /// The stated gains on the simulated plant, with the firmware's own controller: every mode
+    /// stays bounded in every scenario (no divergence, the command saturates rarely); at every
+    /// constant reference no mode holds a limit cycle above 2 encoder counts of torque; and the
+    /// model mode's RMS is at least 3× lower than both other modes' on `torque-sine` and
+    /// `contact` (README's goals, on the micro-slip gear; `bench/hil.sh` adds the genetic one).
     #[test]
-    fn the_stated_gains_are_stable_on_the_plant() {
+    fn the_stated_gains_meet_the_goals_on_the_plant() {
         let truth = slip_truth();
         let model = fitted(&truth);
         let mut link = FakeDevice::new().link();
-        let options = HilOptions { seconds: 3.0, ..HilOptions::new(truth) };
+        let options = HilOptions::new(truth);
         let report = run(&mut link, &model, &options).unwrap();
         print(&report);
         assert_eq!(report.runs.len(), 12);
+        let rms = |scenario: Scenario, mode: ControlMode| {
+            let run = report.runs.iter().find(|r| r.scenario == scenario && r.mode == mode).unwrap();
+            run.score.unwrap().rms_nm
+        };
         for run in &report.runs {
             assert_eq!(run.fallbacks, 0, "{:?} {:?}", run.scenario, run.mode);
             let score = run.score.unwrap_or_else(|| panic!("{:?} {:?} diverged", run.scenario, run.mode));
@@ -283,10 +295,15 @@ mod tests {
             assert!(score.max_nm < 1.6 * 16.0, "{:?} {:?}: {score:?}", run.scenario, run.mode);
             let saturated = run.ticks.iter().filter(|t| t.command.abs() >= options.gains.command_limit * 0.999).count();
             assert!(saturated < run.ticks.len() / 50, "{:?} {:?}: {saturated} ticks saturated", run.scenario, run.mode);
-            if run.mode != ControlMode::OpenLoop {
-                if let Some(cycle) = score.limit_cycle_nm {
-                    assert!(cycle < 1.0, "{:?} {:?}: limit cycle {cycle}", run.scenario, run.mode);
-                }
+            if let Some(cycle) = score.limit_cycle_nm {
+                assert!(cycle <= report.two_counts_nm, "{:?} {:?}: limit cycle {cycle}", run.scenario, run.mode);
+            }
+        }
+        for scenario in [Scenario::TorqueSine, Scenario::Contact] {
+            let model = rms(scenario, ControlMode::Model);
+            for other in [ControlMode::OpenLoop, ControlMode::Linear] {
+                let ratio = rms(scenario, other) / model;
+                assert!(ratio >= 3.0, "{scenario:?}: {other:?} / model = {ratio:.2}");
             }
         }
     }
@@ -296,7 +313,7 @@ mod tests {
     #[test]
     fn without_parameters_the_joint_is_not_driven() {
         let mut link = FakeDevice::new().link();
-        let config = controller_config(ControlMode::Model, &super::super::GAINS, 9000.0, 1.0e-3);
+        let config = controller_config(ControlMode::Model, &super::super::GAINS, 9000.0, 0.05, 1.0e-3);
         link.configure(&config).unwrap();
         let out = link.control(&ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 10.0 }).unwrap();
         assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));

@@ -54,14 +54,16 @@ pub struct Gains {
     pub kp: f64,
     /// Motor N·m per N·m·s of torque error.
     pub ki: f64,
-    /// Motor N·m per rad/s of motor velocity.
+    /// Motor N·m per rad/s of motor velocity (above 3 Hz).
     pub damping: f64,
+    /// Motor N·m per rad/s of the deflection rate's error at the motor (N·θ̇).
+    pub torsion_damping: f64,
     /// |motor torque command| limit, N·m at the motor.
     pub command_limit: f64,
 }
 
 /// The stated gains.
-pub const GAINS: Gains = Gains { kp: 0.04, ki: 3.0, damping: 0.015, command_limit: 1.0 };
+pub const GAINS: Gains = Gains { kp: 0.06, ki: 6.0, damping: 0.015, torsion_damping: 0.03, command_limit: 1.0 };
 
 /// The torque range the linear mode's one stiffness is fitted over, N·m: the scenarios'
 /// references stay within it.
@@ -108,14 +110,22 @@ pub fn linear_stiffness(model: &GearModel) -> Result<f64, HilError> {
     Ok(stiffness)
 }
 
-/// The controller configuration of `mode` with [`Gains`], the linear `stiffness` and the
-/// control `period`.
-pub fn controller_config(mode: ControlMode, gains: &Gains, stiffness: f64, period: f64) -> ControllerConfig {
+/// The controller configuration of `mode` with [`Gains`], the linear `stiffness`, the
+/// integral's `deadband` (N·m) and the control `period`.
+pub fn controller_config(
+    mode: ControlMode,
+    gains: &Gains,
+    stiffness: f64,
+    deadband: f64,
+    period: f64,
+) -> ControllerConfig {
     ControllerConfig {
         mode,
         kp: gains.kp as f32,
         ki: gains.ki as f32,
+        integral_deadband: deadband as f32,
         damping: gains.damping as f32,
+        torsion_damping: gains.torsion_damping as f32,
         stiffness: stiffness as f32,
         command_limit: gains.command_limit as f32,
         period: period as f32,

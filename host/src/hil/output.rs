@@ -1,6 +1,6 @@
 //! What `swg-host hil` hands on: the JSON, the text table, the pictures.
 use super::lockstep::{HilReport, HilRun};
-use super::scenario::{Scenario, HOLD_SETTLING_S, SETTLING_S};
+use super::scenario::{Scenario, HOLD_FRACTION, SETTLING_S};
 use crate::report::finite::{to_json, NotFinite};
 use crate::report::plot::{control_svg, ControlSeries, PlotError};
 use serde::Serialize;
@@ -28,6 +28,8 @@ struct GainsJson {
     kp: f64,
     ki_per_s: f64,
     damping_nm_s_per_rad: f64,
+    torsion_damping_nm_s_per_rad: f64,
+    integral_deadband_nm: f64,
     command_limit_nm: f64,
 }
 
@@ -37,7 +39,8 @@ struct ReportJson<'a> {
     seconds: f64,
     rate_hz: f64,
     settling_s: f64,
-    hold_settling_s: f64,
+    /// The limit cycle is measured on this last fraction of each constant-reference window.
+    hold_fraction: f64,
     linear_stiffness_nm_per_rad: f64,
     two_counts_nm: f64,
     gains: GainsJson,
@@ -67,13 +70,15 @@ impl HilReport {
             seconds: self.seconds,
             rate_hz: self.rate_hz,
             settling_s: SETTLING_S,
-            hold_settling_s: HOLD_SETTLING_S,
+            hold_fraction: HOLD_FRACTION,
             linear_stiffness_nm_per_rad: self.stiffness,
             two_counts_nm: self.two_counts_nm,
             gains: GainsJson {
                 kp: self.gains.kp,
                 ki_per_s: self.gains.ki,
                 damping_nm_s_per_rad: self.gains.damping,
+                torsion_damping_nm_s_per_rad: self.gains.torsion_damping,
+                integral_deadband_nm: self.integral_deadband_nm,
                 command_limit_nm: self.gains.command_limit,
             },
             wall_s_per_simulated_s: self.wall_per_simulated_second(),
@@ -87,13 +92,22 @@ impl HilReport {
         let _ = writeln!(
             text,
             "{} s per run at {} Hz; errors of the true torque against the reference from {SETTLING_S} s on; \
-             limit cycle = peak-to-peak torque at a constant reference from {HOLD_SETTLING_S} s after it became constant",
-            self.seconds, self.rate_hz
+             limit cycle = peak-to-peak torque over the last {:.0} % of each window of constant reference",
+            self.seconds,
+            self.rate_hz,
+            100.0 * HOLD_FRACTION
         );
         let _ = writeln!(
             text,
-            "gains: kp {} N·m/N·m, ki {} N·m/(N·m·s), damping {} N·m·s/rad (motor side), |u| ≤ {} N·m; linear stiffness {:.0} N·m/rad; 2 encoder counts = {:.3} N·m",
-            self.gains.kp, self.gains.ki, self.gains.damping, self.gains.command_limit, self.stiffness, self.two_counts_nm
+            "gains: kp {} N·m/N·m, ki {} N·m/(N·m·s) (at rest within {:.3} N·m), damping {} and torsion damping {} N·m·s/rad (motor side), |u| ≤ {} N·m; linear stiffness {:.0} N·m/rad; 2 encoder counts = {:.3} N·m",
+            self.gains.kp,
+            self.gains.ki,
+            self.integral_deadband_nm,
+            self.gains.damping,
+            self.gains.torsion_damping,
+            self.gains.command_limit,
+            self.stiffness,
+            self.two_counts_nm
         );
         let _ = writeln!(
             text,

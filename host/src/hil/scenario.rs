@@ -7,8 +7,10 @@ use std::f64::consts::TAU;
 /// Errors are scored from this time on, s: the start-up transient (from rest, the first
 /// reference step) is not what the comparison is about.
 pub const SETTLING_S: f64 = 0.5;
-/// A constant reference counts for the limit cycle from this long after it became constant, s.
-pub const HOLD_SETTLING_S: f64 = 0.3;
+/// A limit cycle is what persists: it is measured on this last fraction of each window of
+/// constant reference, once the step's or the ramp's transient (the gravity link swings for
+/// about a second after its ramp) has died away.
+pub const HOLD_FRACTION: f64 = 0.5;
 
 /// The scenarios of `swg-host hil`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -100,7 +102,7 @@ impl Scenario {
     }
 
     /// Seconds of simulated time a run lasts unless told otherwise.
-    pub const DEFAULT_SECONDS: f64 = 3.0;
+    pub const DEFAULT_SECONDS: f64 = 4.0;
 
     /// The output side.
     pub fn environment(self) -> Environment {
@@ -150,8 +152,8 @@ impl Scenario {
         }
     }
 
-    /// The windows [start, end) of a run of `seconds` where the reference is constant and has
-    /// been for [`HOLD_SETTLING_S`]: where the limit cycle is measured. Empty for the sine.
+    /// The windows [start, end) of a run of `seconds` where the limit cycle is measured: the
+    /// last [`HOLD_FRACTION`] of each window of constant reference. Empty for the sine.
     pub fn holds(self, seconds: f64) -> Vec<(f64, f64)> {
         let windows: Vec<(f64, f64)> = match self {
             Scenario::TorqueSine => Vec::new(),
@@ -163,7 +165,7 @@ impl Scenario {
         };
         windows
             .into_iter()
-            .map(|(start, end)| (start + HOLD_SETTLING_S, end))
+            .map(|(start, end)| (end - HOLD_FRACTION * (end - start), end))
             .filter(|(start, end)| start < end)
             .collect()
     }

@@ -120,9 +120,11 @@ fn controlling(compensator: Compensator, last: f32) -> (Controller, Compensator)
     let mut controller = Controller::new();
     let config = ControllerConfig {
         mode: ControlMode::Model,
-        kp: 0.04,
-        ki: 3.0,
+        kp: 0.06,
+        ki: 6.0,
+        integral_deadband: 0.1,
         damping: 0.015,
+        torsion_damping: 0.03,
         stiffness: 9000.0,
         command_limit: 1.0,
         period: 1.0e-3,
