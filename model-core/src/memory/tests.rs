@@ -341,6 +341,88 @@ fn non_finite_deflections_are_errors_that_change_nothing() {
     assert_eq!(slip, slip_before);
 }
 
+/// Grid indices of a motion that fills a stack of 16 and retraces past it (20 nested
+/// reversals), closes an inner loop exactly at its target (−560 → 580 → −560: the reversal
+/// pops the branch and pushes its target again) and wipes out everything (past ±900).
+fn deep_motion() -> Vec<i32> {
+    let mut points: Vec<i32> = (0..20).map(|k| if k % 2 == 0 { 900 - 20 * k } else { -(900 - 20 * k) }).collect();
+    points.extend([-560, 580, -560, 950, -300]);
+    points
+}
+
+/// Steps `h` through `thetas`, each sample preceded by the steps to each of `bad`, which must
+/// fail (by overflow) and leave `h` exactly as it was: the whole state, including stack slots
+/// above the depth, although such a step may already have turned, pushed the extreme and
+/// popped every turning point before the spring overflowed. The good sample after them gives
+/// the bits and the state an untouched copy gives.
+fn failed_steps_change_nothing<F: Real, H: Hysteretic<F> + Copy + PartialEq + core::fmt::Debug>(
+    mut h: H,
+    thetas: &[F],
+    bad: &[F],
+    what: &str,
+) -> H {
+    for (i, &theta) in thetas.iter().enumerate() {
+        let before = h;
+        for &b in bad {
+            assert_eq!(h.step(b), Err(Error::Overflow), "{what}: sample {i}, step to {b:?}");
+            assert_eq!(h, before, "{what}: sample {i}, after the failed step to {b:?}");
+        }
+        let mut untouched = before;
+        let (got, want) = (h.step(theta).unwrap(), untouched.step(theta).unwrap());
+        let bits = |e: Evaluation<F>| (e.torque.integer_decode(), e.stiffness.integer_decode());
+        assert_eq!(bits(got), bits(want), "{what}: sample {i}");
+        assert_eq!(h, untouched, "{what}: sample {i}");
+    }
+    h
+}
+
+#[test]
+fn a_failed_step_leaves_the_state_as_it_was_at_any_depth() {
+    let step = A / 1000.0;
+    let thetas = grid_path(&deep_motion(), step);
+    let thetas_f32: Vec<f32> = thetas.iter().map(|&t| t as f32).collect();
+    let (m, m32) = (model(PAPER_TABLE_2), Model::new(PAPER_TABLE_2.to_f32()).unwrap());
+    // The spring overflows beyond about 1e62 rad in f64 and 1e8 rad in f32, on either side.
+    let (bad, bad32) = ([1e300, -1e300], [1e30f32, -1e30]);
+    for band in [0.0, 2.5 * step] {
+        let mut deepest = GeneticMemory::<f64, 16>::new(m, band);
+        let mut depth = 0;
+        for &theta in &thetas {
+            deepest.step(theta).unwrap();
+            depth = depth.max(deepest.depth());
+        }
+        assert!(depth == 16 && deepest.depth() == 1, "the motion fills the stack and wipes it out");
+        failed_steps_change_nothing(GeneticMemory::<f64, 16>::new(m, band), &thetas, &bad, "N=16");
+        failed_steps_change_nothing(GeneticMemory::<f64, 4>::new(m, band), &thetas, &bad, "N=4");
+        let f32_memory = GeneticMemory::<f32, 16>::new(m32, band as f32);
+        failed_steps_change_nothing(f32_memory, &thetas_f32, &bad32, "f32, N=16");
+    }
+    let slip = failed_steps_change_nothing(micro_slip(), &thetas, &bad, "micro-slip");
+    assert!(slip.slipping() > 0);
+    let slip32 = MicroSlip::new(slip_params().to_f32()).unwrap();
+    failed_steps_change_nothing(slip32, &thetas_f32, &bad32, "micro-slip, f32");
+}
+
+/// The count of slipping elements that the step keeps is the elements' own (|e_i| = d_i),
+/// after every step, and 0 at rest.
+#[test]
+fn micro_slip_counts_its_slipping_elements() {
+    let mut slip = micro_slip();
+    assert_eq!(slip.slipping(), 0);
+    let mut seen = std::collections::BTreeSet::new();
+    for theta in grid_path(&deep_motion(), A / 1000.0) {
+        slip.step(theta).unwrap();
+        let elements = slip.elements();
+        assert_eq!(slip.slipping(), elements.sticking().iter().filter(|sticks| !**sticks).count());
+        let at_limit = elements.elastic().iter().zip(elements.slip()).filter(|(e, d)| e.abs() == **d).count();
+        assert_eq!(slip.slipping(), at_limit);
+        seen.insert(slip.slipping());
+    }
+    assert!(seen.len() > 4, "{seen:?}");
+    slip.reset();
+    assert_eq!(slip, micro_slip());
+}
+
 #[test]
 fn bad_arguments_are_errors() {
     let m = model(PAPER_TABLE_2);
