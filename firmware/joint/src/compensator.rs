@@ -46,11 +46,7 @@ impl Evaluator {
     fn memory(&self) -> (Option<Direction>, u8) {
         match self {
             Evaluator::Genetic { memory, .. } => (memory.direction(), memory.depth() as u8),
-            Evaluator::MicroSlip(slip) => {
-                let elements = slip.elements();
-                let slipping = elements.elastic().iter().zip(elements.slip()).filter(|(e, d)| e.abs() >= **d).count();
-                (None, slipping as u8)
-            }
+            Evaluator::MicroSlip(slip) => (None, slip.slipping() as u8),
         }
     }
 }
@@ -122,7 +118,9 @@ impl Compensator {
         if self.staged.is_some() {
             self.active = self.staged.take();
         }
-        let off = Feedforward {
+        // Built where it is returned: a value made up front was stored to the result on
+        // every tick, then overwritten.
+        const OFF: Feedforward = Feedforward {
             deflection: 0.0,
             torque: 0.0,
             stiffness: 0.0,
@@ -130,24 +128,32 @@ impl Compensator {
             direction: None,
             memory: 0,
         };
-        let Some(installed) = self.active.as_mut() else { return off };
+        let Some(installed) = self.active.as_mut() else { return OFF };
         let deflection = input_angle / installed.params.gear_ratio - output_angle;
         if deflection.is_nan() || deflection.abs() > MAX_DEFLECTION {
-            return off;
+            return OFF;
         }
         let evaluation = installed.evaluator.step(deflection, path);
         let (direction, memory) = installed.evaluator.memory();
         let Some(evaluation) = evaluation else {
-            return Feedforward { deflection, direction, memory, ..off };
+            return Feedforward { deflection, direction, memory, ..OFF };
         };
         let limit = installed.params.torque_limit;
-        let (torque, stiffness, compensation) = if evaluation.torque.abs() <= limit {
-            (evaluation.torque, evaluation.stiffness, Compensation::Active)
-        } else {
-            // Saturated: the output no longer changes with θ.
-            (limit.copysign(evaluation.torque), 0.0, Compensation::Clamped)
-        };
-        Feedforward { deflection, torque, stiffness, compensation, direction, memory }
+        if evaluation.torque.abs() <= limit {
+            let (torque, stiffness) = (evaluation.torque, evaluation.stiffness);
+            return Feedforward {
+                deflection,
+                torque,
+                stiffness,
+                compensation: Compensation::Active,
+                direction,
+                memory,
+            };
+        }
+        // Saturated: the output no longer changes with θ. (A branch of its own: computed for
+        // every tick, the copysign cost a few instructions on the M4F.)
+        let torque = limit.copysign(evaluation.torque);
+        Feedforward { deflection, torque, stiffness: 0.0, compensation: Compensation::Clamped, direction, memory }
     }
 }
 
