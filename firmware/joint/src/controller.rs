@@ -79,18 +79,31 @@ pub struct Controller {
     /// The last input angle, rad, and the motor velocity's low-pass, rad/s.
     last_input: Option<f32>,
     slow_velocity: f32,
+    /// The low-pass's weight per tick, from the period: computed once in `configure`, as the
+    /// tick's instruction count (`bench/firmware.sh`, ≤ 600 with the evaluator) has no room.
+    smoothing: f32,
 }
 
 impl Controller {
     /// At boot: not configured, u = 0.
     pub const fn new() -> Self {
-        Controller { config: None, reference: 0.0, integral: 0.0, last: None, last_input: None, slow_velocity: 0.0 }
+        Controller {
+            config: None,
+            reference: 0.0,
+            integral: 0.0,
+            last: None,
+            last_input: None,
+            slow_velocity: 0.0,
+            smoothing: 0.0,
+        }
     }
 
     /// Validates and installs `config`; the integral and the velocity start afresh.
     pub fn configure(&mut self, config: ControllerConfig) -> Result<(), ErrorReply> {
         config.validate()?;
-        *self = Controller { config: Some(config), reference: self.reference, ..Controller::new() };
+        // First-order low-pass at the cutoff (forward Euler, at most the whole step).
+        let smoothing = limit(core::f32::consts::TAU * DAMPING_CUTOFF_HZ * config.period, 0.0, 1.0);
+        *self = Controller { config: Some(config), reference: self.reference, smoothing, ..Controller::new() };
         Ok(())
     }
 
@@ -136,9 +149,7 @@ impl Controller {
             _ => self.slow_velocity,
         };
         self.last_input = input_angle.is_finite().then_some(input_angle);
-        // First-order low-pass at the cutoff (forward Euler, at most the whole step).
-        let smoothing = limit(core::f32::consts::TAU * DAMPING_CUTOFF_HZ * config.period, 0.0, 1.0);
-        self.slow_velocity += smoothing * (velocity - self.slow_velocity);
+        self.slow_velocity += self.smoothing * (velocity - self.slow_velocity);
         let fast_velocity = velocity - self.slow_velocity;
         let feedforward_command = reference / params.gear_ratio;
         // The torque estimate and the gain schedule, or None for an open-loop tick.
