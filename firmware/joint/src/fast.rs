@@ -1,10 +1,10 @@
 //! The per-tick evaluation of T(θ) and dT/dθ in a few dozen FPU instructions.
 //!
 //! model-core's f32 path calls libm's `asinf`/`expf`, which on the Cortex-M4F go through
-//! software double-precision helpers (722.8 instructions per T_ff + K evaluation, measured by
+//! software double-precision helpers (716.5 instructions per T_ff + K evaluation, measured by
 //! `bench/firmware.sh`). This path runs model-core's own formula ([`Phase`], [`Polynomial`])
 //! with a polynomial arcsine (Abramowitz–Stegun 4.4.46), a range-reduced polynomial
-//! exponential and the FPU's `vsqrt` (206 instructions); the constants that depend only on
+//! exponential and the FPU's `vsqrt` (191 instructions); the constants that depend only on
 //! the parameters (k = α/(ω(1 + r²)), r = β/ω) are prepared once when a set is installed.
 //! Error against the f64 model: see the tests (`fast_path_error_bound`).
 use crate::limit;

@@ -72,7 +72,7 @@ impl HilReport {
             settling_s: SETTLING_S,
             hold_fraction: HOLD_FRACTION,
             linear_stiffness_nm_per_rad: self.stiffness,
-            two_counts_nm: self.two_counts_nm,
+            two_counts_nm: self.two_counts_nm(),
             gains: GainsJson {
                 kp: self.gains.kp,
                 ki_per_s: self.gains.ki,
@@ -107,7 +107,7 @@ impl HilReport {
             self.gains.torsion_damping,
             self.gains.command_limit,
             self.stiffness,
-            self.two_counts_nm
+            self.two_counts_nm()
         );
         let _ = writeln!(
             text,

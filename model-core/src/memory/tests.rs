@@ -522,14 +522,7 @@ fn micro_slip_loops_are_point_symmetric_and_dissipate() {
 #[test]
 fn micro_slip_runs_in_f32() {
     let p = slip_params();
-    let p32 = SlipParams {
-        c1: p.c1 as f32,
-        c2: p.c2 as f32,
-        c3: p.c3 as f32,
-        stiffness: p.stiffness.map(|k| k as f32),
-        slip_min: p.slip_min as f32,
-        slip_max: p.slip_max as f32,
-    };
+    let p32 = p.to_f32();
     let mut s32 = MicroSlip::new(p32).unwrap();
     let mut s64 = micro_slip();
     let (scale, _) = loop_scales(&model(PAPER_TABLE_2), A).unwrap();
