@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Figures of the closed loop (swg-host hil) on the emulated Cortex-M4F; not a test.
-# For each truth physics — the simulator's micro-slip gear (defaults) and a passive genetic gear
+# For each truth physics — the simulator's micro-slip and Bouc–Wen gears (defaults; the pushed
+# model is the micro-slip kind fitted to each) and a passive genetic gear
 # (bench/hil-genetic-gear.json; the bundled seed fit runs its loop the active way and a joint
 # built on it gains energy) — the model pushed to the joint is the one `swg-host fit` identifies
 # from a simulated recording of that truth (random motion of peak 1 mrad, 20-bit encoders,
@@ -9,7 +10,7 @@
 # Writes bench/out/hil.md (the table), bench/out/hil-*.json and the pictures in bench/out/hil/,
 # and copies the contact picture on the micro-slip gear to docs/hil-contact.svg.
 # RMS, max and limit cycle are deterministic (lockstep, seeded recordings); the wall time per
-# simulated second is the median over the 24 runs.
+# simulated second is the median over the 36 runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -40,11 +41,15 @@ sleep 0.5
 
 recording_options=(--motion random --amplitude 0.001 --frequency 1 --cycles 4 --rate 1000
     --input-bits 20 --output-bits 20 --torque-noise 0.02 --ratio 50 --seed 1)
-for truth in micro-slip genetic; do
+for truth in micro-slip bouc-wen genetic; do
     case $truth in
         micro-slip)
             simulate=(--physics micro-slip)
             gear=(--physics micro-slip)
+            kind=micro-slip ;;
+        bouc-wen)
+            simulate=(--physics bouc-wen)
+            gear=(--physics bouc-wen)
             kind=micro-slip ;;
         genetic)
             simulate=(--physics genetic --params bench/hil-genetic-gear.json)
@@ -68,7 +73,7 @@ cp "$out/hil/hil-contact-micro-slip.svg" docs/hil-contact.svg
 python3 - "$out" <<'PY'
 import json, statistics, sys
 out = sys.argv[1]
-reports = {truth: json.load(open(f"{out}/hil-{truth}.json")) for truth in ["micro-slip", "genetic"]}
+reports = {truth: json.load(open(f"{out}/hil-{truth}.json")) for truth in ["micro-slip", "bouc-wen", "genetic"]}
 lines = []
 first = reports["micro-slip"]
 g = first["gains"]

@@ -314,7 +314,7 @@ impl fmt::Display for ControlMode {
 /// u = T_ref/N + s·kp·e + ∫ ki·e dt + torsion_damping·N·(s·Ṫ_ref/stiffness − θ̇) − damping·ω
 /// ```
 ///
-/// with |u| ≤ command_limit and the integral held while |e| ≤ integral_deadband, in `Linear`
+/// with |u| ≤ command_limit and the integral held while s·|e| ≤ integral_deadband, in `Linear`
 /// and `Model` modes (s = 1, or in `Model` mode the gain schedule clamp(stiffness / K, ¼, 2)
 /// with K the model's dT/dθ, so that the loop gain stays that of the nominal stiffness and
 /// s·Ṫ_ref/stiffness is the deflection rate the reference asks for), and u = T_ref/N in
@@ -327,8 +327,9 @@ pub struct ControllerConfig {
     pub kp: f32,
     /// Integral gain, motor N·m per N·m·s of joint-torque error (≥ 0).
     pub ki: f32,
-    /// The integral rests while |e| is within this, N·m (≥ 0): about one encoder count of
-    /// torque, so that quantisation and the motor's stiction cannot make it hunt.
+    /// The integral rests while s·|e| is within this, N·m (≥ 0): about one encoder count of
+    /// torque at `stiffness` (so one count at the stiffness in use, stiffness/s), so that
+    /// quantisation and the motor's stiction cannot make it hunt.
     pub integral_deadband: f32,
     /// Damping of the motor's velocity (above the cutoff), motor N·m per rad/s (≥ 0).
     pub damping: f32,

@@ -8,7 +8,7 @@
 //!
 //! ```text
 //! u = T_ref/N + s·kp·e + I + torsion_damping·N·(s·Ṫ_ref/stiffness − θ̇) − damping·ω
-//! I ← clamp(I + ki·e·period, ±command_limit)   while |e| > integral_deadband
+//! I ← clamp(I + ki·e·period, ±command_limit)   while s·|e| > integral_deadband
 //! ```
 //!
 //! clamped to ±command_limit (the integral is not advanced while u is clamped in the
@@ -30,6 +30,8 @@
 //!   the cutoff only, so that the motor's slow travel is not resisted.
 //! - **The integral's deadband** is the torque measurement's resolution: within one encoder
 //!   count the integral has nothing to act on, and would hunt against the motor's stiction.
+//!   `integral_deadband` is that count at the nominal stiffness; at the stiffness in use,
+//!   stiffness/s, it is integral_deadband/s.
 //!
 //! **Safe modes.** Without a valid parameter set the controller commands u = 0 and reports
 //! `Off`, whatever mode is configured: it knows neither N nor the deflection. A tick whose
@@ -188,8 +190,9 @@ impl Controller {
             feedforward_command + schedule * config.kp * error + self.integral + config.torsion_damping * torsion_rate
                 - config.damping * fast_velocity;
         let (command, saturated) = clamp(unclamped, bound);
-        // Conditional integration: not further into a clamped command, not within the deadband.
-        if !(saturated && (error > 0.0) == (unclamped > 0.0)) && error.abs() > config.integral_deadband {
+        // Conditional integration: not further into a clamped command, not within the deadband
+        // (one encoder count of torque at the stiffness in use).
+        if !(saturated && (error > 0.0) == (unclamped > 0.0)) && error.abs() * schedule > config.integral_deadband {
             self.integral = limit(self.integral + config.ki * error * config.period, -bound, bound);
         }
         if !(self.integral.is_finite() && self.slow_velocity.is_finite()) {
@@ -379,23 +382,33 @@ mod tests {
     }
 
     /// Within the deadband the integral rests, beyond it the integral acts: on a joint held at
-    /// one deflection (T̂ = stiffness·θ in `Linear` mode), the command stays put for an error
-    /// of 0.04 N·m (deadband 0.05) and grows by ki·e·period a tick for 0.06 N·m.
+    /// one deflection, the command stays put for an error of 0.8 deadbands and grows by
+    /// ki·e·period a tick for 1.2; a deadband is one count at the stiffness in use, so
+    /// integral_deadband/s in `Model` mode (s < 1 here: the model is stiffer than nominal).
     #[test]
     fn the_integral_rests_within_its_deadband() {
         let theta = 0.5e-3f32;
-        let estimate = 9000.0 * theta;
-        for (error, grows) in [(0.04f32, false), (0.06, true)] {
-            let (mut controller, mut compensator) = installed(ControlMode::Linear);
-            let first = controller.tick(&mut compensator, theta * RATIO, 0.0, estimate + error).command;
-            let later =
-                (0..100).map(|_| controller.tick(&mut compensator, theta * RATIO, 0.0, estimate + error)).last();
-            let growth = later.unwrap().command - first;
-            let per_tick = config(ControlMode::Linear).ki * error * PERIOD;
-            if grows {
-                assert!((growth - 100.0 * per_tick).abs() < 0.05 * 100.0 * per_tick, "{error}: {growth}");
-            } else {
-                assert_eq!(growth, 0.0, "{error}");
+        let mut reference = Compensator::new();
+        reference.stage(slip()).unwrap();
+        let held = reference.tick(theta * RATIO, 0.0, EvalPath::Fast);
+        let model_schedule = limit(9000.0 / held.stiffness, SCHEDULE_RANGE.0, SCHEDULE_RANGE.1);
+        assert!(model_schedule < 0.9, "{model_schedule}");
+        for (mode, estimate, schedule) in
+            [(ControlMode::Linear, 9000.0 * theta, 1.0), (ControlMode::Model, held.torque, model_schedule)]
+        {
+            let deadband = config(mode).integral_deadband / schedule;
+            for (error, grows) in [(0.8 * deadband, false), (1.2 * deadband, true)] {
+                let (mut controller, mut compensator) = installed(mode);
+                let first = controller.tick(&mut compensator, theta * RATIO, 0.0, estimate + error).command;
+                let later =
+                    (0..100).map(|_| controller.tick(&mut compensator, theta * RATIO, 0.0, estimate + error)).last();
+                let growth = later.unwrap().command - first;
+                let per_tick = config(mode).ki * error * PERIOD;
+                if grows {
+                    assert!((growth - 100.0 * per_tick).abs() < 0.05 * 100.0 * per_tick, "{mode:?} {error}: {growth}");
+                } else {
+                    assert_eq!(growth, 0.0, "{mode:?} {error}");
+                }
             }
         }
     }
