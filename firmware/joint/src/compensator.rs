@@ -109,6 +109,12 @@ impl Compensator {
         self.staged.as_ref().or(self.active.as_ref()).map(|installed| installed.params)
     }
 
+    /// The gear ratio of the set the last tick used: the controller's, each tick, without
+    /// copying the whole set as [`Compensator::params`] does.
+    pub fn active_gear_ratio(&self) -> Option<f32> {
+        self.active.as_ref().map(|installed| installed.params.gear_ratio)
+    }
+
     /// One control tick on the two encoder angles (rad; the input side multi-turn).
     /// Never NaN: without valid parameters, with a deflection that is not finite or beyond
     /// [`MAX_DEFLECTION`], or when the model cannot be evaluated, the compensation is off,

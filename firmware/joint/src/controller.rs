@@ -140,7 +140,7 @@ impl Controller {
         self.reference = reference;
         let feedforward = compensator.tick(input_angle, output_angle, EvalPath::Fast);
         let off = ControlOutput { command: 0.0, estimate: 0.0, mode: ControlMode::Off, saturated: false };
-        let (Some(config), Some(params)) = (self.config, compensator.params()) else {
+        let (Some(config), Some(gear_ratio)) = (self.config, compensator.active_gear_ratio()) else {
             self.last = None;
             self.last_input = None;
             return off;
@@ -153,7 +153,7 @@ impl Controller {
         self.last_input = input_angle.is_finite().then_some(input_angle);
         self.slow_velocity += self.smoothing * (velocity - self.slow_velocity);
         let fast_velocity = velocity - self.slow_velocity;
-        let feedforward_command = reference / params.gear_ratio;
+        let feedforward_command = reference / gear_ratio;
         // The torque estimate and the gain schedule, or None for an open-loop tick.
         let closed = match config.mode {
             ControlMode::Off => return off,
@@ -180,7 +180,7 @@ impl Controller {
         let torsion_rate = match self.last {
             Some((last_deflection, last_reference)) => {
                 let wanted = schedule * (reference - last_reference) / config.stiffness;
-                params.gear_ratio * (wanted - (deflection - last_deflection)) / config.period
+                gear_ratio * (wanted - (deflection - last_deflection)) / config.period
             }
             None => 0.0,
         };
