@@ -9,7 +9,7 @@
 //! Gears, noise, excitation, magnitudes and seeds are drawn at random from the case's seed;
 //! `SWG_CORPUS_SEED=N` shifts every seed, to check the detector on recordings it was never
 //! run on (`bench/diagnose.sh` does that and reports both runs).
-use model_core::{Identifiable, Model, Params};
+use model_core::{GearModel, Identifiable, Model, Params};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -55,11 +55,17 @@ struct Setting {
     temperature: bool,
 }
 
+/// The genetic truth every corpus case simulates.
+fn genetic(sim: &Simulation) -> Params<f64> {
+    let GearModel::Genetic(params) = sim.params else { unreachable!("the corpus simulates the genetic kind") };
+    params
+}
+
 /// RMS of the true model's residual on a recording: the noise (torque and errors in θ) as
 /// the diagnosis sees it.
 fn noise_rms(sim: &Simulation) -> f64 {
     let prepared = prepare(&Dataset::Recording(simulate(sim).unwrap())).unwrap();
-    let model = Model::new(sim.params).unwrap();
+    let model = Model::new(genetic(sim)).unwrap();
     (rss(&model, &prepared.data).unwrap() / prepared.data.theta.len() as f64).sqrt()
 }
 
@@ -97,7 +103,7 @@ fn make_case(name: &str, effects: &[Effect], setting: Setting, seed: u64) -> Cas
     let base = rng.random_range(0.2..0.5);
     let frequencies: Vec<f64> = (0..setting.frequencies).map(|k| base * (1.0 + k as f64)).collect();
     let mut simulation = Simulation {
-        params,
+        params: GearModel::Genetic(params),
         amplitude_rad: amplitude,
         cycles: if frequencies.len() > 1 { 3 } else { 5 },
         frequencies_hz: frequencies,
@@ -135,7 +141,7 @@ fn make_case(name: &str, effects: &[Effect], setting: Setting, seed: u64) -> Cas
     Case {
         name: format!("{name} (seed {seed})"),
         simulation,
-        physics: Physics::Genetic,
+        physics: Physics::Model,
         motion: Motion::Sine,
         truth,
         active: false,
@@ -154,7 +160,9 @@ fn other_physics_case(
 ) -> Case {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let simulation = Simulation {
-        params: Params::from_identifiable(2.0e4, 4.0e9, 0.0, Identifiable { h: 1.5, r: 1.2 }, 1.2e-3).unwrap(),
+        params: GearModel::Genetic(
+            Params::from_identifiable(2.0e4, 4.0e9, 0.0, Identifiable { h: 1.5, r: 1.2 }, 1.2e-3).unwrap(),
+        ),
         amplitude_rad: rng.random_range(1.0e-3..1.3e-3),
         cycles: 4,
         frequencies_hz: frequencies,
@@ -265,16 +273,18 @@ fn corpus(base_seed: u64) -> Vec<Case> {
     // torque channel or the branch labels are off. Flagged, and no effect is named for it.
     for frequencies in [1, 2] {
         let mut case = make_case("none, active loop", &[], Setting { frequencies, ..plain }, next());
-        let p = case.simulation.params;
+        let p = genetic(&case.simulation);
         let id = p.identifiable(case.simulation.amplitude_rad).unwrap();
-        case.simulation.params = Params::from_identifiable(
-            p.c1,
-            p.c2,
-            p.c3,
-            Identifiable { h: -id.h, r: id.r },
-            case.simulation.amplitude_rad,
-        )
-        .unwrap();
+        case.simulation.params = GearModel::Genetic(
+            Params::from_identifiable(
+                p.c1,
+                p.c2,
+                p.c3,
+                Identifiable { h: -id.h, r: id.r },
+                case.simulation.amplitude_rad,
+            )
+            .unwrap(),
+        );
         case.active = true;
         cases.push(case);
     }
@@ -361,7 +371,7 @@ fn run(case: &Case) -> Outcome {
     let undecided = diagnosis.undecided.iter().flat_map(|u| u.effects.into_iter().zip(u.magnitudes)).collect();
     let rejected =
         diagnosis.rejected.iter().map(|r| format!("{} ({:.3e}): {}", r.effect, r.magnitude, r.reason)).collect();
-    let other_physics = !matches!(case.physics, Physics::Genetic);
+    let other_physics = !matches!(case.physics, Physics::Model);
     Outcome {
         name: case.name.clone(),
         named,
@@ -472,7 +482,9 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
 fn damping_on_a_linear_gear_is_not_told_from_a_channel_delay() {
     let amplitude = 1.2e-3;
     let simulation = Simulation {
-        params: Params::from_identifiable(2.0e4, 0.0, 0.0, Identifiable { h: -0.3, r: 1.0 }, amplitude).unwrap(),
+        params: GearModel::Genetic(
+            Params::from_identifiable(2.0e4, 0.0, 0.0, Identifiable { h: -0.3, r: 1.0 }, amplitude).unwrap(),
+        ),
         amplitude_rad: amplitude,
         cycles: 3,
         frequencies_hz: vec![0.3, 0.6],

@@ -25,7 +25,7 @@ fn the_micro_slip_model_predicts_a_micro_slip_gear_near_the_floor() {
 
 #[test]
 fn the_genetic_model_with_memory_predicts_a_genetic_gear_near_the_floor() {
-    let [symmetric, genetic, _] = ratios(&Physics::Genetic, "random", "biased");
+    let [symmetric, genetic, _] = ratios(&Physics::Model, "random", "biased");
     assert!(genetic <= 1.3, "genetic model: {genetic:.2}× the floor");
     assert!(symmetric > 3.0 * genetic, "today's rule {symmetric:.2}× against {genetic:.2}×");
 }

@@ -22,7 +22,7 @@ use swg_host::simulate::{BoucWen, MicroSlip, Physics};
 
 fn main() {
     let physics = [
-        ("genetic", Physics::Genetic),
+        ("genetic", Physics::Model),
         ("micro-slip", Physics::MicroSlip(MicroSlip::default())),
         ("bouc-wen", Physics::BoucWen(BoucWen::default())),
     ];

@@ -3,10 +3,10 @@
 //! physics recorded under five motions, the models fitted on one motion, run along another.
 // The benchmark and the test each use their own part of it.
 #![allow(dead_code)]
-use model_core::{Identifiable, Model, Params};
+use model_core::{GearModel, Identifiable, Model, Params};
 use swg_host::fit::motion::{fit_genetic, fit_micro_slip, Motion as FitMotion};
 use swg_host::fit::{fit, FitOptions};
-use swg_host::gear::{reversal_band, run, GearModel};
+use swg_host::gear::{reversal_band, run};
 use swg_host::input::Recording;
 use swg_host::prepare::{deflection_noise, from_recording};
 use swg_host::simulate::{simulate_experiment, Experiment, Motion, Physics, Simulation, Trajectory};
@@ -33,7 +33,7 @@ pub fn motion(name: &str) -> Motion {
 
 pub fn simulation(noisy: bool) -> Simulation {
     Simulation {
-        params: genetic_gear(),
+        params: GearModel::Genetic(genetic_gear()),
         amplitude_rad: 1.168e-3,
         frequencies_hz: vec![0.5],
         cycles: 4,
@@ -65,8 +65,8 @@ pub fn max_step(t: &[f64]) -> f64 {
 /// The models fitted to one training recording.
 pub struct Fitted {
     pub symmetric: Params<f64>,
-    pub genetic: GearModel,
-    pub micro_slip: GearModel,
+    pub genetic: GearModel<f64>,
+    pub micro_slip: GearModel<f64>,
 }
 
 pub fn fit_all(recording: &Recording) -> Fitted {
@@ -84,7 +84,7 @@ pub fn fit_all(recording: &Recording) -> Fitted {
     Fitted {
         symmetric,
         genetic: fit_genetic(&motion, &options).expect("genetic fit").model,
-        micro_slip: fit_micro_slip(&motion).expect("micro-slip fit").model,
+        micro_slip: fit_micro_slip(&motion, &options).expect("micro-slip fit").model,
     }
 }
 
@@ -117,7 +117,7 @@ pub fn case(physics: &Physics, name: &'static str) -> Case {
 pub fn predictions(fitted: &Fitted, case: &Case) -> [Vec<f64>; 3] {
     let measured = &case.measured;
     let band = reversal_band(deflection_noise(&measured.deflection));
-    let stateful = |model: &GearModel| -> Vec<f64> {
+    let stateful = |model: &GearModel<f64>| -> Vec<f64> {
         run(model, &measured.deflection, band).expect("runs").iter().map(|e| e.torque).collect()
     };
     [symmetric_prediction(&fitted.symmetric, measured), stateful(&fitted.genetic), stateful(&fitted.micro_slip)]

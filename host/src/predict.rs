@@ -1,8 +1,9 @@
 //! The `predict` pipeline: a fitted model run along a recording's deflection from rest, with
 //! hysteresis memory (model-core's stateful evaluator), as the joint's firmware runs it.
-use crate::gear::{reversal_band, run, GearModel};
+use crate::gear::{reversal_band, run};
 use crate::input::Recording;
 use crate::prepare::deflection_noise;
+use model_core::GearModel;
 
 /// The model's torque and stiffness at every sample of a recording.
 #[derive(Clone, Debug, PartialEq)]
@@ -42,7 +43,7 @@ pub enum PredictError {
 
 /// Runs `model` along `recording` from rest. `band` is the smallest reversal
 /// the evaluator follows, rad; `None` takes [`reversal_band`] of the recording's deflection noise, as `fit` does.
-pub fn predict(model: &GearModel, recording: &Recording, band: Option<f64>) -> Result<Prediction, PredictError> {
+pub fn predict(model: &GearModel<f64>, recording: &Recording, band: Option<f64>) -> Result<Prediction, PredictError> {
     let band = match band {
         Some(band) if band.is_finite() && band >= 0.0 => band,
         Some(band) => return Err(PredictError::Band(band)),

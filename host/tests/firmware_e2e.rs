@@ -9,17 +9,15 @@ use qemu::Qemu;
 
 use common::{swg_host_echoed as swg_host, write_params_file};
 use model_core::checks::{SEED_AMPLITUDE, SEED_TABLE_FIT as SEED};
-use model_core::SlipParams;
-use model_core::{Params, MODEL_VERSION};
+use model_core::{GearModel, ParamName, Params, SlipParams, MODEL_VERSION, SLIP_ELEMENTS};
 use std::net::TcpListener;
-use swg_host::gear::{GearModel, SLIP_ELEMENTS};
 use swg_host::link::push::{joint_params, push, JointSettings};
 use swg_host::link::replay::{device_model, replay, samples};
 use swg_host::link::LinkError;
 use swg_host::simulate::{simulate, Simulation};
 use swg_protocol::{
-    encode_to_vec, encode_with_version, ErrorReply, EvalPath, JointModel, JointParams, ParamFault, ParamField, Request,
-    Response, MAX_FRAME_LEN, PROTOCOL_VERSION,
+    encode_to_vec, encode_with_version, ErrorReply, EvalPath, JointParams, ParamFault, ParamField, Request, Response,
+    MAX_FRAME_LEN, PROTOCOL_VERSION,
 };
 
 /// The seed table's fit (canonical form, ω = 1).
@@ -30,7 +28,7 @@ const SETTINGS: JointSettings = JointSettings { gear_ratio: RATIO, torque_limit:
 /// Two loops at 1 Hz of the seed model through 20-bit encoders, 1 kHz.
 fn recording() -> swg_host::input::Recording {
     simulate(&Simulation {
-        params: SEED,
+        params: GearModel::Genetic(SEED),
         amplitude_rad: SEED_AMPLITUDE,
         frequencies_hz: vec![1.0],
         cycles: 2,
@@ -107,7 +105,7 @@ fn push_read_back_and_replay_match_the_host_model() {
 }
 
 /// A micro-slip gear of the seed's size: 16 elements, log grid 10 µrad … 2 mrad.
-fn slip_model() -> GearModel {
+fn slip_model() -> GearModel<f64> {
     let mut stiffness = [0.0; SLIP_ELEMENTS];
     for (i, k) in stiffness.iter_mut().enumerate() {
         *k = 120.0 + 15.0 * i as f64;
@@ -158,7 +156,7 @@ fn both_kinds_follow_arbitrary_motion_as_the_host_model_does() {
     let mut link = firmware.ready_link();
     let expected = joint_params(&slip_model(), &SETTINGS).unwrap();
     assert_eq!(link.read_params().unwrap(), Some(expected));
-    assert!(matches!(expected.model, JointModel::MicroSlip(_)));
+    assert!(matches!(expected.model, GearModel::MicroSlip(_)));
     for model in [slip_model(), GearModel::Genetic(SEED)] {
         let joint = joint_params(&model, &SETTINGS).unwrap();
         push(&mut link, &joint).unwrap();
@@ -192,7 +190,7 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
     let mut firmware = Qemu::boot();
     let mut link = firmware.ready_link();
     let good = joint_params(&GearModel::Genetic(SEED), &SETTINGS).unwrap();
-    let JointModel::Genetic(good_model) = good.model else { unreachable!() };
+    let GearModel::Genetic(good_model) = good.model else { unreachable!() };
     push(&mut link, &good).unwrap();
 
     let frame = encode_to_vec(&Request::WriteParams(JointParams { torque_limit: 5.0, ..good })).unwrap();
@@ -201,21 +199,21 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
     let truncated = [&frame[..frame.len() / 2], &[0u8]].concat();
     let mut other_version = [0u8; MAX_FRAME_LEN];
     let len = encode_with_version(PROTOCOL_VERSION + 1, &Request::ReadParams, &mut other_version).unwrap();
-    let nan = JointParams { model: JointModel::Genetic(Params { beta: f32::NAN, ..good_model }), ..good };
+    let nan = JointParams { model: GearModel::Genetic(Params { beta: f32::NAN, ..good_model }), ..good };
     let out_of_range = JointParams { gear_ratio: 0.0, ..good };
-    let infinite = JointParams { model: JointModel::Genetic(Params { c1: f32::INFINITY, ..good_model }), ..good };
-    let JointModel::MicroSlip(slip) = joint_params(&slip_model(), &SETTINGS).unwrap().model else { unreachable!() };
+    let infinite = JointParams { model: GearModel::Genetic(Params { c1: f32::INFINITY, ..good_model }), ..good };
+    let GearModel::MicroSlip(slip) = joint_params(&slip_model(), &SETTINGS).unwrap().model else { unreachable!() };
     let mut negative = slip;
     negative.stiffness[11] = -5.0;
-    let negative = JointParams { model: JointModel::MicroSlip(negative), ..good };
+    let negative = JointParams { model: GearModel::MicroSlip(negative), ..good };
     let mut inverted = slip;
     inverted.slip_max = inverted.slip_min / 2.0;
-    let inverted = JointParams { model: JointModel::MicroSlip(inverted), ..good };
+    let inverted = JointParams { model: GearModel::MicroSlip(inverted), ..good };
     // Finite, but the model overflows f32 within |θ| ≤ MAX_DEFLECTION: refused, not committed.
-    let overflowing = JointParams { model: JointModel::Genetic(Params { c3: 1.0e38, ..good_model }), ..good };
+    let overflowing = JointParams { model: GearModel::Genetic(Params { c3: 1.0e38, ..good_model }), ..good };
     let mut stiff = slip;
     stiff.stiffness[3] = 1.0e38;
-    let stiff = JointParams { model: JointModel::MicroSlip(stiff), ..good };
+    let stiff = JointParams { model: GearModel::MicroSlip(stiff), ..good };
     let garbage = [0x13u8; 400];
 
     let cases: Vec<(&str, Vec<u8>, ErrorReply)> = vec![
@@ -229,12 +227,12 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
         (
             "NaN parameter",
             encode_to_vec(&Request::WriteParams(nan)).unwrap(),
-            ErrorReply::InvalidParam { field: ParamField::Beta, fault: ParamFault::NotFinite },
+            ErrorReply::InvalidParam { field: ParamField::Model(ParamName::Beta), fault: ParamFault::NotFinite },
         ),
         (
             "infinite parameter",
             encode_to_vec(&Request::WriteParams(infinite)).unwrap(),
-            ErrorReply::InvalidParam { field: ParamField::C1, fault: ParamFault::NotFinite },
+            ErrorReply::InvalidParam { field: ParamField::Model(ParamName::C1), fault: ParamFault::NotFinite },
         ),
         (
             "out-of-range parameter",
@@ -244,22 +242,28 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
         (
             "negative element stiffness",
             encode_to_vec(&Request::WriteParams(negative)).unwrap(),
-            ErrorReply::InvalidParam { field: ParamField::SlipStiffness(11), fault: ParamFault::OutOfRange },
+            ErrorReply::InvalidParam {
+                field: ParamField::Model(ParamName::SlipStiffness(11)),
+                fault: ParamFault::OutOfRange,
+            },
         ),
         (
             "slip range upside down",
             encode_to_vec(&Request::WriteParams(inverted)).unwrap(),
-            ErrorReply::InvalidParam { field: ParamField::SlipMax, fault: ParamFault::OutOfRange },
+            ErrorReply::InvalidParam { field: ParamField::Model(ParamName::SlipMax), fault: ParamFault::OutOfRange },
         ),
         (
             "c3 that overflows f32 in range",
             encode_to_vec(&Request::WriteParams(overflowing)).unwrap(),
-            ErrorReply::InvalidParam { field: ParamField::C3, fault: ParamFault::OutOfRange },
+            ErrorReply::InvalidParam { field: ParamField::Model(ParamName::C3), fault: ParamFault::OutOfRange },
         ),
         (
             "element stiffness that overflows f32 in range",
             encode_to_vec(&Request::WriteParams(stiff)).unwrap(),
-            ErrorReply::InvalidParam { field: ParamField::SlipStiffness(3), fault: ParamFault::OutOfRange },
+            ErrorReply::InvalidParam {
+                field: ParamField::Model(ParamName::SlipStiffness(3)),
+                fault: ParamFault::OutOfRange,
+            },
         ),
         ("line noise", [&garbage[..], &[0u8]].concat(), ErrorReply::FrameTooLong),
     ];

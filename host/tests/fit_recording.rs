@@ -1,6 +1,6 @@
 //! Fitting simulated recordings: the fit must do as well as the true parameters, across
 //! noise levels, encoder resolutions, input motion and excitation.
-use model_core::{Direction, Model, Params};
+use model_core::{Direction, GearModel, Model, Params};
 use swg_host::fit::{fit, rss, FitOptions};
 use swg_host::input::Dataset;
 use swg_host::prepare::prepare;
@@ -18,7 +18,7 @@ fn decaying_gear() -> Params<f64> {
 
 fn base(params: Params<f64>, seed: u64) -> Simulation {
     Simulation {
-        params,
+        params: GearModel::Genetic(params),
         amplitude_rad: 1.168e-3,
         frequencies_hz: vec![0.25],
         cycles: 5,
@@ -48,16 +48,22 @@ fn curve_gap(a: &Params<f64>, b: &Params<f64>, amplitude: f64) -> f64 {
     gap
 }
 
+/// The genetic truth of a simulation made by [`base`].
+fn truth(sim: &Simulation) -> Params<f64> {
+    let GearModel::Genetic(params) = sim.params else { unreachable!("base() simulates the genetic kind") };
+    params
+}
+
 fn check(sim: &Simulation, label: &str) {
     let recording = simulate(sim).unwrap();
     let prepared = prepare(&Dataset::Recording(recording)).unwrap();
     let options = FitOptions { noise: prepared.noise, ..FitOptions::default() };
     let fitted = fit(&prepared.data, &options, |_| {}).unwrap();
-    let true_rss = rss(&Model::new(sim.params).unwrap(), &prepared.data).unwrap();
+    let true_rss = rss(&Model::new(truth(sim)).unwrap(), &prepared.data).unwrap();
     let ratio = (fitted.rss / true_rss).sqrt();
     assert!((0.9..=1.1).contains(&ratio), "{label}: RMS fit/true = {ratio:.4} ({} vs {})", fitted.rss, true_rss);
     // The fitted loop lies on the true one: within a few torque-noise σ everywhere inside.
-    let gap = curve_gap(&fitted.params, &sim.params, sim.amplitude_rad);
+    let gap = curve_gap(&fitted.params, &truth(sim), sim.amplitude_rad);
     assert!(gap < 10.0 * sim.torque_noise_nm.max(0.01), "{label}: loop differs by up to {gap:.4} N·m");
 }
 
@@ -86,7 +92,7 @@ fn weighting_by_total_noise_beats_plain_least_squares() {
         let prepared = prepare(&Dataset::Recording(simulate(&sim).unwrap())).unwrap();
         let gap = |noise| {
             let fitted = fit(&prepared.data, &FitOptions { noise, ..FitOptions::default() }, |_| {}).unwrap();
-            curve_gap(&fitted.params, &sim.params, sim.amplitude_rad)
+            curve_gap(&fitted.params, &truth(&sim), sim.amplitude_rad)
         };
         let (weighted, plain) = (gap(prepared.noise), gap(None));
         assert!(weighted < 0.5 * plain, "seed {seed}: weighted {weighted:.4} vs plain {plain:.4} N·m");

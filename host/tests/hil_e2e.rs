@@ -10,9 +10,9 @@ use qemu::Qemu;
 
 use common::{json, swg_host_echoed as swg_host, write_params_file};
 use model_core::checks::MICRO_SLIP_SET;
+use model_core::GearModel;
 use model_core::Params;
 use std::time::Duration;
-use swg_host::gear::GearModel;
 use swg_host::hil::{self, GearTruth, HilOptions, Scenario};
 use swg_host::simulate::{MicroSlip, Physics};
 use swg_protocol::{ControlMode, PROTOCOL_VERSION};
@@ -29,7 +29,7 @@ fn the_firmware_closes_the_loop_in_lockstep() {
     assert_eq!(link.device_info().unwrap().protocol_version, PROTOCOL_VERSION);
     let truth = GearTruth::Physics {
         physics: Physics::MicroSlip(MicroSlip::default()),
-        genetic: model_core::checks::SEED_TABLE_FIT,
+        model: GearModel::Genetic(model_core::checks::SEED_TABLE_FIT),
     };
     let options = HilOptions { scenarios: vec![Scenario::Contact], seconds: 1.5, ..HilOptions::new(truth) };
     let report = hil::run(&mut link, &GearModel::MicroSlip(MICRO_SLIP_SET), &options).unwrap();

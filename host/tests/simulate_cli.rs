@@ -309,7 +309,7 @@ fn bad_options_are_named_and_nothing_is_written() {
         (&["--physics", "preisach"], "invalid value 'preisach' for '--physics"),
         (&["--bias", "1e-3"], "--bias is for --motion biased or hold, not --motion sine"),
         (&["--physics-params", json.to_str().unwrap()], "--physics-params is for --physics micro-slip or bouc-wen"),
-        (&["--physics", "bouc-wen", "--params", &params], "--params sets the genetic model"),
+        (&["--physics", "bouc-wen", "--params", &params], "--params sets the model of --physics genetic"),
         (
             &["--physics", "bouc-wen", "--physics-params", json.to_str().unwrap()],
             "p.json:3: column 6: unknown field `kk`",

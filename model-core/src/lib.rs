@@ -71,8 +71,11 @@ pub enum Direction {
     Falling,
 }
 
-/// One of the six model parameters, named in errors.
+/// A parameter of a [`GearModel`] of any kind, named in errors, files and the wire's error
+/// replies: the genetic kind's six, then the micro-slip kind's own (its c1, c2, c3 are `C1`,
+/// `C2`, `C3`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ParamName {
     C1,
@@ -81,14 +84,20 @@ pub enum ParamName {
     Alpha,
     Beta,
     Omega,
+    /// k_i of micro-slip element i.
+    SlipStiffness(u8),
+    SlipMin,
+    SlipMax,
 }
 
 impl ParamName {
-    /// Every parameter, in the order of [`Params`]' fields (and of files and the wire).
-    pub const ALL: [ParamName; 6] =
+    /// The genetic kind's parameters, in the order of [`Params`]' fields (and of files and the
+    /// wire).
+    pub const GENETIC: [ParamName; 6] =
         [ParamName::C1, ParamName::C2, ParamName::C3, ParamName::Alpha, ParamName::Beta, ParamName::Omega];
 
-    /// The parameter's name as written in files.
+    /// The parameter's name as written in files (an element's stiffness without its index; see
+    /// the `Display` form for that).
     pub const fn as_str(self) -> &'static str {
         match self {
             ParamName::C1 => "c1",
@@ -97,6 +106,31 @@ impl ParamName {
             ParamName::Alpha => "alpha",
             ParamName::Beta => "beta",
             ParamName::Omega => "omega",
+            ParamName::SlipStiffness(_) => "stiffness",
+            ParamName::SlipMin => "slip_min",
+            ParamName::SlipMax => "slip_max",
+        }
+    }
+
+    /// The parameter's unit, for reports.
+    pub const fn unit(self) -> &'static str {
+        match self {
+            ParamName::C1 | ParamName::SlipStiffness(_) => "N·m/rad",
+            ParamName::C2 => "N·m/rad³",
+            ParamName::C3 => "N·m/rad⁵",
+            ParamName::Alpha => "N·m/rad per unit of ω",
+            ParamName::Beta | ParamName::Omega => "1/s",
+            ParamName::SlipMin | ParamName::SlipMax => "rad",
+        }
+    }
+}
+
+impl fmt::Display for ParamName {
+    /// The name as in files; an element's stiffness with its index, `stiffness[3]`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamName::SlipStiffness(i) => write!(f, "stiffness[{i}]"),
+            name => f.write_str(name.as_str()),
         }
     }
 }
@@ -202,36 +236,17 @@ impl<F: Real> Params<F> {
 }
 
 impl<F: Copy> Params<F> {
-    /// Every parameter with its name, in [`ParamName::ALL`] order: the one list of the
-    /// parameters that validation, files and the wire's error replies go through.
+    /// Every parameter with its name, in [`ParamName::GENETIC`] order: the one list of the
+    /// parameters that validation goes through.
     pub fn fields(&self) -> [(ParamName, F); 6] {
-        ParamName::ALL.map(|name| (name, self.get(name)))
-    }
-
-    /// The value of one parameter.
-    pub fn get(&self, name: ParamName) -> F {
-        match name {
-            ParamName::C1 => self.c1,
-            ParamName::C2 => self.c2,
-            ParamName::C3 => self.c3,
-            ParamName::Alpha => self.alpha,
-            ParamName::Beta => self.beta,
-            ParamName::Omega => self.omega,
-        }
-    }
-
-    /// The set with parameter `name` replaced by `value`.
-    pub fn with(&self, name: ParamName, value: F) -> Params<F> {
-        let mut p = *self;
-        match name {
-            ParamName::C1 => p.c1 = value,
-            ParamName::C2 => p.c2 = value,
-            ParamName::C3 => p.c3 = value,
-            ParamName::Alpha => p.alpha = value,
-            ParamName::Beta => p.beta = value,
-            ParamName::Omega => p.omega = value,
-        }
-        p
+        [
+            (ParamName::C1, self.c1),
+            (ParamName::C2, self.c2),
+            (ParamName::C3, self.c3),
+            (ParamName::Alpha, self.alpha),
+            (ParamName::Beta, self.beta),
+            (ParamName::Omega, self.omega),
+        ]
     }
 
     /// Each parameter converted by `convert`, which may refuse one (the first refusal wins).
@@ -290,6 +305,11 @@ impl<F: Real> Model<F> {
         let sign_k = if params.alpha == F::zero() { F::zero() } else { sign(params.alpha) * sign(params.omega) };
         let polynomial = Polynomial::new(params.c1, params.c2, params.c3)?;
         Ok(Model { polynomial, r, ln_abs_k, sign_k })
+    }
+
+    /// The polynomial spring c1·θ + c2·θ³ + c3·θ⁵.
+    pub fn polynomial(&self) -> &Polynomial<F> {
+        &self.polynomial
     }
 
     /// r = β/ω.
@@ -583,8 +603,12 @@ impl<F: Real> Evaluation<F> {
 
 #[cfg(any(test, feature = "checks"))]
 pub mod checks;
+pub mod gear;
 pub mod memory;
 pub mod range;
+#[cfg(feature = "serde")]
+mod serde_array;
+pub use gear::{Evaluator, GearModel, Kind, Memory, ParamFault, SLIP_ELEMENTS, TURNING_POINTS};
 pub use memory::{GeneticMemory, Hysteretic, MicroSlip, SlipElements, SlipParams, TurningPoint};
 pub mod tolerance;
 

@@ -516,11 +516,15 @@ pub fn slip_grid<F: Real, const M: usize>(slip_min: F, slip_max: F) -> Result<[F
 /// and the M element stiffnesses k_i (N·m/rad) on the slip grid [`slip_grid`]`(slip_min,
 /// slip_max)` (rad).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(bound(deserialize = "F: serde::Deserialize<'de> + Default")))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SlipParams<F, const M: usize> {
     pub c1: F,
     pub c2: F,
     pub c3: F,
     /// k_i ≥ 0 of element i, which slips at elastic deflection d_i.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_array"))]
     pub stiffness: [F; M],
     /// d_min, rad.
     pub slip_min: F,
@@ -544,16 +548,34 @@ impl<F: Real, const M: usize> SlipParams<F, M> {
     }
 }
 
+impl<F: Copy, const M: usize> SlipParams<F, M> {
+    /// Each parameter converted by `convert`, which may refuse one by its name (the first
+    /// refusal wins); element i's stiffness is [`ParamName::SlipStiffness`]`(i)`.
+    pub fn try_map<G: Default, E>(
+        &self,
+        mut convert: impl FnMut(ParamName, F) -> Result<G, E>,
+    ) -> Result<SlipParams<G, M>, E> {
+        let c1 = convert(ParamName::C1, self.c1)?;
+        let c2 = convert(ParamName::C2, self.c2)?;
+        let c3 = convert(ParamName::C3, self.c3)?;
+        let mut stiffness: [G; M] = core::array::from_fn(|_| G::default());
+        for ((i, k), slot) in (0usize..).zip(self.stiffness).zip(stiffness.iter_mut()) {
+            // Element indices are named in a u8 on the wire; M is 16 on the joint.
+            *slot = convert(ParamName::SlipStiffness(u8::try_from(i).unwrap_or(u8::MAX)), k)?;
+        }
+        let slip_min = convert(ParamName::SlipMin, self.slip_min)?;
+        let slip_max = convert(ParamName::SlipMax, self.slip_max)?;
+        Ok(SlipParams { c1, c2, c3, stiffness, slip_min, slip_max })
+    }
+}
+
 impl<const M: usize> SlipParams<f64, M> {
     /// The set rounded to f32, as the microcontroller holds it.
     pub fn to_f32(&self) -> SlipParams<f32, M> {
-        SlipParams {
-            c1: self.c1 as f32,
-            c2: self.c2 as f32,
-            c3: self.c3 as f32,
-            stiffness: self.stiffness.map(|k| k as f32),
-            slip_min: self.slip_min as f32,
-            slip_max: self.slip_max as f32,
+        let rounded: Result<SlipParams<f32, M>, core::convert::Infallible> = self.try_map(|_, value| Ok(value as f32));
+        match rounded {
+            Ok(params) => params,
+            Err(never) => match never {},
         }
     }
 }
@@ -674,6 +696,11 @@ impl<F: Real, const M: usize> MicroSlip<F, M> {
             elements: SlipElements::on_grid(params.slip_min, params.slip_max)?,
             slipping: 0,
         })
+    }
+
+    /// The elements' stiffnesses k_i, N·m/rad.
+    pub fn stiffness(&self) -> &[F; M] {
+        &self.stiffness
     }
 
     /// The elements' state.

@@ -4,7 +4,10 @@
 //! |θ| ≤ 0.99·A) plus how far the exact model itself moves when θ or A move by 2⁻²²
 //! relative, the rounding of θ/A in f32: near the turning points |θ| = A the model is steep
 //! in θ/A, and no f32 evaluation can do better than that.
-use crate::{Direction, Evaluation, Model};
+use crate::memory::{branch, slip_grid, TurningPoint};
+use crate::{Direction, Evaluation, Evaluator, GearModel, Model, Polynomial, SLIP_ELEMENTS};
+#[allow(unused_imports)]
+use num_traits::Float;
 
 /// Allowed error as a fraction of the loop's torque and stiffness scale.
 pub const RELATIVE_TOLERANCE: f64 = 2.0e-5;
@@ -63,6 +66,122 @@ impl Bound {
     pub fn admits(&self, torque: f64, stiffness: f64) -> bool {
         (torque - self.exact.torque).abs() <= self.torque && (stiffness - self.exact.stiffness).abs() <= self.stiffness
     }
+}
+
+/// 2⁻²²: the relative rounding of an f32 quantity after a few operations.
+const ROUNDING: f64 = 1.0 / 4_194_304.0;
+
+impl GearModel<f64> {
+    /// The motion's scale for [`RELATIVE_TOLERANCE`]: max |T| and max |K| over |θ| ≤
+    /// `envelope` (the genetic kind: [`loop_scales`] at `envelope`/0.99; the micro-slip kind:
+    /// |spring| + Σ k_i·min(d_i, envelope) and spring′ + Σ k_i).
+    pub fn scales(&self, envelope: f64) -> Result<(f64, f64), crate::Error> {
+        match self {
+            GearModel::Genetic(params) => loop_scales(&Model::new(*params)?, envelope / 0.99),
+            GearModel::MicroSlip(params) => {
+                let spring = Polynomial::new(params.c1, params.c2, params.c3)?.evaluate(envelope);
+                let grid = slip_grid::<f64, SLIP_ELEMENTS>(params.slip_min, params.slip_max)?;
+                let elements: f64 = params.stiffness.iter().zip(grid).map(|(k, d)| k * d.min(envelope)).sum();
+                let stiffness: f64 = params.stiffness.iter().sum();
+                Ok((spring.torque.abs() + elements, spring.stiffness.abs() + stiffness))
+            }
+        }
+    }
+}
+
+/// How far an f32 evaluation of the joint may be from an f64 evaluator's step, beyond
+/// [`RELATIVE_TOLERANCE`] of the motion's scale: what the exact model itself moves when the f32
+/// quantities it depends on move by their rounding.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Rounding {
+    /// N·m.
+    pub torque: f64,
+    /// N·m/rad.
+    pub stiffness: f64,
+    /// By how much the f32 evaluator's memory depth may differ (elements at the margin of their
+    /// slip limit, where f32 and f64 may disagree on sticking).
+    pub memory: usize,
+}
+
+impl Evaluator<f64> {
+    /// [`Rounding`] at θ (rad), the deflection this evaluator has just stepped to:
+    ///
+    /// - genetic: the current branch (from its start, the top turning point, to its target) is
+    ///   re-evaluated with θ and each end's θ moved by ±2⁻²² of the largest of them — the f32
+    ///   rounding of θ − c and of the half-width w, which near a branch's ends, where the model
+    ///   is steep in (θ − c)/w, no f32 evaluation can do better than (the analogue of
+    ///   [`Bound::at`] on one loop, at the branch's own half-width); the memory must match
+    ///   exactly (its turning points are the samples themselves, exact in both);
+    /// - micro-slip: K·2⁻²²·|θ| for θ, and for each element within 10⁻⁵·d_i + 2⁻²¹·(|θ| + d_i)
+    ///   of its slip limit its k_i on K, k_i·that margin on T, and one on the memory.
+    pub fn rounding(&self, theta: f64, exact: &Evaluation<f64>) -> Result<Rounding, crate::Error> {
+        match self {
+            Evaluator::Genetic(memory) => {
+                let (torque, stiffness) = branch_spread(memory.model(), memory.turning_points(), theta)?;
+                Ok(Rounding { torque, stiffness, memory: 0 })
+            }
+            Evaluator::MicroSlip(slip) => {
+                let elements = slip.elements();
+                let mut rounding =
+                    Rounding { torque: exact.stiffness.abs() * ROUNDING * theta.abs(), stiffness: 0.0, memory: 0 };
+                for ((k, e), d) in slip.stiffness().iter().zip(elements.elastic()).zip(elements.slip()) {
+                    let margin = 1.0e-5 * d + 2.0 * ROUNDING * (theta.abs() + d);
+                    if d - e.abs() <= margin {
+                        rounding.memory += 1;
+                        rounding.stiffness += k;
+                        rounding.torque += k * margin;
+                    }
+                }
+                Ok(rounding)
+            }
+        }
+    }
+}
+
+/// How far the genetic model's T and K at θ move when θ and the current branch's two ends move
+/// by ±2⁻²² of the largest of them (their f32 rounding). The branch runs from the top turning
+/// point to the one below it, or to its mirror (−θ, −H) when it is alone; at rest (no turning
+/// points) T is the polynomial alone.
+fn branch_spread(model: &Model<f64>, points: &[TurningPoint<f64>], theta: f64) -> Result<(f64, f64), crate::Error> {
+    let polynomial = model.polynomial();
+    let evaluate =
+        |ends: Option<(TurningPoint<f64>, TurningPoint<f64>)>, t: f64| -> Result<Evaluation<f64>, crate::Error> {
+            let spring = polynomial.evaluate(t);
+            Ok(match ends {
+                None => spring,
+                Some((a, b)) => spring.plus(branch(model, a, b, t)?),
+            })
+        };
+    let ends = match points {
+        [] => None,
+        [.., below, top] => Some((*top, *below)),
+        [top] => Some((*top, TurningPoint { theta: -top.theta, hysteresis: -top.hysteresis })),
+    };
+    let exact = evaluate(ends, theta)?;
+    let size = ends.map_or(theta.abs(), |(a, b)| theta.abs().max(a.theta.abs()).max(b.theta.abs()));
+    let delta = ROUNDING * size;
+    let moved = |dt: f64, da: f64, db: f64| {
+        let ends =
+            ends.map(|(a, b)| (TurningPoint { theta: a.theta + da, ..a }, TurningPoint { theta: b.theta + db, ..b }));
+        evaluate(ends, theta + dt)
+    };
+    let mut spread = (0.0f64, 0.0f64);
+    for (dt, da, db) in [
+        (delta, 0.0, 0.0),
+        (-delta, 0.0, 0.0),
+        (0.0, delta, 0.0),
+        (0.0, -delta, 0.0),
+        (0.0, 0.0, delta),
+        (0.0, 0.0, -delta),
+    ] {
+        if ends.is_none() && dt == 0.0 {
+            continue;
+        }
+        let e = moved(dt, da, db)?;
+        spread.0 = spread.0.max((e.torque - exact.torque).abs());
+        spread.1 = spread.1.max((e.stiffness - exact.stiffness).abs());
+    }
+    Ok(spread)
 }
 
 #[cfg(test)]

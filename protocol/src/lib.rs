@@ -15,9 +15,10 @@
 extern crate std;
 
 use core::fmt;
-use model_core::range::{self, Culprit};
-use model_core::SlipParams;
-pub use model_core::{Direction, ParamName, Params, MODEL_VERSION};
+use model_core::range::Culprit;
+pub use model_core::{
+    Direction, GearModel, ParamFault, ParamName, Params, SlipParams, MODEL_VERSION, SLIP_ELEMENTS, TURNING_POINTS,
+};
 use serde::{Deserialize, Serialize};
 
 /// Version of this message set; bumped on any change to the encoding. Version 2: the model's
@@ -25,8 +26,10 @@ use serde::{Deserialize, Serialize};
 /// [`Feedforward`]. Version 3: the joint's torque controller ([`Request::Configure`],
 /// [`Request::SetReference`], the lockstep [`Request::Control`] and their responses, the
 /// error replies [`ErrorReply::InvalidGain`] and [`ErrorReply::MotorDrive`]). Version 4: the
-/// controller's integral deadband and torsion damping in [`ControllerConfig`].
-pub const PROTOCOL_VERSION: u16 = 4;
+/// controller's integral deadband and torsion damping in [`ControllerConfig`]. Version 5: an
+/// error reply names a model parameter by model-core's [`ParamName`] ([`ParamField::Model`]);
+/// [`JointParams::model`] is model-core's [`GearModel`], encoded as version 4's model was.
+pub const PROTOCOL_VERSION: u16 = 5;
 
 /// Largest encoded frame, delimiter included: the longest message (a micro-slip
 /// [`Response::Params`] with every varint at its maximum) takes 109 bytes (tested), with room
@@ -64,68 +67,14 @@ pub struct DeviceInfo {
     pub model_version: u16,
 }
 
-/// Elasto-slip elements of the micro-slip model on the joint (and in `swg-host`'s fit).
-pub const SLIP_ELEMENTS: usize = 16;
-
-/// The micro-slip (Maxwell-slip) model as the joint holds it: model-core's
-/// [`SlipParams`]`<f32, `[`SLIP_ELEMENTS`]`>` (T = c1·θ + c2·θ³ + c3·θ⁵ + Σ k_i·e_i, the
-/// elements' slip deflections on the log grid from `slip_min` to `slip_max`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct SlipModel {
-    /// N·m/rad.
-    pub c1: f32,
-    /// N·m/rad³.
-    pub c2: f32,
-    /// N·m/rad⁵.
-    pub c3: f32,
-    /// k_i ≥ 0 of each element, N·m/rad.
-    pub stiffness: [f32; SLIP_ELEMENTS],
-    /// d_min, rad.
-    pub slip_min: f32,
-    /// d_max, rad.
-    pub slip_max: f32,
-}
-
-impl SlipModel {
-    /// model-core's parameters.
-    pub fn params(&self) -> SlipParams<f32, SLIP_ELEMENTS> {
-        SlipParams {
-            c1: self.c1,
-            c2: self.c2,
-            c3: self.c3,
-            stiffness: self.stiffness,
-            slip_min: self.slip_min,
-            slip_max: self.slip_max,
-        }
-    }
-}
-
-impl From<SlipParams<f32, SLIP_ELEMENTS>> for SlipModel {
-    fn from(p: SlipParams<f32, SLIP_ELEMENTS>) -> Self {
-        SlipModel { c1: p.c1, c2: p.c2, c3: p.c3, stiffness: p.stiffness, slip_min: p.slip_min, slip_max: p.slip_max }
-    }
-}
-
-/// The model the joint runs, of either kind; each is evaluated from rest with its memory
-/// (model-core's `memory`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum JointModel {
-    /// The paper's genetic model, generalised to any motion by Madelung's rules
-    /// (`GeneticMemory`, reversal band = [`JointParams::direction_band`]).
-    Genetic(Params<f32>),
-    /// Maxwell-slip with [`SLIP_ELEMENTS`] elements (`MicroSlip`).
-    MicroSlip(SlipModel),
-}
-
 /// Everything the joint needs for feed-forward: the model and how to apply it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct JointParams {
     /// [`MODEL_VERSION`] the parameters were fitted for.
     pub model_version: u16,
-    pub model: JointModel,
+    /// The model of any kind, evaluated from rest with its memory (model-core's `Evaluator`).
+    pub model: GearModel<f32>,
     /// Reduction ratio N of the gear: deflection θ = θ_in/N − θ_out.
     pub gear_ratio: f32,
     /// |T_ff| is clamped to this, N·m.
@@ -147,72 +96,34 @@ pub const DIRECTION_BAND_RANGE: core::ops::RangeInclusive<f32> = 0.0..=0.1;
 /// range (model-core's `range`).
 pub const MAX_DEFLECTION: f32 = 0.1;
 
-/// Turning points the genetic model remembers on the joint (as `swg-host`'s
-/// `gear::TURNING_POINTS`): deeper nested excursions retrace reversibly.
-pub const TURNING_POINTS: usize = 16;
-
 impl JointParams {
     /// The checks the firmware applies before it uses a set; the host may run them first.
     pub fn validate(&self) -> Result<(), ErrorReply> {
         if self.model_version != MODEL_VERSION {
             return Err(ErrorReply::ModelVersion { got: self.model_version, supported: MODEL_VERSION });
         }
+        self.model
+            .check()
+            .map_err(|(name, fault)| ErrorReply::InvalidParam { field: ParamField::Model(name), fault })?;
         let joint = [
-            (ParamField::GearRatio, self.gear_ratio),
-            (ParamField::TorqueLimit, self.torque_limit),
-            (ParamField::DirectionBand, self.direction_band),
+            (ParamField::GearRatio, self.gear_ratio, GEAR_RATIO_RANGE.contains(&self.gear_ratio)),
+            (ParamField::TorqueLimit, self.torque_limit, self.torque_limit > 0.0),
+            (ParamField::DirectionBand, self.direction_band, DIRECTION_BAND_RANGE.contains(&self.direction_band)),
         ];
-        let not_finite = |field| ErrorReply::InvalidParam { field, fault: ParamFault::NotFinite };
-        let out_of_range = |field| ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange };
-        match &self.model {
-            JointModel::Genetic(model) => {
-                let model_fields = model.fields().into_iter().map(|(name, value)| (ParamField::from(name), value));
-                if let Some((field, _)) = model_fields.chain(joint).find(|(_, value)| !value.is_finite()) {
-                    return Err(not_finite(field));
-                }
-                if model.omega == 0.0 {
-                    return Err(out_of_range(ParamField::Omega));
-                }
+        for (field, value, in_range) in joint {
+            if !value.is_finite() {
+                return Err(ErrorReply::InvalidParam { field, fault: ParamFault::NotFinite });
             }
-            JointModel::MicroSlip(model) => {
-                let spring = [(ParamField::C1, model.c1), (ParamField::C2, model.c2), (ParamField::C3, model.c3)];
-                let elements = (0u8..).zip(model.stiffness).map(|(i, k)| (ParamField::SlipStiffness(i), k));
-                let range = [(ParamField::SlipMin, model.slip_min), (ParamField::SlipMax, model.slip_max)];
-                let mut fields = spring.into_iter().chain(elements).chain(range).chain(joint);
-                if let Some((field, _)) = fields.find(|(_, value)| !value.is_finite()) {
-                    return Err(not_finite(field));
-                }
-                if let Some(i) = (0u8..).zip(model.stiffness).find_map(|(i, k)| (k < 0.0).then_some(i)) {
-                    return Err(out_of_range(ParamField::SlipStiffness(i)));
-                }
-                if model.slip_min <= 0.0 {
-                    return Err(out_of_range(ParamField::SlipMin));
-                }
-                if model.slip_max <= model.slip_min {
-                    return Err(out_of_range(ParamField::SlipMax));
-                }
+            if !in_range {
+                return Err(ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange });
             }
         }
-        if !GEAR_RATIO_RANGE.contains(&self.gear_ratio) {
-            return Err(out_of_range(ParamField::GearRatio));
-        }
-        if self.torque_limit <= 0.0 {
-            return Err(out_of_range(ParamField::TorqueLimit));
-        }
-        if !DIRECTION_BAND_RANGE.contains(&self.direction_band) {
-            return Err(out_of_range(ParamField::DirectionBand));
-        }
-        // Evaluable in f32 over every |θ| ≤ MAX_DEFLECTION and every loop the evaluators can
-        // produce, or refused naming the parameter at fault (out of range).
-        let evaluable = match &self.model {
-            JointModel::Genetic(model) => range::genetic(model, MAX_DEFLECTION, TURNING_POINTS),
-            JointModel::MicroSlip(model) => range::micro_slip(&model.params(), MAX_DEFLECTION),
-        };
-        evaluable.map_err(|culprit| match culprit {
-            Culprit::Param(name) => out_of_range(ParamField::from(name)),
-            Culprit::SlipStiffness(i) => out_of_range(ParamField::SlipStiffness(i as u8)),
-            Culprit::SlipMin => out_of_range(ParamField::SlipMin),
-            Culprit::SlipMax => out_of_range(ParamField::SlipMax),
+        // Evaluable in f32 over every |θ| ≤ MAX_DEFLECTION and every state the evaluators can
+        // reach, or refused naming the parameter at fault (out of range).
+        self.model.evaluable_within(MAX_DEFLECTION).map_err(|culprit| match culprit {
+            Culprit::Param(name) => {
+                ErrorReply::InvalidParam { field: ParamField::Model(name), fault: ParamFault::OutOfRange }
+            }
             Culprit::Several => ErrorReply::ModelOverflow,
         })
     }
@@ -473,76 +384,27 @@ pub enum Response {
     Control(ControlOutput),
 }
 
-/// A parameter named in an error reply: the genetic model's six (in [`ParamName`] order; the
-/// variant indices are the wire format, so the two lists stay separate), the joint's three,
-/// then the micro-slip model's own (its c1, c2, c3 are `C1`, `C2`, `C3`).
+/// A parameter named in an error reply: one of the model's (model-core's [`ParamName`], which
+/// names every kind's parameters) or one of the joint's three.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ParamField {
-    C1,
-    C2,
-    C3,
-    Alpha,
-    Beta,
-    Omega,
+    Model(ParamName),
     GearRatio,
     TorqueLimit,
     DirectionBand,
-    /// k_i of micro-slip element i.
-    SlipStiffness(u8),
-    SlipMin,
-    SlipMax,
-}
-
-impl From<ParamName> for ParamField {
-    fn from(name: ParamName) -> Self {
-        match name {
-            ParamName::C1 => ParamField::C1,
-            ParamName::C2 => ParamField::C2,
-            ParamName::C3 => ParamField::C3,
-            ParamName::Alpha => ParamField::Alpha,
-            ParamName::Beta => ParamField::Beta,
-            ParamName::Omega => ParamField::Omega,
-        }
-    }
-}
-
-impl ParamField {
-    /// The field's name as in files; the model's parameters are named by model-core.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            ParamField::C1 => ParamName::C1.as_str(),
-            ParamField::C2 => ParamName::C2.as_str(),
-            ParamField::C3 => ParamName::C3.as_str(),
-            ParamField::Alpha => ParamName::Alpha.as_str(),
-            ParamField::Beta => ParamName::Beta.as_str(),
-            ParamField::Omega => ParamName::Omega.as_str(),
-            ParamField::GearRatio => "gear_ratio",
-            ParamField::TorqueLimit => "torque_limit",
-            ParamField::DirectionBand => "direction_band",
-            ParamField::SlipStiffness(_) => "stiffness",
-            ParamField::SlipMin => "slip_min",
-            ParamField::SlipMax => "slip_max",
-        }
-    }
 }
 
 impl fmt::Display for ParamField {
     /// The name as in files; an element's stiffness with its index, `stiffness[3]`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ParamField::SlipStiffness(i) => write!(f, "stiffness[{i}]"),
-            field => f.write_str(field.as_str()),
+            ParamField::Model(name) => write!(f, "{name}"),
+            ParamField::GearRatio => f.write_str("gear_ratio"),
+            ParamField::TorqueLimit => f.write_str("torque_limit"),
+            ParamField::DirectionBand => f.write_str("direction_band"),
         }
     }
-}
-
-/// What is wrong with a parameter.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum ParamFault {
-    NotFinite,
-    OutOfRange,
 }
 
 /// Why the device refused a request. The previous parameters stay active in every case.

@@ -4,7 +4,7 @@ use std::{vec, vec::Vec};
 
 const PARAMS: JointParams = JointParams {
     model_version: MODEL_VERSION,
-    model: JointModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.298, omega: 1.0 }),
+    model: GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.298, omega: 1.0 }),
     gear_ratio: 100.0,
     torque_limit: 50.0,
     direction_band: 2.0e-5,
@@ -28,7 +28,7 @@ fn decode_sent<T: for<'a> Deserialize<'a>>(sent: &[u8]) -> Result<T, FrameError>
 /// fields trade places (or encodings). All values are exact in f32.
 const DISTINCT_PARAMS: JointParams = JointParams {
     model_version: 1,
-    model: JointModel::Genetic(Params { c1: 9000.0, c2: 1.25e10, c3: -3.0e14, alpha: 48.5, beta: -2.25, omega: 1.0 }),
+    model: GearModel::Genetic(Params { c1: 9000.0, c2: 1.25e10, c3: -3.0e14, alpha: 48.5, beta: -2.25, omega: 1.0 }),
     gear_ratio: 100.0,
     torque_limit: 50.0,
     direction_band: 2.0e-5,
@@ -49,7 +49,7 @@ const DISTINCT_STIFFNESS: [f32; SLIP_ELEMENTS] = {
 /// joint fields), exact in f32.
 const DISTINCT_SLIP_PARAMS: JointParams = JointParams {
     model_version: 1,
-    model: JointModel::MicroSlip(SlipModel {
+    model: GearModel::MicroSlip(SlipParams {
         c1: 6000.0,
         c2: 2.5e9,
         c3: -5.0e13,
@@ -64,7 +64,7 @@ const DISTINCT_SLIP_PARAMS: JointParams = JointParams {
 
 #[test]
 fn the_distinct_sets_have_distinct_fields() {
-    let JointModel::MicroSlip(slip) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
+    let GearModel::MicroSlip(slip) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
     let mut fields = vec![slip.c1, slip.c2, slip.c3, slip.slip_min, slip.slip_max];
     fields.extend(slip.stiffness);
     fields.extend([
@@ -184,63 +184,63 @@ const DISTINCT_CONFIG: ControllerConfig = ControllerConfig {
 #[test]
 fn golden_requests() {
     let cases: [(Request, &[u8]); 9] = [
-        // 04 | 00
-        (Request::GetDeviceInfo, &[0x02, 0x04, 0x05, 0xfb, 0xd7, 0xb5, 0x25, 0x00]),
+        // 05 | 00
+        (Request::GetDeviceInfo, &[0x02, 0x05, 0x05, 0xba, 0xe6, 0xae, 0x3c, 0x00]),
         (
-            // 04 | 01 | the genetic set
+            // 05 | 01 | the genetic set
             Request::WriteParams(DISTINCT_PARAMS),
             &[
-                0x04, 0x04, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7,
+                0x04, 0x05, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7,
                 0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42, 0x01,
-                0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xed, 0xfd, 0x8d, 0xcf, 0x00,
+                0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xaa, 0x6f, 0xc9, 0x60, 0x00,
             ],
         ),
         (
-            // 04 | 01 | the micro-slip set
+            // 05 | 01 | the micro-slip set
             Request::WriteParams(DISTINCT_SLIP_PARAMS),
             &[
-                0x05, 0x04, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35, 0xd6,
+                0x05, 0x05, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35, 0xd6,
                 0x04, 0x80, 0xc8, 0x42, 0x04, 0x40, 0x48, 0x43, 0x04, 0x20, 0x96, 0x43, 0x04, 0x20, 0xc8, 0x43, 0x04,
                 0x20, 0xfa, 0x43, 0x04, 0x10, 0x16, 0x44, 0x04, 0x10, 0x2f, 0x44, 0x04, 0x10, 0x48, 0x44, 0x04, 0x10,
                 0x61, 0x44, 0x04, 0x10, 0x7a, 0x44, 0x04, 0x88, 0x89, 0x44, 0x04, 0x08, 0x96, 0x44, 0x04, 0x88, 0xa2,
                 0x44, 0x04, 0x08, 0xaf, 0x44, 0x04, 0x88, 0xbb, 0x44, 0x04, 0x08, 0xc8, 0x44, 0x01, 0x03, 0x80, 0x37,
-                0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36, 0x4e,
-                0x1f, 0x09, 0x74, 0x00,
+                0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36, 0xd3,
+                0xd9, 0x96, 0x01, 0x00,
             ],
         ),
-        // 04 | 02
-        (Request::ReadParams, &[0x07, 0x04, 0x02, 0xd7, 0xb6, 0xbb, 0xcb, 0x00]),
-        // 04 | 03
-        (Request::Commit, &[0x07, 0x04, 0x03, 0x41, 0x86, 0xbc, 0xbc, 0x00]),
+        // 05 | 02
+        (Request::ReadParams, &[0x07, 0x05, 0x02, 0x96, 0x87, 0xa0, 0xd2, 0x00]),
+        // 05 | 03
+        (Request::Commit, &[0x03, 0x05, 0x03, 0x04, 0xb7, 0xa7, 0xa5, 0x00]),
         (
             Request::Replay(EncoderSample { input_angle: 1.0, output_angle: -0.5, path: EvalPath::Fast }),
-            // 04 | 04 | input_angle 1 = 3f800000 | output_angle -0.5 = bf000000 | Fast 01
-            &[0x03, 0x04, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x7f, 0xbf, 0xd5, 0xbb, 0x00],
+            // 05 | 04 | input_angle 1 = 3f800000 | output_angle -0.5 = bf000000 | Fast 01
+            &[0x03, 0x05, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0xbf, 0x60, 0x5b, 0x7a, 0x00],
         ),
         (
             Request::Configure(DISTINCT_CONFIG),
-            // 04 | 05 | Model 03 | kp 0.0625 = 3d800000 | ki 2.5 = 40200000 |
+            // 05 | 05 | Model 03 | kp 0.0625 = 3d800000 | ki 2.5 = 40200000 |
             // integral_deadband 0.125 = 3e000000 | damping 2⁻⁷ = 3c000000 |
             // torsion_damping 2⁻⁵ = 3d000000 | stiffness 16384 = 46800000 |
             // command_limit 0.75 = 3f400000 | period 2⁻¹⁰ = 3a800000
             &[
-                0x04, 0x04, 0x05, 0x03, 0x01, 0x03, 0x80, 0x3d, 0x01, 0x03, 0x20, 0x40, 0x01, 0x01, 0x02, 0x3e, 0x01,
+                0x04, 0x05, 0x05, 0x03, 0x01, 0x03, 0x80, 0x3d, 0x01, 0x03, 0x20, 0x40, 0x01, 0x01, 0x02, 0x3e, 0x01,
                 0x01, 0x02, 0x3c, 0x01, 0x01, 0x02, 0x3d, 0x01, 0x03, 0x80, 0x46, 0x01, 0x03, 0x40, 0x3f, 0x01, 0x07,
-                0x80, 0x3a, 0xe0, 0xea, 0x6f, 0xda, 0x00,
+                0x80, 0x3a, 0x28, 0xfd, 0xf1, 0x15, 0x00,
             ],
         ),
         (
             Request::SetReference(-7.25),
-            // 04 | 06 | -7.25 = c0e80000
-            &[0x03, 0x04, 0x06, 0x01, 0x07, 0xe8, 0xc0, 0x41, 0xad, 0xd0, 0xa8, 0x00],
+            // 05 | 06 | -7.25 = c0e80000
+            &[0x03, 0x05, 0x06, 0x01, 0x07, 0xe8, 0xc0, 0xe4, 0x7e, 0x8c, 0x63, 0x00],
         ),
         (
             Request::Control(ControlSample { input_angle: 12.5, output_angle: -0.375, reference: 8.75 }),
-            // 04 | 07 | input_angle 12.5 = 41480000 | output_angle -0.375 = bec00000 |
+            // 05 | 07 | input_angle 12.5 = 41480000 | output_angle -0.375 = bec00000 |
             // reference 8.75 = 410c0000
             &[
-                0x03, 0x04, 0x07, 0x01, 0x03, 0x48, 0x41, 0x01, 0x03, 0xc0, 0xbe, 0x01, 0x07, 0x0c, 0x41, 0x5f, 0x36,
-                0x91, 0xe2, 0x00,
+                0x03, 0x05, 0x07, 0x01, 0x03, 0x48, 0x41, 0x01, 0x03, 0xc0, 0xbe, 0x01, 0x07, 0x0c, 0x41, 0x29, 0xd7,
+                0x9e, 0x7f, 0x00,
             ],
         ),
     ];
@@ -259,39 +259,39 @@ fn golden_responses() {
                 protocol_version: 300,
                 model_version: 7,
             }),
-            // 04 | 00 | 0.1.2 = 00 01 02 | protocol_version 300 = ac 02 | model_version 07
-            &[0x02, 0x04, 0x01, 0x0a, 0x01, 0x02, 0xac, 0x02, 0x07, 0x8d, 0x63, 0x31, 0x0a, 0x00],
+            // 05 | 00 | 0.1.2 = 00 01 02 | protocol_version 300 = ac 02 | model_version 07
+            &[0x02, 0x05, 0x01, 0x0a, 0x01, 0x02, 0xac, 0x02, 0x07, 0x13, 0x63, 0x9b, 0xc6, 0x00],
         ),
-        // 04 | 01
-        (Response::ParamsAccepted, &[0x07, 0x04, 0x01, 0x6d, 0xe7, 0xb2, 0x52, 0x00]),
+        // 05 | 01
+        (Response::ParamsAccepted, &[0x07, 0x05, 0x01, 0x2c, 0xd6, 0xa9, 0x4b, 0x00]),
         (
             Response::Params(Some(DISTINCT_PARAMS)),
-            // 04 | 02 | Some 01 | the genetic set
+            // 05 | 02 | Some 01 | the genetic set
             &[
-                0x05, 0x04, 0x02, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88,
+                0x05, 0x05, 0x02, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88,
                 0xd7, 0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42,
-                0x01, 0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0xe0, 0x6f, 0x29, 0x0b, 0x00,
+                0x01, 0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0x41, 0xff, 0x3e, 0xe3, 0x00,
             ],
         ),
         (
             Response::Params(Some(DISTINCT_SLIP_PARAMS)),
-            // 04 | 02 | Some 01 | the micro-slip set
+            // 05 | 02 | Some 01 | the micro-slip set
             &[
-                0x06, 0x04, 0x02, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35,
+                0x06, 0x05, 0x02, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21, 0xe6, 0x35,
                 0xd6, 0x04, 0x80, 0xc8, 0x42, 0x04, 0x40, 0x48, 0x43, 0x04, 0x20, 0x96, 0x43, 0x04, 0x20, 0xc8, 0x43,
                 0x04, 0x20, 0xfa, 0x43, 0x04, 0x10, 0x16, 0x44, 0x04, 0x10, 0x2f, 0x44, 0x04, 0x10, 0x48, 0x44, 0x04,
                 0x10, 0x61, 0x44, 0x04, 0x10, 0x7a, 0x44, 0x04, 0x88, 0x89, 0x44, 0x04, 0x08, 0x96, 0x44, 0x04, 0x88,
                 0xa2, 0x44, 0x04, 0x08, 0xaf, 0x44, 0x04, 0x88, 0xbb, 0x44, 0x04, 0x08, 0xc8, 0x44, 0x01, 0x03, 0x80,
                 0x37, 0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36,
-                0x51, 0xce, 0x24, 0xf4, 0x00,
+                0x6e, 0xbe, 0xef, 0x7a, 0x00,
             ],
         ),
-        // 04 | 02 | None 00
-        (Response::Params(None), &[0x03, 0x04, 0x02, 0x05, 0x4c, 0x13, 0x7e, 0xca, 0x00]),
+        // 05 | 02 | None 00
+        (Response::Params(None), &[0x03, 0x05, 0x02, 0x05, 0x7b, 0x79, 0xbc, 0xcb, 0x00]),
         (
             Response::Committed { sequence: 0x1234_5678 },
-            // 04 | 03 | sequence 0x12345678 = f8 ac d1 91 01
-            &[0x0c, 0x04, 0x03, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x28, 0xe0, 0x58, 0x03, 0x00],
+            // 05 | 03 | sequence 0x12345678 = f8 ac d1 91 01
+            &[0x0c, 0x05, 0x03, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x9c, 0xeb, 0x2f, 0xa5, 0x00],
         ),
         (
             Response::Feedforward(Feedforward {
@@ -302,11 +302,11 @@ fn golden_responses() {
                 direction: Some(Direction::Falling),
                 memory: 3,
             }),
-            // 04 | 04 | deflection -2⁻¹⁰ = ba800000 | torque -12.5 = c1480000 |
+            // 05 | 04 | deflection -2⁻¹⁰ = ba800000 | torque -12.5 = c1480000 |
             // stiffness 4e4 = 471c4000 | Clamped 01 | Some 01 Falling 01 | memory 03
             &[
-                0x03, 0x04, 0x04, 0x01, 0x03, 0x80, 0xba, 0x01, 0x03, 0x48, 0xc1, 0x0c, 0x40, 0x1c, 0x47, 0x01, 0x01,
-                0x01, 0x03, 0x4e, 0x70, 0xf5, 0xc0, 0x00,
+                0x03, 0x05, 0x04, 0x01, 0x03, 0x80, 0xba, 0x01, 0x03, 0x48, 0xc1, 0x0c, 0x40, 0x1c, 0x47, 0x01, 0x01,
+                0x01, 0x03, 0xaf, 0xc6, 0xa7, 0x2f, 0x00,
             ],
         ),
         (
@@ -318,20 +318,20 @@ fn golden_responses() {
                 direction: None,
                 memory: 11,
             }),
-            // 04 | 04 | deflection 2⁻¹¹ = 3a000000 | torque 6.75 = 40d80000 |
+            // 05 | 04 | deflection 2⁻¹¹ = 3a000000 | torque 6.75 = 40d80000 |
             // stiffness 1.2e4 = 463b8000 | Active 00 | None 00 | memory 0b
             &[
-                0x03, 0x04, 0x04, 0x01, 0x01, 0x02, 0x3a, 0x01, 0x03, 0xd8, 0x40, 0x04, 0x80, 0x3b, 0x46, 0x01, 0x06,
-                0x0b, 0x7a, 0x26, 0x66, 0xf7, 0x00,
+                0x03, 0x05, 0x04, 0x01, 0x01, 0x02, 0x3a, 0x01, 0x03, 0xd8, 0x40, 0x04, 0x80, 0x3b, 0x46, 0x01, 0x06,
+                0x0b, 0x39, 0xed, 0xc0, 0x70, 0x00,
             ],
         ),
         (
             Response::Error(ErrorReply::UnsupportedProtocol { got: 7, supported: 2 }),
-            // 04 | 05 | UnsupportedProtocol 03 | got 07 | supported 02
-            &[0x0a, 0x04, 0x05, 0x03, 0x07, 0x02, 0x5d, 0xe8, 0x75, 0xa7, 0x00],
+            // 05 | 05 | UnsupportedProtocol 03 | got 07 | supported 02
+            &[0x0a, 0x05, 0x05, 0x03, 0x07, 0x02, 0xed, 0xc1, 0x15, 0x9a, 0x00],
         ),
-        // 04 | 06
-        (Response::ControlAccepted, &[0x07, 0x04, 0x06, 0xce, 0x72, 0xd6, 0xcc, 0x00]),
+        // 05 | 06
+        (Response::ControlAccepted, &[0x07, 0x05, 0x06, 0x8f, 0x43, 0xcd, 0xd5, 0x00]),
         (
             Response::Control(ControlOutput {
                 command: -0.4375,
@@ -339,9 +339,9 @@ fn golden_responses() {
                 mode: ControlMode::Linear,
                 saturated: true,
             }),
-            // 04 | 07 | command -0.4375 = bee00000 | estimate 9.5 = 41180000 | Linear 02 | true 01
+            // 05 | 07 | command -0.4375 = bee00000 | estimate 9.5 = 41180000 | Linear 02 | true 01
             &[
-                0x03, 0x04, 0x07, 0x01, 0x03, 0xe0, 0xbe, 0x01, 0x09, 0x18, 0x41, 0x02, 0x01, 0x9c, 0x33, 0xb6, 0x03,
+                0x03, 0x05, 0x07, 0x01, 0x03, 0xe0, 0xbe, 0x01, 0x09, 0x18, 0x41, 0x02, 0x01, 0xf3, 0x7f, 0x13, 0x98,
                 0x00,
             ],
         ),
@@ -356,40 +356,43 @@ fn golden_responses() {
 fn golden_error_replies() {
     let cases: [(ErrorReply, &[u8]); 14] = [
         // Each is 03 | 05 (Response::Error) | variant index | fields.
-        (ErrorReply::BadFrame, &[0x03, 0x04, 0x05, 0x05, 0x8b, 0x85, 0x3f, 0x85, 0x00]),
-        (ErrorReply::BadCrc, &[0x08, 0x04, 0x05, 0x01, 0x1d, 0xb5, 0x38, 0xf2, 0x00]),
-        (ErrorReply::FrameTooLong, &[0x08, 0x04, 0x05, 0x02, 0xa7, 0xe4, 0x31, 0x6b, 0x00]),
+        (ErrorReply::BadFrame, &[0x03, 0x05, 0x05, 0x05, 0xbc, 0xef, 0xfd, 0x84, 0x00]),
+        (ErrorReply::BadCrc, &[0x08, 0x05, 0x05, 0x01, 0x2a, 0xdf, 0xfa, 0xf3, 0x00]),
+        (ErrorReply::FrameTooLong, &[0x08, 0x05, 0x05, 0x02, 0x90, 0x8e, 0xf3, 0x6a, 0x00]),
         (
             // got 07, supported 02
             ErrorReply::UnsupportedProtocol { got: 7, supported: 2 },
-            &[0x0a, 0x04, 0x05, 0x03, 0x07, 0x02, 0x5d, 0xe8, 0x75, 0xa7, 0x00],
+            &[0x0a, 0x05, 0x05, 0x03, 0x07, 0x02, 0xed, 0xc1, 0x15, 0x9a, 0x00],
         ),
-        (ErrorReply::UndecodableRequest, &[0x08, 0x04, 0x05, 0x04, 0x92, 0x41, 0x52, 0x82, 0x00]),
+        (ErrorReply::UndecodableRequest, &[0x08, 0x05, 0x05, 0x04, 0xa5, 0x2b, 0x90, 0x83, 0x00]),
         (
             // got 02, supported 01
             ErrorReply::ModelVersion { got: 2, supported: 1 },
-            &[0x0a, 0x04, 0x05, 0x05, 0x02, 0x01, 0x10, 0x31, 0x86, 0x47, 0x00],
+            &[0x0a, 0x05, 0x05, 0x05, 0x02, 0x01, 0xa0, 0x18, 0xe6, 0x7a, 0x00],
         ),
         (
             // field TorqueLimit 07, fault OutOfRange 01
             ErrorReply::InvalidParam { field: ParamField::TorqueLimit, fault: ParamFault::OutOfRange },
-            &[0x0a, 0x04, 0x05, 0x06, 0x07, 0x01, 0x0c, 0x7b, 0xb7, 0x38, 0x00],
+            &[0x0a, 0x05, 0x05, 0x06, 0x02, 0x01, 0xf9, 0xa6, 0xa0, 0x78, 0x00],
         ),
         (
             // field SlipStiffness 09 with element 0d, fault NotFinite 00
-            ErrorReply::InvalidParam { field: ParamField::SlipStiffness(13), fault: ParamFault::NotFinite },
-            &[0x06, 0x04, 0x05, 0x06, 0x09, 0x0d, 0x05, 0xdb, 0x76, 0xa7, 0x7d, 0x00],
+            ErrorReply::InvalidParam {
+                field: ParamField::Model(ParamName::SlipStiffness(13)),
+                fault: ParamFault::NotFinite,
+            },
+            &[0x04, 0x05, 0x05, 0x06, 0x03, 0x06, 0x0d, 0x05, 0x35, 0x96, 0xfa, 0xa1, 0x00],
         ),
-        (ErrorReply::ModelOverflow, &[0x08, 0x04, 0x05, 0x07, 0x28, 0x10, 0x5b, 0x1b, 0x00]),
-        (ErrorReply::NoParams, &[0x08, 0x04, 0x05, 0x08, 0xb9, 0x0d, 0xe4, 0x8b, 0x00]),
-        (ErrorReply::Storage, &[0x08, 0x04, 0x05, 0x09, 0x2f, 0x3d, 0xe3, 0xfc, 0x00]),
-        (ErrorReply::NonFiniteSample, &[0x08, 0x04, 0x05, 0x0a, 0x95, 0x6c, 0xea, 0x65, 0x00]),
+        (ErrorReply::ModelOverflow, &[0x08, 0x05, 0x05, 0x07, 0x1f, 0x7a, 0x99, 0x1a, 0x00]),
+        (ErrorReply::NoParams, &[0x08, 0x05, 0x05, 0x08, 0x8e, 0x67, 0x26, 0x8a, 0x00]),
+        (ErrorReply::Storage, &[0x08, 0x05, 0x05, 0x09, 0x18, 0x57, 0x21, 0xfd, 0x00]),
+        (ErrorReply::NonFiniteSample, &[0x08, 0x05, 0x05, 0x0a, 0xa2, 0x06, 0x28, 0x64, 0x00]),
         (
             // field Period 05, fault NotFinite 00
             ErrorReply::InvalidGain { field: GainField::Period, fault: ParamFault::NotFinite },
-            &[0x05, 0x04, 0x05, 0x0b, 0x05, 0x05, 0x4b, 0xba, 0x5e, 0x75, 0x00],
+            &[0x05, 0x05, 0x05, 0x0b, 0x05, 0x05, 0xfb, 0x93, 0x3e, 0x48, 0x00],
         ),
-        (ErrorReply::MotorDrive, &[0x08, 0x04, 0x05, 0x0c, 0xa0, 0xc9, 0x89, 0x8c, 0x00]),
+        (ErrorReply::MotorDrive, &[0x08, 0x05, 0x05, 0x0c, 0x97, 0xa3, 0x4b, 0x8d, 0x00]),
     ];
     covers_every_variant(&cases, error_variant, 13);
     for (error, golden) in cases {
@@ -405,28 +408,32 @@ fn golden_enum_indices() {
         let mut buffer = [0u8; 4];
         postcard::to_slice(&value, &mut buffer).unwrap().to_vec()
     }
-    let fields = [
-        ParamField::C1,
-        ParamField::C2,
-        ParamField::C3,
-        ParamField::Alpha,
-        ParamField::Beta,
-        ParamField::Omega,
-        ParamField::GearRatio,
-        ParamField::TorqueLimit,
-        ParamField::DirectionBand,
+    let names = [
+        ParamName::C1,
+        ParamName::C2,
+        ParamName::C3,
+        ParamName::Alpha,
+        ParamName::Beta,
+        ParamName::Omega,
+        ParamName::SlipStiffness(5),
+        ParamName::SlipMin,
+        ParamName::SlipMax,
     ];
-    for (index, field) in (0u8..).zip(fields) {
+    for (index, name) in (0u8..).zip(names) {
+        let expected = match name {
+            ParamName::SlipStiffness(i) => vec![0, index, i],
+            _ => vec![0, index],
+        };
+        assert_eq!(index_of(ParamField::Model(name)), expected, "{name:?}");
+    }
+    for (index, field) in (1u8..).zip([ParamField::GearRatio, ParamField::TorqueLimit, ParamField::DirectionBand]) {
         assert_eq!(index_of(field), [index], "{field:?}");
     }
-    assert_eq!(index_of(ParamField::SlipStiffness(5)), [9, 5]);
-    assert_eq!(index_of(ParamField::SlipMin), [10]);
-    assert_eq!(index_of(ParamField::SlipMax), [11]);
-    let JointModel::MicroSlip(slip) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
+    let GearModel::MicroSlip(slip) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
     let mut buffer = [0u8; 128];
     let zero = Params { c1: 0.0, c2: 0.0, c3: 0.0, alpha: 0.0, beta: 0.0, omega: 0.0 };
-    assert_eq!(postcard::to_slice(&JointModel::Genetic(zero), &mut buffer).unwrap()[0], 0);
-    assert_eq!(postcard::to_slice(&JointModel::MicroSlip(slip), &mut buffer).unwrap()[0], 1);
+    assert_eq!(postcard::to_slice(&GearModel::Genetic(zero), &mut buffer).unwrap()[0], 0);
+    assert_eq!(postcard::to_slice(&GearModel::MicroSlip(slip), &mut buffer).unwrap()[0], 1);
     assert_eq!(index_of(ParamFault::NotFinite), [0]);
     assert_eq!(index_of(ParamFault::OutOfRange), [1]);
     assert_eq!(index_of(EvalPath::Direct), [0]);
@@ -461,7 +468,7 @@ fn golden_enum_indices() {
 fn the_longest_message_of_each_kind_fits_a_frame() {
     let widest_genetic = JointParams {
         model_version: u16::MAX,
-        model: JointModel::Genetic(Params {
+        model: GearModel::Genetic(Params {
             c1: f32::MIN,
             c2: f32::MIN,
             c3: f32::MIN,
@@ -474,7 +481,7 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
         direction_band: f32::MIN,
     };
     let widest = JointParams {
-        model: JointModel::MicroSlip(SlipModel {
+        model: GearModel::MicroSlip(SlipParams {
             c1: f32::MIN,
             c2: f32::MIN,
             c3: f32::MIN,
@@ -527,7 +534,7 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
         Response::Error(ErrorReply::ModelVersion { got: big, supported: big }),
         Response::Error(ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
         Response::Error(ErrorReply::InvalidParam {
-            field: ParamField::SlipStiffness(u8::MAX),
+            field: ParamField::Model(ParamName::SlipStiffness(u8::MAX)),
             fault: ParamFault::OutOfRange,
         }),
         Response::ControlAccepted,
@@ -696,13 +703,16 @@ fn validation_names_the_field() {
     let invalid = |field, fault| Err(ErrorReply::InvalidParam { field, fault });
     fn genetic(p: &mut JointParams) -> &mut Params<f32> {
         match &mut p.model {
-            JointModel::Genetic(model) => model,
-            JointModel::MicroSlip(_) => unreachable!(),
+            GearModel::Genetic(model) => model,
+            GearModel::MicroSlip(_) => unreachable!(),
         }
     }
-    assert_eq!(with(|p| genetic(p).c2 = f32::NAN), invalid(ParamField::C2, ParamFault::NotFinite));
-    assert_eq!(with(|p| genetic(p).beta = f32::INFINITY), invalid(ParamField::Beta, ParamFault::NotFinite));
-    assert_eq!(with(|p| genetic(p).omega = 0.0), invalid(ParamField::Omega, ParamFault::OutOfRange));
+    assert_eq!(with(|p| genetic(p).c2 = f32::NAN), invalid(ParamField::Model(ParamName::C2), ParamFault::NotFinite));
+    assert_eq!(
+        with(|p| genetic(p).beta = f32::INFINITY),
+        invalid(ParamField::Model(ParamName::Beta), ParamFault::NotFinite)
+    );
+    assert_eq!(with(|p| genetic(p).omega = 0.0), invalid(ParamField::Model(ParamName::Omega), ParamFault::OutOfRange));
     assert_eq!(with(|p| p.gear_ratio = 0.5), invalid(ParamField::GearRatio, ParamFault::OutOfRange));
     assert_eq!(with(|p| p.torque_limit = 0.0), invalid(ParamField::TorqueLimit, ParamFault::OutOfRange));
     assert_eq!(with(|p| p.direction_band = -1.0), invalid(ParamField::DirectionBand, ParamFault::OutOfRange));
@@ -714,35 +724,49 @@ fn validation_names_the_field() {
 
 #[test]
 fn micro_slip_validation_names_the_field() {
-    let with = |edit: fn(&mut SlipModel)| {
+    let with = |edit: fn(&mut SlipParams<f32, SLIP_ELEMENTS>)| {
         let mut params = DISTINCT_SLIP_PARAMS;
-        let JointModel::MicroSlip(model) = &mut params.model else { unreachable!() };
+        let GearModel::MicroSlip(model) = &mut params.model else { unreachable!() };
         edit(model);
         params.validate()
     };
     let invalid = |field, fault| Err(ErrorReply::InvalidParam { field, fault });
     assert_eq!(with(|_| ()), Ok(()));
-    assert_eq!(with(|m| m.c1 = f32::NAN), invalid(ParamField::C1, ParamFault::NotFinite));
-    assert_eq!(with(|m| m.c3 = f32::NEG_INFINITY), invalid(ParamField::C3, ParamFault::NotFinite));
-    assert_eq!(with(|m| m.stiffness[7] = f32::INFINITY), invalid(ParamField::SlipStiffness(7), ParamFault::NotFinite));
-    assert_eq!(with(|m| m.stiffness[15] = -1.0), invalid(ParamField::SlipStiffness(15), ParamFault::OutOfRange));
+    assert_eq!(with(|m| m.c1 = f32::NAN), invalid(ParamField::Model(ParamName::C1), ParamFault::NotFinite));
+    assert_eq!(with(|m| m.c3 = f32::NEG_INFINITY), invalid(ParamField::Model(ParamName::C3), ParamFault::NotFinite));
+    assert_eq!(
+        with(|m| m.stiffness[7] = f32::INFINITY),
+        invalid(ParamField::Model(ParamName::SlipStiffness(7)), ParamFault::NotFinite)
+    );
+    assert_eq!(
+        with(|m| m.stiffness[15] = -1.0),
+        invalid(ParamField::Model(ParamName::SlipStiffness(15)), ParamFault::OutOfRange)
+    );
     // k = 0 is an element that is not there: allowed (the fit's non-negative least squares gives it).
     assert_eq!(with(|m| m.stiffness = [0.0; SLIP_ELEMENTS]), Ok(()));
-    assert_eq!(with(|m| m.slip_min = f32::NAN), invalid(ParamField::SlipMin, ParamFault::NotFinite));
-    assert_eq!(with(|m| m.slip_max = f32::INFINITY), invalid(ParamField::SlipMax, ParamFault::NotFinite));
-    assert_eq!(with(|m| m.slip_min = 0.0), invalid(ParamField::SlipMin, ParamFault::OutOfRange));
-    assert_eq!(with(|m| m.slip_min = -1.0e-5), invalid(ParamField::SlipMin, ParamFault::OutOfRange));
-    assert_eq!(with(|m| m.slip_max = m.slip_min), invalid(ParamField::SlipMax, ParamFault::OutOfRange));
+    assert_eq!(with(|m| m.slip_min = f32::NAN), invalid(ParamField::Model(ParamName::SlipMin), ParamFault::NotFinite));
+    assert_eq!(
+        with(|m| m.slip_max = f32::INFINITY),
+        invalid(ParamField::Model(ParamName::SlipMax), ParamFault::NotFinite)
+    );
+    assert_eq!(with(|m| m.slip_min = 0.0), invalid(ParamField::Model(ParamName::SlipMin), ParamFault::OutOfRange));
+    assert_eq!(with(|m| m.slip_min = -1.0e-5), invalid(ParamField::Model(ParamName::SlipMin), ParamFault::OutOfRange));
+    assert_eq!(
+        with(|m| m.slip_max = m.slip_min),
+        invalid(ParamField::Model(ParamName::SlipMax), ParamFault::OutOfRange)
+    );
     // The joint's own fields as for the genetic kind.
     let mut params = DISTINCT_SLIP_PARAMS;
     params.direction_band = 0.5;
     assert_eq!(params.validate(), invalid(ParamField::DirectionBand, ParamFault::OutOfRange));
     // Every set the protocol accepts, model-core accepts too.
-    let JointModel::MicroSlip(model) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
-    assert_eq!(model.params().validate(), Ok(()));
-    assert_eq!(SlipModel::from(model.params()), model);
+    let GearModel::MicroSlip(model) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
+    assert_eq!(model.validate(), Ok(()));
     // The error names the element.
-    let error = ErrorReply::InvalidParam { field: ParamField::SlipStiffness(3), fault: ParamFault::OutOfRange };
+    let error = ErrorReply::InvalidParam {
+        field: ParamField::Model(ParamName::SlipStiffness(3)),
+        fault: ParamFault::OutOfRange,
+    };
     assert_eq!(std::format!("{error}"), "parameter stiffness[3] is out of range");
 }
 

@@ -1,8 +1,6 @@
 use crate::fast::{FastMath, FastModel};
-use model_core::{Evaluation, GeneticMemory, Hysteretic, MicroSlip, Model};
-use swg_protocol::{
-    Compensation, Direction, ErrorReply, EvalPath, Feedforward, JointModel, JointParams, SLIP_ELEMENTS,
-};
+use model_core::{Evaluation, Evaluator, GearModel};
+use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams};
 
 /// Largest plausible torsional deflection, rad (≈ 5.7°; strain wave gears deflect a few mrad).
 /// Beyond it a reading is an encoder fault: the tick is skipped without touching the model's
@@ -10,44 +8,15 @@ use swg_protocol::{
 /// set evaluates in f32 ([`JointParams::validate`] checks that, on the host too).
 pub const MAX_DEFLECTION: f32 = swg_protocol::MAX_DEFLECTION;
 
-/// Turning points the genetic model remembers on the joint (as `swg-host`'s
-/// `gear::TURNING_POINTS`): deeper nested excursions retrace reversibly.
-pub const TURNING_POINTS: usize = swg_protocol::TURNING_POINTS;
-
-/// The installed model's stateful evaluator (model-core's `memory`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Evaluator {
-    /// `fast`: the set is inside the fast path's range ([`FastModel::new`] accepts it), so
-    /// [`EvalPath::Fast`] runs the same evaluator with [`FastMath`].
-    Genetic {
-        memory: GeneticMemory<f32, TURNING_POINTS>,
-        fast: bool,
-    },
-    MicroSlip(MicroSlip<f32, SLIP_ELEMENTS>),
-}
-
-impl Evaluator {
-    /// One sample: the same state whichever `path` runs it.
-    #[inline(always)]
-    fn step(&mut self, theta: f32, path: EvalPath) -> Option<Evaluation<f32>> {
-        match self {
-            Evaluator::Genetic { memory, fast: true } if path == EvalPath::Fast => {
-                memory.step_with::<FastMath>(theta).ok()
-            }
-            Evaluator::Genetic { memory, .. } => memory.step(theta).ok(),
-            // No transcendental functions: both paths are the same code.
-            Evaluator::MicroSlip(slip) => slip.step(theta).ok(),
-        }
-    }
-
-    /// What [`Feedforward`] reports of the memory: the genetic kind's direction and stored
-    /// turning points, the micro-slip kind's slipping elements.
-    #[inline(always)]
-    fn memory(&self) -> (Option<Direction>, u8) {
-        match self {
-            Evaluator::Genetic { memory, .. } => (memory.direction(), memory.depth() as u8),
-            Evaluator::MicroSlip(slip) => (None, slip.slipping() as u8),
-        }
+/// Whether a model's evaluator may run with the fast path's elementary functions
+/// ([`FastMath`]) on [`EvalPath::Fast`]: the one place the firmware looks at the kind, because
+/// each kind's per-tick cost is budgeted here (bench/firmware.sh).
+fn has_fast_path(model: &GearModel<f32>) -> bool {
+    match model {
+        // Inside the fast path's range of r = β/ω and k ([`FastModel::new`]).
+        GearModel::Genetic(params) => FastModel::new(params).is_ok(),
+        // No transcendental functions: both paths are the same code.
+        GearModel::MicroSlip(_) => true,
     }
 }
 
@@ -55,7 +24,21 @@ impl Evaluator {
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Installed {
     params: JointParams,
-    evaluator: Evaluator,
+    evaluator: Evaluator<f32>,
+    /// [`EvalPath::Fast`] runs the evaluator with [`FastMath`] ([`has_fast_path`]).
+    fast: bool,
+}
+
+impl Installed {
+    /// One sample: the same state whichever `path` runs it.
+    #[inline(always)]
+    fn step(&mut self, theta: f32, path: EvalPath) -> Option<Evaluation<f32>> {
+        if self.fast && path == EvalPath::Fast {
+            self.evaluator.step_with::<FastMath>(theta).ok()
+        } else {
+            self.evaluator.step_with::<model_core::Libm>(theta).ok()
+        }
+    }
 }
 
 /// The feed-forward of one joint: parameters, the model's memory, evaluation, clamping.
@@ -65,8 +48,8 @@ struct Installed {
 /// refused set leaves the previous one (and its memory) active.
 ///
 /// **Memory and parameter changes.** The installed model runs stateful from rest
-/// (model-core's `GeneticMemory` with [`TURNING_POINTS`] turning points and the set's
-/// direction band as its reversal band, or `MicroSlip` with [`SLIP_ELEMENTS`] elements). A
+/// (model-core's `Evaluator`: the genetic kind with the set's direction band as its reversal
+/// band and `TURNING_POINTS` turning points, the micro-slip kind with `SLIP_ELEMENTS`). A
 /// staged set is prepared at rest, and the memory is reset at exactly one moment: when that
 /// set is activated, at the start of the first tick after [`Compensator::stage`], before that
 /// tick's sample is evaluated. That tick therefore starts from rest (the virgin curve) with the
@@ -88,19 +71,8 @@ impl Compensator {
     /// Validates `params` and prepares them, at rest, for the next tick.
     pub fn stage(&mut self, params: JointParams) -> Result<(), ErrorReply> {
         params.validate()?;
-        let evaluator = match params.model {
-            JointModel::Genetic(genetic) => {
-                let model = Model::new(genetic).map_err(|_| ErrorReply::ModelOverflow)?;
-                // The model must be evaluable on the loops it will see.
-                model.at_amplitude(1.0).map_err(|_| ErrorReply::ModelOverflow)?;
-                let fast = FastModel::new(&genetic).is_ok();
-                Evaluator::Genetic { memory: GeneticMemory::new(model, params.direction_band), fast }
-            }
-            JointModel::MicroSlip(slip) => {
-                Evaluator::MicroSlip(MicroSlip::new(slip.params()).map_err(|_| ErrorReply::ModelOverflow)?)
-            }
-        };
-        self.staged = Some(Installed { params, evaluator });
+        let evaluator = params.model.evaluator(params.direction_band).map_err(|_| ErrorReply::ModelOverflow)?;
+        self.staged = Some(Installed { params, evaluator, fast: has_fast_path(&params.model) });
         Ok(())
     }
 
@@ -139,8 +111,10 @@ impl Compensator {
         if deflection.is_nan() || deflection.abs() > MAX_DEFLECTION {
             return OFF;
         }
-        let evaluation = installed.evaluator.step(deflection, path);
-        let (direction, memory) = installed.evaluator.memory();
+        let evaluation = installed.step(deflection, path);
+        let memory = installed.evaluator.memory();
+        // At most TURNING_POINTS or SLIP_ELEMENTS, both 16.
+        let (direction, memory) = (memory.direction, memory.depth as u8);
         let Some(evaluation) = evaluation else {
             return Feedforward { deflection, direction, memory, ..OFF };
         };
@@ -167,9 +141,9 @@ impl Compensator {
 mod tests {
     extern crate std;
     use super::*;
-    use model_core::{checks::PAPER_TABLE_2, Params, SlipParams, MODEL_VERSION};
+    use model_core::{checks::PAPER_TABLE_2, Hysteretic, ParamName, Params, SlipParams, MODEL_VERSION};
     use std::vec::Vec;
-    use swg_protocol::{ParamFault, ParamField, SlipModel};
+    use swg_protocol::{ParamFault, ParamField, SLIP_ELEMENTS};
 
     const BAND: f32 = 1.0e-6;
 
@@ -177,7 +151,7 @@ mod tests {
     fn paper() -> JointParams {
         JointParams {
             model_version: MODEL_VERSION,
-            model: JointModel::Genetic(PAPER_TABLE_2.to_f32()),
+            model: GearModel::Genetic(PAPER_TABLE_2.to_f32()),
             gear_ratio: 100.0,
             torque_limit: 40.0,
             direction_band: BAND,
@@ -188,7 +162,7 @@ mod tests {
     /// 200 N·m/rad slipping between 20 µrad and 2 mrad.
     fn slip() -> JointParams {
         JointParams {
-            model: JointModel::MicroSlip(SlipModel {
+            model: GearModel::MicroSlip(SlipParams {
                 c1: 6000.0,
                 c2: 1.2e10,
                 c3: 0.0,
@@ -202,23 +176,14 @@ mod tests {
 
     fn genetic(params: &mut JointParams) -> &mut Params<f32> {
         match &mut params.model {
-            JointModel::Genetic(model) => model,
-            JointModel::MicroSlip(_) => unreachable!(),
+            GearModel::Genetic(model) => model,
+            GearModel::MicroSlip(_) => unreachable!(),
         }
     }
 
     /// model-core's own evaluator of `params`, at rest, in f32 with libm.
-    fn reference(params: &JointParams) -> std::boxed::Box<dyn Hysteretic<f32>> {
-        match params.model {
-            JointModel::Genetic(p) => std::boxed::Box::new(GeneticMemory::<f32, TURNING_POINTS>::new(
-                Model::new(p).unwrap(),
-                params.direction_band,
-            )),
-            JointModel::MicroSlip(p) => {
-                let p: SlipParams<f32, SLIP_ELEMENTS> = p.params();
-                std::boxed::Box::new(MicroSlip::new(p).unwrap())
-            }
-        }
+    fn reference(params: &JointParams) -> Evaluator<f32> {
+        params.model.evaluator(params.direction_band).unwrap()
     }
 
     /// θ = 0.6·A + 0.15·A·sin φ after a ramp from rest: a held load with an oscillation.
@@ -289,7 +254,7 @@ mod tests {
                         let want = expected.step(out.deflection).unwrap();
                         assert_eq!(out.compensation, Compensation::Active);
                         deepest = deepest.max(out.memory);
-                        if path == EvalPath::Direct || matches!(params.model, JointModel::MicroSlip(_)) {
+                        if path == EvalPath::Direct || matches!(params.model, GearModel::MicroSlip(_)) {
                             assert_eq!((out.torque, out.stiffness), (want.torque, want.stiffness));
                         } else {
                             assert!(
@@ -307,25 +272,8 @@ mod tests {
     }
 
     /// model-core's evaluator of `params` in f64, at rest.
-    fn exact(params: &JointParams) -> std::boxed::Box<dyn Hysteretic<f64>> {
-        match params.model {
-            JointModel::Genetic(p) => {
-                let p = p.try_map(|_, v| Ok::<f64, ()>(f64::from(v))).unwrap();
-                let band = f64::from(params.direction_band);
-                std::boxed::Box::new(GeneticMemory::<f64, TURNING_POINTS>::new(Model::new(p).unwrap(), band))
-            }
-            JointModel::MicroSlip(p) => std::boxed::Box::new(
-                MicroSlip::new(SlipParams {
-                    c1: f64::from(p.c1),
-                    c2: f64::from(p.c2),
-                    c3: f64::from(p.c3),
-                    stiffness: p.stiffness.map(f64::from),
-                    slip_min: f64::from(p.slip_min),
-                    slip_max: f64::from(p.slip_max),
-                })
-                .unwrap(),
-            ),
-        }
+    fn exact(params: &JointParams) -> Evaluator<f64> {
+        params.model.map(|_, v| f64::from(v)).evaluator(f64::from(params.direction_band)).unwrap()
     }
 
     /// At a reversal the torque turns without a step: no tick moves T_ff by more than the
@@ -370,8 +318,8 @@ mod tests {
                                 * f64::from((b.deflection - a.deflection).abs());
                             let exact_step = (exact_b.torque - exact_a.torque).abs();
                             let allowed = match params.model {
-                                JointModel::MicroSlip(_) => by_stiffness,
-                                JointModel::Genetic(_) => by_stiffness.max(exact_step),
+                                GearModel::MicroSlip(_) => by_stiffness,
+                                GearModel::Genetic(_) => by_stiffness.max(exact_step),
                             } + tolerance;
                             assert!(
                                 step <= allowed,
@@ -404,7 +352,7 @@ mod tests {
             // That tick starts from rest with the new set: the evaluator's first step.
             let want = reference(&second).step(out.deflection).unwrap();
             assert_eq!((out.torque, out.stiffness), (want.torque, want.stiffness), "{out:?}");
-            assert!(out.memory == 0 || matches!(second.model, JointModel::MicroSlip(_)), "{out:?}");
+            assert!(out.memory == 0 || matches!(second.model, GearModel::MicroSlip(_)), "{out:?}");
             // And the memory builds again from there, as the evaluator's from rest.
             let mut expected = reference(&second);
             expected.step(out.deflection).unwrap();
@@ -487,7 +435,7 @@ mod tests {
         genetic(&mut bad).alpha = f32::NAN;
         assert_eq!(
             compensator.stage(bad),
-            Err(ErrorReply::InvalidParam { field: ParamField::Alpha, fault: ParamFault::NotFinite })
+            Err(ErrorReply::InvalidParam { field: ParamField::Model(ParamName::Alpha), fault: ParamFault::NotFinite })
         );
         let mut huge = paper();
         genetic(&mut huge).alpha = f32::MAX;
@@ -495,23 +443,26 @@ mod tests {
         // Named by the one parameter whose neutral value (α = 0) would make the set evaluable.
         assert_eq!(
             compensator.stage(huge),
-            Err(ErrorReply::InvalidParam { field: ParamField::Alpha, fault: ParamFault::OutOfRange })
+            Err(ErrorReply::InvalidParam { field: ParamField::Model(ParamName::Alpha), fault: ParamFault::OutOfRange })
         );
         let mut negative = slip();
-        if let JointModel::MicroSlip(model) = &mut negative.model {
+        if let GearModel::MicroSlip(model) = &mut negative.model {
             model.stiffness[4] = -1.0;
         }
         assert_eq!(
             compensator.stage(negative),
-            Err(ErrorReply::InvalidParam { field: ParamField::SlipStiffness(4), fault: ParamFault::OutOfRange })
+            Err(ErrorReply::InvalidParam {
+                field: ParamField::Model(ParamName::SlipStiffness(4)),
+                fault: ParamFault::OutOfRange
+            })
         );
         let mut overflowing = slip();
-        if let JointModel::MicroSlip(model) = &mut overflowing.model {
+        if let GearModel::MicroSlip(model) = &mut overflowing.model {
             model.c3 = f32::MAX;
         }
         assert_eq!(
             compensator.stage(overflowing),
-            Err(ErrorReply::InvalidParam { field: ParamField::C3, fault: ParamFault::OutOfRange })
+            Err(ErrorReply::InvalidParam { field: ParamField::Model(ParamName::C3), fault: ParamFault::OutOfRange })
         );
         assert_eq!(compensator.params(), Some(paper()));
         assert_eq!(compensator.tick(10.0, 0.0995, EvalPath::Direct).torque, before.torque);
@@ -521,36 +472,32 @@ mod tests {
     /// refused with the parameter named, the old set and its memory active. Before the range
     /// check (model-core's `range`, through `JointParams::validate`) c1, c2 < 1.1e38, c3 = 1e38,
     /// β, each k_i and the slip range were accepted, and every tick was then off.
+    /// Every parameter name of `model`'s kind, in order.
+    fn names(model: &GearModel<f32>) -> Vec<ParamName> {
+        let mut names = Vec::new();
+        model.map(|name, value| {
+            names.push(name);
+            value
+        });
+        names
+    }
+
     #[test]
     fn a_set_that_overflows_anywhere_in_range_is_refused() {
         let mut cases: Vec<(JointParams, ParamField)> = Vec::new();
-        for name in model_core::ParamName::ALL {
-            let mut params = paper();
-            let p = genetic(&mut params);
-            *p = p.with(name, if name == model_core::ParamName::Omega { 1.0e-38 } else { 1.0e38 });
-            cases.push((params, ParamField::from(name)));
-        }
-        let slip_case = |edit: &dyn Fn(&mut SlipModel), field| {
-            let mut params = slip();
-            if let JointModel::MicroSlip(model) = &mut params.model {
-                edit(model);
+        for base in [paper(), slip()] {
+            for name in names(&base.model) {
+                let huge = match name {
+                    ParamName::Omega => 1.0e-38,
+                    // Below it, the other end of the range is the culprit (below).
+                    ParamName::SlipMin => continue,
+                    _ => 1.0e38,
+                };
+                cases.push((JointParams { model: base.model.with(name, huge), ..base }, ParamField::Model(name)));
             }
-            (params, field)
-        };
-        cases.push(slip_case(&|m| m.c1 = 1.0e38, ParamField::C1));
-        cases.push(slip_case(&|m| m.c2 = 1.0e38, ParamField::C2));
-        cases.push(slip_case(&|m| m.c3 = 1.0e38, ParamField::C3));
-        for i in 0..SLIP_ELEMENTS {
-            cases.push(slip_case(&|m| m.stiffness[i] = 1.0e38, ParamField::SlipStiffness(i as u8)));
         }
-        cases.push(slip_case(&|m| m.slip_max = 1.0e38, ParamField::SlipMax));
-        cases.push(slip_case(
-            &|m| {
-                m.slip_min = 1.0e37;
-                m.slip_max = 1.0e38;
-            },
-            ParamField::SlipMin,
-        ));
+        let both_ends = slip().model.with(ParamName::SlipMin, 1.0e37).with(ParamName::SlipMax, 1.0e38);
+        cases.push((JointParams { model: both_ends, ..slip() }, ParamField::Model(ParamName::SlipMin)));
         for (bad, field) in cases {
             let mut compensator = Compensator::new();
             compensator.stage(paper()).unwrap();
@@ -596,48 +543,30 @@ mod tests {
                 }
             }
         };
-        let limit = JointParams { torque_limit: f32::MAX, ..paper() };
-        for name in model_core::ParamName::ALL {
-            let mut last = None;
-            for decade in 0..90 {
-                let mut params = limit;
-                let p = genetic(&mut params);
-                let scale = libm::powf(10.0, decade as f32);
-                match name {
-                    model_core::ParamName::C1 => p.c1 *= scale,
-                    model_core::ParamName::C2 => p.c2 *= scale,
-                    model_core::ParamName::C3 => p.c3 *= scale,
-                    model_core::ParamName::Alpha => p.alpha *= scale,
-                    model_core::ParamName::Beta => p.beta *= scale,
-                    model_core::ParamName::Omega => p.omega /= scale,
+        for base in [paper(), slip()] {
+            let limit = JointParams { torque_limit: f32::MAX, ..base };
+            for name in names(&base.model) {
+                let push = |value: f32, scale: f32| match name {
+                    ParamName::Omega => value / scale,
+                    // From a slope of a real gear's size where the reference set has none.
+                    ParamName::C3 if value == 0.0 => 1.0e10 * scale,
+                    _ => value * scale,
+                };
+                if matches!(name, ParamName::SlipMin | ParamName::SlipMax) {
+                    continue;
                 }
-                if params.validate().is_err() {
-                    break;
-                }
-                last = Some(params);
-            }
-            evaluate(last.unwrap());
-        }
-        let limit = JointParams { torque_limit: f32::MAX, ..slip() };
-        for field in 0..(3 + SLIP_ELEMENTS) {
-            let mut last = None;
-            for decade in 0..90 {
-                let mut params = limit;
-                let scale = libm::powf(10.0, decade as f32);
-                if let JointModel::MicroSlip(m) = &mut params.model {
-                    match field {
-                        0 => m.c1 *= scale,
-                        1 => m.c2 *= scale,
-                        2 => m.c3 = 1.0e10 * scale,
-                        i => m.stiffness[i - 3] *= scale,
+                let mut last = None;
+                for decade in 0..90 {
+                    let scale = libm::powf(10.0, decade as f32);
+                    let model = limit.model.map(|each, value| if each == name { push(value, scale) } else { value });
+                    let params = JointParams { model, ..limit };
+                    if params.validate().is_err() {
+                        break;
                     }
+                    last = Some(params);
                 }
-                if params.validate().is_err() {
-                    break;
-                }
-                last = Some(params);
+                evaluate(last.unwrap());
             }
-            evaluate(last.unwrap());
         }
     }
 

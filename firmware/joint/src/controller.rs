@@ -218,7 +218,7 @@ mod tests {
     extern crate std;
     use super::*;
     use model_core::{checks::MICRO_SLIP_SET, Hysteretic, MODEL_VERSION};
-    use swg_protocol::{JointModel, JointParams};
+    use swg_protocol::{GearModel, JointParams};
 
     const RATIO: f32 = 50.0;
     const PERIOD: f32 = 1.0e-3;
@@ -226,7 +226,7 @@ mod tests {
     fn slip() -> JointParams {
         JointParams {
             model_version: MODEL_VERSION,
-            model: JointModel::MicroSlip(MICRO_SLIP_SET.to_f32().into()),
+            model: GearModel::MicroSlip(MICRO_SLIP_SET.to_f32()),
             gear_ratio: RATIO,
             torque_limit: 60.0,
             direction_band: 0.0,

@@ -20,7 +20,7 @@ pub mod flash;
 mod server;
 pub mod storage;
 
-pub use compensator::{Compensator, MAX_DEFLECTION, TURNING_POINTS};
+pub use compensator::{Compensator, MAX_DEFLECTION};
 pub use controller::{Controller, MotorDrive, NoDrive};
 pub use fast::FastModel;
 pub use server::Server;

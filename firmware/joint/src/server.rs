@@ -138,13 +138,13 @@ mod tests {
     use model_core::Params;
     use std::vec::Vec;
     use swg_protocol::{
-        encode_with_version, Compensation, EncoderSample, EvalPath, JointModel, JointParams, ParamFault, ParamField,
-        SlipModel, SLIP_ELEMENTS,
+        encode_with_version, Compensation, EncoderSample, EvalPath, GearModel, JointParams, ParamFault, ParamField,
+        ParamName, SlipParams, SLIP_ELEMENTS,
     };
 
     const PARAMS: JointParams = JointParams {
         model_version: MODEL_VERSION,
-        model: JointModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
+        model: GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
         gear_ratio: 100.0,
         torque_limit: 50.0,
         direction_band: 2.0e-6,
@@ -208,7 +208,7 @@ mod tests {
     #[test]
     fn a_micro_slip_set_is_written_committed_and_survives_a_reboot() {
         let slip = JointParams {
-            model: JointModel::MicroSlip(SlipModel {
+            model: GearModel::MicroSlip(SlipParams {
                 c1: 6.0e3,
                 c2: 1.2e10,
                 c3: 0.0,
@@ -239,7 +239,7 @@ mod tests {
         let before = replay(&mut server);
 
         let mut nan = PARAMS;
-        if let JointModel::Genetic(model) = &mut nan.model {
+        if let GearModel::Genetic(model) = &mut nan.model {
             model.c1 = f32::NAN;
         }
         let mut huge_band = PARAMS;
@@ -255,7 +255,7 @@ mod tests {
         let cases: [(Vec<u8>, ErrorReply); 6] = [
             (
                 frame(&Request::WriteParams(nan)),
-                ErrorReply::InvalidParam { field: ParamField::C1, fault: ParamFault::NotFinite },
+                ErrorReply::InvalidParam { field: ParamField::Model(ParamName::C1), fault: ParamFault::NotFinite },
             ),
             (good, ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
             (corrupted, ErrorReply::BadCrc),

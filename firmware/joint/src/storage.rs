@@ -20,11 +20,11 @@
 //! The formats this firmware reads:
 //!
 //! - **2** (written now): the payload is [`JointParams`] with the model's kind
-//!   ([`swg_protocol::JointModel`], genetic or micro-slip). The longest, a micro-slip set, is
+//!   ([`swg_protocol::GearModel`], genetic or micro-slip). The longest, a micro-slip set, is
 //!   100 bytes at most (98 with model version 1): a record of 120 bytes with its CRC block.
 //! - **1**, and **0xFF** (firmware 0.1.0 wrote no format byte: it left byte 10, reserved then,
 //!   erased, in the layout that became format 1): the payload is protocol 1's parameter set,
-//!   genetic only ([`LegacyJointParams`]); it loads as [`JointModel::Genetic`] with the same
+//!   genetic only ([`LegacyJointParams`]); it loads as [`GearModel::Genetic`] with the same
 //!   numbers, so parameters stored before an update survive it. The next commit writes
 //!   format 2.
 //!
@@ -32,7 +32,7 @@
 use embedded_storage::nor_flash::NorFlash;
 use model_core::Params;
 use serde::Deserialize;
-use swg_protocol::{ErrorReply, JointModel, JointParams};
+use swg_protocol::{ErrorReply, GearModel, JointParams};
 
 const MAGIC: [u8; 4] = *b"SWGP";
 /// The record format this firmware writes (header byte 10). A change of the record's layout
@@ -131,7 +131,7 @@ impl From<LegacyJointParams> for JointParams {
     fn from(legacy: LegacyJointParams) -> Self {
         JointParams {
             model_version: legacy.model_version,
-            model: JointModel::Genetic(legacy.model),
+            model: GearModel::Genetic(legacy.model),
             gear_ratio: legacy.gear_ratio,
             torque_limit: legacy.torque_limit,
             direction_band: legacy.direction_band,

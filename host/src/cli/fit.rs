@@ -1,13 +1,13 @@
 //! `swg-host fit`: identify the model from a loop table or a recording.
 use super::InputOptions;
 use anyhow::{bail, Context, Result};
+use clap::builder::PossibleValue;
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use model_core::Model;
+use model_core::{Kind, Model};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use swg_host::fit::{fit_dataset, FitDatasetError, Identified, ModelChoice, Stage};
-use swg_host::gear::ModelKind;
 use swg_host::report::finite::to_json;
 use swg_host::report::fit::{ComparedReport, FitReport, InputSummary};
 use swg_host::report::output::Outputs;
@@ -42,27 +42,30 @@ pub struct FitArgs {
     input_options: InputOptions,
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum ModelArg {
-    /// The paper's genetic model, with Madelung's rules on a recording.
-    Genetic,
-    /// Maxwell-slip: an odd polynomial spring and 16 elasto-slip elements (recordings).
-    MicroSlip,
-    /// Every kind; the lowest error on the held-out last quarter wins.
-    Auto,
-    /// The paper's symmetric-loop rule on each leg of a recording (the fit before the stateful
-    /// models; for comparison only, it assumes symmetric loops).
-    GeneticLoop,
-}
+/// `--model`: a kind by its label, `auto` or `genetic-loop`.
+#[derive(Clone, Copy, Debug)]
+struct ModelArg(ModelChoice);
 
-impl From<ModelArg> for ModelChoice {
-    fn from(arg: ModelArg) -> Self {
-        match arg {
-            ModelArg::Genetic => ModelChoice::Kind(ModelKind::Genetic),
-            ModelArg::MicroSlip => ModelChoice::Kind(ModelKind::MicroSlip),
-            ModelArg::Auto => ModelChoice::Auto,
-            ModelArg::GeneticLoop => ModelChoice::Loop,
-        }
+impl ValueEnum for ModelArg {
+    fn value_variants<'a>() -> &'a [Self] {
+        static VARIANTS: std::sync::OnceLock<Vec<ModelArg>> = std::sync::OnceLock::new();
+        VARIANTS.get_or_init(|| {
+            let kinds = Kind::ALL.into_iter().map(ModelChoice::Kind);
+            kinds.chain([ModelChoice::Auto, ModelChoice::Loop]).map(ModelArg).collect()
+        })
+    }
+
+    fn to_possible_value(&self) -> Option<PossibleValue> {
+        Some(match self.0 {
+            ModelChoice::Kind(kind) => PossibleValue::new(kind.label()).help(kind.description()),
+            ModelChoice::Auto => {
+                PossibleValue::new("auto").help("Every kind; the lowest error on the held-out last quarter wins")
+            }
+            ModelChoice::Loop => PossibleValue::new("genetic-loop").help(
+                "The paper's symmetric-loop rule on each leg of a recording (the fit before the stateful models; for \
+                 comparison only, it assumes symmetric loops)",
+            ),
+        })
     }
 }
 
@@ -83,7 +86,7 @@ pub fn run(args: FitArgs) -> Result<()> {
         recording.temperature = None;
     }
     let compare = args.compare.iter().map(|path| read_model(path)).collect::<Result<Vec<_>, _>>()?;
-    let choice = args.model.map_or(ModelChoice::Auto, ModelChoice::from);
+    let choice = args.model.map_or(ModelChoice::Auto, |arg| arg.0);
 
     let progress = DelayedProgress::new();
     let outcome = fit_dataset(&dataset, choice, &compare, args.seed, |stage| progress.update(stage)).map_err(
@@ -106,7 +109,7 @@ pub fn run(args: FitArgs) -> Result<()> {
         .map(|((path, model), &rss)| ComparedReport {
             path: path.display().to_string(),
             model: model.kind().name(),
-            params: model.into(),
+            params: *model,
             rss,
         })
         .collect();

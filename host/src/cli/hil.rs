@@ -3,12 +3,12 @@
 use super::push::PortOptions;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
+use model_core::GearModel;
 use std::path::PathBuf;
-use swg_host::gear::GearModel;
 use swg_host::hil::output::picture_name;
 use swg_host::hil::{self, GearTruth, HilOptions, Scenario};
 use swg_host::report::output::Outputs;
-use swg_host::report::params::{parse_params, read_model};
+use swg_host::report::params::{parse_model, read_model};
 use swg_host::simulate::{BoucWen, MicroSlip, Physics};
 use swg_protocol::ControlMode;
 
@@ -89,13 +89,13 @@ pub fn run(args: HilArgs) -> Result<()> {
             GearTruth::Model { name: gear_name(path, &gear), model: gear }
         }
         None => {
-            let seed = parse_params("data/seed/lht-20-50-fit.json (bundled)".as_ref(), super::simulate::SEED_FIT)?;
+            let seed = parse_model("data/seed/lht-20-50-fit.json (bundled)".as_ref(), super::simulate::SEED_FIT)?;
             let physics = match args.physics {
-                PhysicsArg::Genetic => Physics::Genetic,
+                PhysicsArg::Genetic => Physics::Model,
                 PhysicsArg::MicroSlip => Physics::MicroSlip(MicroSlip::default()),
                 PhysicsArg::BoucWen => Physics::BoucWen(BoucWen::default()),
             };
-            GearTruth::Physics { physics, genetic: seed }
+            GearTruth::Physics { physics, model: seed }
         }
     };
     let scenarios = match args.scenario {
@@ -142,11 +142,7 @@ pub fn run(args: HilArgs) -> Result<()> {
 }
 
 /// The truth's name in reports for a params file: its kind and file name, `genetic:gear`.
-fn gear_name(path: &std::path::Path, model: &GearModel) -> String {
+fn gear_name(path: &std::path::Path, model: &GearModel<f64>) -> String {
     let file = path.file_stem().map_or_else(|| "gear".to_owned(), |s| s.to_string_lossy().into_owned());
-    let kind = match model {
-        GearModel::Genetic(_) => "genetic",
-        GearModel::MicroSlip(_) => "micro-slip",
-    };
-    format!("{kind}:{file}")
+    format!("{}:{file}", model.kind().label())
 }

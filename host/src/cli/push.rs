@@ -6,7 +6,6 @@ use std::time::Duration;
 use swg_host::link::push::{joint_params, push, JointSettings};
 use swg_host::link::Link;
 use swg_host::report::params::read_model;
-use swg_protocol::JointModel;
 
 #[derive(Args)]
 pub struct PushArgs {
@@ -58,22 +57,12 @@ pub fn run(args: PushArgs) -> Result<()> {
         args.port.port, device.firmware_version, device.protocol_version, device.model_version
     );
     match report.previous {
-        Some(previous) => println!("replaced: {:?}", previous.model),
+        Some(previous) => println!("replaced: {}", previous.model),
         None => println!("replaced: nothing (the device had no parameters)"),
     }
-    let model = match joint.model {
-        JointModel::Genetic(m) => format!(
-            "genetic c1={:e} c2={:e} c3={:e} alpha={:e} beta={:e} omega={:e}",
-            m.c1, m.c2, m.c3, m.alpha, m.beta, m.omega
-        ),
-        JointModel::MicroSlip(m) => format!(
-            "micro-slip c1={:e} c2={:e} c3={:e} stiffness={:?} slip {:e}..{:e} rad",
-            m.c1, m.c2, m.c3, m.stiffness, m.slip_min, m.slip_max
-        ),
-    };
     println!(
-        "wrote and read back: {model}, ratio {}, torque limit {} N·m, direction band {:e} rad",
-        joint.gear_ratio, joint.torque_limit, joint.direction_band
+        "wrote and read back: {}, ratio {}, torque limit {} N·m, direction band {:e} rad",
+        joint.model, joint.gear_ratio, joint.torque_limit, joint.direction_band
     );
     println!(
         "committed to flash as record {} in {:.1} ms (version check, write, read-back, commit)",

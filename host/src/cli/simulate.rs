@@ -5,7 +5,7 @@ use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use swg_host::diagnose::effects::EffectValue;
 use swg_host::report::output::Outputs;
-use swg_host::report::params::{parse_params, read_params};
+use swg_host::report::params::{parse_model, read_model};
 use swg_host::simulate::{
     read_physics_params, read_trajectory, simulate_experiment, BoucWen, Experiment, MicroSlip, Motion, Physics,
     Simulation,
@@ -109,7 +109,7 @@ pub struct SimulateArgs {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum PhysicsArg {
-    /// The params file's genetic hysteresis model.
+    /// The params file's model (--params, of any kind; the bundled genetic seed fit by default).
     Genetic,
     /// A Maxwell-slip/Iwan gear with many slip elements.
     MicroSlip,
@@ -150,11 +150,14 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     let params = match &args.params {
         Some(path) => {
             if args.physics != PhysicsArg::Genetic {
-                bail!("--params sets the genetic model; --physics {} takes --physics-params", args.physics.name());
+                bail!(
+                    "--params sets the model of --physics genetic; --physics {} takes --physics-params",
+                    args.physics.name()
+                );
             }
-            read_params(path)?
+            read_model(path)?
         }
-        None => parse_params("data/seed/lht-20-50-fit.json (bundled)".as_ref(), SEED_FIT)?,
+        None => parse_model("data/seed/lht-20-50-fit.json (bundled)".as_ref(), SEED_FIT)?,
     };
     if args.bias.is_some() && !matches!(args.motion, MotionArg::Biased | MotionArg::Hold) {
         bail!("--bias is for --motion biased or hold, not --motion {}", args.motion.name());
@@ -168,7 +171,7 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         MotionArg::File(path) => Motion::File(read_trajectory(path).context("--motion")?),
     };
     let physics = match (args.physics, &args.physics_params) {
-        (PhysicsArg::Genetic, None) => Physics::Genetic,
+        (PhysicsArg::Genetic, None) => Physics::Model,
         (PhysicsArg::Genetic, Some(_)) => {
             bail!("--physics-params is for --physics micro-slip or bouc-wen; the genetic model takes --params")
         }

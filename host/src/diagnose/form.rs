@@ -11,6 +11,7 @@ use super::extended::{direction_sign, ExtendedFit};
 use super::observed::Observed;
 use super::{MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::fit::motion::{fit_micro_slip, micro_slip_with_columns, Motion};
+use crate::fit::FitOptions;
 use crate::gear::reversal_band;
 use serde::Serialize;
 
@@ -130,10 +131,12 @@ pub fn judge(
     let form_rss: f64 = form_torque.iter().zip(&data.torque).map(|(p, t)| (t - p).powi(2)).sum();
     let form_rms = (form_rss / n as f64).sqrt();
     let held_out = (!observed.held_out().is_empty())
-        .then(|| fit_micro_slip(&motion(observed.training().len())).ok().and_then(|f| f.held_out_rms))
+        .then(|| {
+            fit_micro_slip(&motion(observed.training().len()), &FitOptions::default()).ok().and_then(|f| f.held_out_rms)
+        })
         .flatten();
     let extra_parameters =
-        (3 + crate::gear::SLIP_ELEMENTS + kept_columns.len()).saturating_sub(final_fit.degrees_of_freedom()) as f64;
+        (3 + model_core::SLIP_ELEMENTS + kept_columns.len()).saturating_sub(final_fit.degrees_of_freedom()) as f64;
     let delta_bic = (chi2 - form_chi2) / variance - extra_parameters * ln_n;
     let explained = (chi2 - form_chi2) / chi2;
     let held_out_better = held_out_final.zip(held_out).is_none_or(|(genetic, slip)| slip < genetic);
@@ -150,7 +153,7 @@ pub fn judge(
         };
         Structure::Form {
             form: ModelForm {
-                model: crate::gear::MICRO_SLIP_NAME,
+                model: model_core::Kind::MicroSlip.name(),
                 words: format!(
                     "rate-independent hysteresis with memory: the genetic loop's shape does not match; the \
                      micro-slip model{kept_words} fits to RMS {form_rms:.4} N·m against {rms:.4} N·m for {effects} \

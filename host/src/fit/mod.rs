@@ -13,14 +13,14 @@ pub mod baselines;
 pub mod basis;
 pub mod motion;
 
-use crate::gear::{reversal_band, GearModel, ModelKind};
+use crate::gear::reversal_band;
 use crate::input::Dataset;
 use crate::numeric::median;
 use crate::numeric::optimize::{brent, pso, PsoOptions};
 use crate::prepare::{prepare, FitData, NoiseModel, Prepared, SegmentError};
 use baselines::{lines_per_branch, three_segment, BranchLine, ThreeSegment};
 use basis::Basis;
-use model_core::{Identifiable, Model, Params};
+use model_core::{GearModel, Identifiable, Kind, Model, Params};
 pub use motion::MotionFit;
 
 #[derive(Clone, Debug)]
@@ -101,7 +101,7 @@ pub enum Stage {
     },
     /// Fitting the `index`-th of `of` model kinds to a recording.
     Kind {
-        kind: ModelKind,
+        kind: Kind,
         index: usize,
         of: usize,
     },
@@ -110,7 +110,7 @@ pub enum Stage {
 /// Which model `fit` identifies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ModelChoice {
-    Kind(ModelKind),
+    Kind(Kind),
     /// Every kind, on the first three quarters of a recording; the one with the lowest error on
     /// the last quarter wins.
     Auto,
@@ -124,7 +124,7 @@ pub enum ModelChoice {
 #[derive(Clone, Debug)]
 pub struct MotionOutcome {
     pub chosen: MotionFit,
-    /// Every kind fitted, the chosen one included, in [`ModelKind::ALL`] order.
+    /// Every kind fitted, the chosen one included, in [`Kind::ALL`] order.
     pub candidates: Vec<MotionFit>,
     /// Samples held out of every fit (the last quarter with `auto`, else none).
     pub held_out: usize,
@@ -146,7 +146,7 @@ pub enum Identified {
 
 impl Identified {
     /// The model a params file holds.
-    pub fn model(&self) -> GearModel {
+    pub fn model(&self) -> GearModel<f64> {
         match self {
             Identified::Loop(fit) => GearModel::Genetic(fit.params),
             Identified::Motion(outcome) => outcome.chosen.model,
@@ -193,7 +193,7 @@ pub enum FitDatasetError {
 pub fn fit_dataset(
     dataset: &Dataset,
     choice: ModelChoice,
-    compare: &[GearModel],
+    compare: &[GearModel<f64>],
     seed: u64,
     mut progress: impl FnMut(Stage),
 ) -> Result<FitOutcome, FitDatasetError> {
@@ -202,15 +202,15 @@ pub fn fit_dataset(
     let data = &prepared.data;
     let band = reversal_band(prepared.noise.map_or(0.0, |n| n.deflection_rad));
     let identified = match (dataset, choice) {
-        (Dataset::LoopTable(_), ModelChoice::Kind(ModelKind::Genetic) | ModelChoice::Auto) | (_, ModelChoice::Loop) => {
-            Identified::Loop(fit(data, &options, progress)?)
+        (Dataset::LoopTable(_), ModelChoice::Kind(kind)) if !kind.has_symmetric_loop() => {
+            return Err(FitDatasetError::NeedsRecording(kind.name()))
         }
-        (Dataset::LoopTable(_), ModelChoice::Kind(kind)) => return Err(FitDatasetError::NeedsRecording(kind.name())),
+        (Dataset::LoopTable(_), _) | (_, ModelChoice::Loop) => Identified::Loop(fit(data, &options, progress)?),
         (Dataset::Recording(_), ModelChoice::Kind(_) | ModelChoice::Auto) => {
             let n = data.theta.len();
-            let (kinds, training): (Vec<ModelKind>, usize) = match choice {
+            let (kinds, training): (Vec<Kind>, usize) = match choice {
                 ModelChoice::Kind(kind) => (vec![kind], n),
-                _ => (ModelKind::ALL.to_vec(), n * 3 / 4),
+                _ => (Kind::ALL.to_vec(), n * 3 / 4),
             };
             if training < MIN_POINTS || (choice == ModelChoice::Auto && n - training < MIN_POINTS) {
                 return Err(FitDatasetError::TooFewToHoldOut { n });
@@ -220,10 +220,7 @@ pub fn fit_dataset(
             let mut candidates = Vec::new();
             for (k, kind) in kinds.iter().enumerate() {
                 progress(Stage::Kind { kind: *kind, index: k + 1, of: kinds.len() });
-                candidates.push(match kind {
-                    ModelKind::Genetic => motion::fit_genetic(&motion, &options)?,
-                    ModelKind::MicroSlip => motion::fit_micro_slip(&motion)?,
-                });
+                candidates.push(motion::fit_kind(*kind, &motion, &options)?);
             }
             let chosen = candidates
                 .iter()
@@ -251,11 +248,18 @@ pub fn fit_dataset(
         .iter()
         .enumerate()
         .map(|(index, model)| {
-            match (&identified, model) {
-                (Identified::Loop(_), GearModel::Genetic(params)) => Model::new(*params).and_then(|m| rss(&m, data)),
-                _ => crate::gear::run(model, &data.theta, band)
+            // A loop table's samples are on one symmetric loop: a model that has the loop's
+            // stateless form is evaluated on it, any other run along the samples.
+            let on_loop = match &identified {
+                Identified::Loop(_) => model.symmetric_model(),
+                Identified::Motion(_) => Ok(None),
+            };
+            match on_loop {
+                Ok(Some(on_loop)) => rss(&on_loop, data),
+                Ok(None) => crate::gear::run(model, &data.theta, band)
                     .map(|e| e.iter().zip(&data.torque).map(|(e, t)| (t - e.torque).powi(2)).sum())
                     .map_err(|(_, e)| e),
+                Err(e) => Err(e),
             }
             .map_err(|source| FitDatasetError::Compared { index, source })
         })

@@ -12,13 +12,12 @@
 //! With a noise model, residuals are weighted by their total noise 1/(σ_T² + σ_θ²·K²) with K
 //! the model's stiffness, refitted twice, as the loop fit does.
 use super::{FitError, FitOptions, R_LIMIT};
-use crate::gear::{GearModel, SLIP_ELEMENTS};
 use crate::numeric::linalg::Cholesky;
 use crate::numeric::nnls::nnls_normal;
 use crate::numeric::optimize::{brent, pso, PsoOptions};
 use crate::prepare::NoiseModel;
 use model_core::memory::{slip_grid, GeneticMemory, Hysteretic, SlipElements, SlipParams};
-use model_core::{Identifiable, Model, Params};
+use model_core::{GearModel, Identifiable, Kind, Model, Params, SLIP_ELEMENTS, TURNING_POINTS};
 
 /// The swarm runs the genetic kind on at most this many samples of the motion.
 const SWARM_SAMPLES: usize = 4096;
@@ -43,7 +42,7 @@ pub struct Motion<'a> {
 /// A stateful model fitted to a motion, with its errors.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MotionFit {
-    pub model: GearModel,
+    pub model: GearModel<f64>,
     /// The samples fitted (the training ones).
     pub n: usize,
     /// Unweighted RSS over the training samples, (N·m)².
@@ -77,7 +76,7 @@ impl Motion<'_> {
     /// Errors of `model` run along the whole motion, summed as the evaluator steps: the
     /// predicted torque is the one vector kept (the evaluations and their squared errors beside
     /// it were 40 bytes a sample more, the peak of `diagnose` at 10 M samples).
-    fn score(&self, model: GearModel, evaluations: usize) -> Result<MotionFit, FitError> {
+    fn score(&self, model: GearModel<f64>, evaluations: usize) -> Result<MotionFit, FitError> {
         let mut evaluator = model.evaluator(self.band).map_err(FitError::Model)?;
         let mut torque = Vec::with_capacity(self.theta.len());
         let (mut rss, mut held) = (0.0, 0.0);
@@ -104,7 +103,7 @@ impl Motion<'_> {
     }
 
     /// Total-noise weights of `model` on the training samples, normalised to a mean of 1.
-    fn weights(&self, model: &GearModel, noise: &NoiseModel) -> Result<Vec<f64>, FitError> {
+    fn weights(&self, model: &GearModel<f64>, noise: &NoiseModel) -> Result<Vec<f64>, FitError> {
         let mut evaluator = model.evaluator(self.band).map_err(FitError::Model)?;
         let (var_t, var_theta) = (noise.torque_nm.powi(2), noise.deflection_rad.powi(2));
         let mut weights = Vec::with_capacity(self.training);
@@ -152,7 +151,7 @@ fn normal_equations(
 /// `theta` is the fit's fourth column.
 fn unit_hysteresis(theta: &[f64], r: f64, band: f64) -> Result<Vec<f64>, FitError> {
     let unit = Params { c1: 0.0, c2: 0.0, c3: 0.0, alpha: 1.0 + r * r, beta: r, omega: 1.0 };
-    let mut memory = GeneticMemory::<f64, { crate::gear::TURNING_POINTS }>::new(Model::new(unit)?, band);
+    let mut memory = GeneticMemory::<f64, TURNING_POINTS>::new(Model::new(unit)?, band);
     theta.iter().map(|&t| memory.step(t).map(|e| e.torque).map_err(FitError::Model)).collect()
 }
 
@@ -351,8 +350,20 @@ pub fn micro_slip_with_columns(
     Ok((predicted, chi2))
 }
 
-/// Fits the micro-slip kind to `motion`.
-pub fn fit_micro_slip(motion: &Motion) -> Result<MotionFit, FitError> {
+/// A kind's fit to a recording.
+type KindFit = fn(&Motion, &FitOptions) -> Result<MotionFit, FitError>;
+
+/// How each kind is fitted to a recording: the one table of the kinds' fits.
+const KIND_FITS: [(Kind, KindFit); 2] = [(Kind::Genetic, fit_genetic), (Kind::MicroSlip, fit_micro_slip)];
+
+/// Fits the model of kind `kind` to `motion`.
+pub fn fit_kind(kind: Kind, motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {
+    let (_, fit) = KIND_FITS.iter().find(|(each, _)| *each == kind).ok_or(FitError::Degenerate)?;
+    fit(motion, options)
+}
+
+/// Fits the micro-slip kind to `motion` (one solve: the swarm's options are not used).
+pub fn fit_micro_slip(motion: &Motion, _options: &FitOptions) -> Result<MotionFit, FitError> {
     motion.check()?;
     let scale = motion.scale();
     let (slip_min, slip_max) = slip_range(motion);
@@ -411,7 +422,7 @@ mod tests {
         let torque: Vec<f64> =
             run(&GearModel::MicroSlip(truth), &theta, 0.0).unwrap().iter().map(|e| e.torque).collect();
         let motion = Motion { theta: &theta, torque: &torque, training: theta.len(), noise: None, band: 0.0 };
-        let fitted = fit_micro_slip(&motion).unwrap();
+        let fitted = fit_micro_slip(&motion, &FitOptions::default()).unwrap();
         let scale = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
         assert!(fitted.rms < 1e-6 * scale, "RMS {} of a peak {scale}: {:?}", fitted.rms, fitted.model);
     }

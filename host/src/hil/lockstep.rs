@@ -5,9 +5,9 @@ use super::plant::{GearTruth, Plant, PlantParams};
 use super::scenario::Scenario;
 use super::score::{score, Score};
 use super::{controller_config, linear_stiffness, Gains, HilError};
-use crate::gear::GearModel;
 use crate::link::push::{joint_params, JointSettings};
 use crate::link::Link;
+use model_core::GearModel;
 use std::time::{Duration, Instant};
 use swg_protocol::{ControlMode, ControlSample, DeviceInfo, JointParams, PROTOCOL_VERSION};
 
@@ -126,7 +126,7 @@ impl HilOptions {
 
 /// Runs every scenario in every mode of `options` against the joint on `link`, with `model`
 /// pushed (written, not committed) as the joint's set. Leaves the controller `Off`.
-pub fn run(link: &mut Link, model: &GearModel, options: &HilOptions) -> Result<HilReport, HilError> {
+pub fn run(link: &mut Link, model: &GearModel<f64>, options: &HilOptions) -> Result<HilReport, HilError> {
     options.validate()?;
     let period = 1.0 / options.rate_hz;
     let settings = JointSettings {
@@ -220,28 +220,31 @@ mod tests {
     use model_core::checks::SEED_TABLE_FIT;
 
     fn slip_truth() -> GearTruth {
-        GearTruth::Physics { physics: Physics::MicroSlip(MicroSlip::default()), genetic: SEED_TABLE_FIT }
+        GearTruth::Physics {
+            physics: Physics::MicroSlip(MicroSlip::default()),
+            model: GearModel::Genetic(SEED_TABLE_FIT),
+        }
     }
 
     fn bouc_wen_truth() -> GearTruth {
-        GearTruth::Physics { physics: Physics::BoucWen(BoucWen::default()), genetic: SEED_TABLE_FIT }
+        GearTruth::Physics { physics: Physics::BoucWen(BoucWen::default()), model: GearModel::Genetic(SEED_TABLE_FIT) }
     }
 
     fn genetic_truth() -> GearTruth {
-        GearTruth::Physics { physics: Physics::Genetic, genetic: SEED_TABLE_FIT }
+        GearTruth::Physics { physics: Physics::Model, model: GearModel::Genetic(SEED_TABLE_FIT) }
     }
 
     /// The model `fit` identifies (micro-slip for a micro-slip truth, genetic for the genetic
     /// one) from the simulator's recording of `truth`: a random motion of peak 1 mrad with
     /// 20-bit encoders and 0.02 N·m of torque noise.
-    fn fitted(truth: &GearTruth) -> GearModel {
+    fn fitted(truth: &GearTruth) -> GearModel<f64> {
         use crate::fit::{fit_dataset, ModelChoice};
-        use crate::gear::ModelKind;
         use crate::input::Dataset;
         use crate::simulate::{simulate_experiment, Experiment, Motion, Simulation};
-        let GearTruth::Physics { physics, genetic } = truth else { unreachable!() };
+        use model_core::Kind;
+        let GearTruth::Physics { physics, model } = truth else { unreachable!() };
         let simulation = Simulation {
-            params: *genetic,
+            params: *model,
             amplitude_rad: 1.0e-3,
             frequencies_hz: vec![1.0],
             cycles: 4,
@@ -257,7 +260,7 @@ mod tests {
         };
         let experiment = Experiment { simulation, motion: Motion::Random, physics: physics.clone() };
         let recording = simulate_experiment(&experiment).unwrap();
-        let kind = if matches!(physics, Physics::Genetic) { ModelKind::Genetic } else { ModelKind::MicroSlip };
+        let kind = if matches!(physics, Physics::Model) { model.kind() } else { Kind::MicroSlip };
         fit_dataset(&Dataset::Recording(recording), ModelChoice::Kind(kind), &[], 1, |_| {}).unwrap().identified.model()
     }
 

@@ -10,10 +10,10 @@ pub mod plant;
 pub mod scenario;
 pub mod score;
 
-use crate::gear::GearModel;
 use crate::link::LinkError;
 use crate::simulate::PhysicsParamError;
 pub use lockstep::{run, HilOptions, HilReport, HilRun, Tick};
+use model_core::GearModel;
 pub use plant::{GearTruth, Plant, PlantParams};
 pub use scenario::Scenario;
 use swg_protocol::{ControlMode, ControllerConfig};
@@ -74,7 +74,7 @@ pub const LINEAR_FIT_TORQUE: f64 = 15.0;
 /// [`LINEAR_FIT_TORQUE`] (the model run from rest along two cycles of a sine, the tip of the
 /// second), N·m/rad. (A least-squares slope over the loop would be dragged by the hysteresis:
 /// the bundled genetic seed fit, run on loops smaller than its table's, is mostly hysteresis.)
-pub fn linear_stiffness(model: &GearModel) -> Result<f64, HilError> {
+pub fn linear_stiffness(model: &GearModel<f64>) -> Result<f64, HilError> {
     const POINTS: usize = 400;
     let cycle = |amplitude: f64| -> Result<(f64, f64), HilError> {
         let mut evaluator = model.evaluator(0.0)?;

@@ -4,11 +4,10 @@
 //! with a fixed step, [`PlantParams::substeps`] steps per control tick.
 use super::scenario::Environment;
 use super::HilError;
-use crate::gear::{Evaluator, GearModel};
 use crate::simulate::physics::{BoucWenGear, Gear, MicroSlipGear};
 use crate::simulate::Physics;
 use model_core::memory::Hysteretic;
-use model_core::Params;
+use model_core::{Evaluator, GearModel};
 use std::f64::consts::TAU;
 
 /// The joint's mechanics. The defaults are those of a 20-size harmonic drive joint (N = 50).
@@ -86,17 +85,19 @@ pub const TRUTH_BAND: f64 = 1.0e-9;
 /// params file holds (`--gear`), run from rest.
 #[derive(Clone, Debug, PartialEq)]
 pub enum GearTruth {
-    /// `simulate`'s physics; `genetic` is the model of [`Physics::Genetic`] (the simulator's
+    /// `simulate`'s physics; `model` is the truth of [`Physics::Model`] (the simulator's
     /// default is the bundled seed fit).
-    Physics { physics: Physics, genetic: Params<f64> },
-    /// A params file's model (either kind) with its memory, run from rest; `name` for reports.
-    Model { model: GearModel, name: String },
+    Physics { physics: Physics, model: GearModel<f64> },
+    /// A params file's model (any kind) with its memory, run from rest; `name` for reports.
+    Model { model: GearModel<f64>, name: String },
 }
 
 impl GearTruth {
-    /// The name in reports: the physics' (`genetic`, `micro-slip`, `bouc-wen`) or the file's.
+    /// The name in reports: the physics' (`micro-slip`, `bouc-wen`; the model's kind, `genetic`
+    /// for the seed fit) or the file's.
     pub fn name(&self) -> String {
         match self {
+            GearTruth::Physics { physics: Physics::Model, model } => model.kind().label().to_owned(),
             GearTruth::Physics { physics, .. } => physics.name().to_owned(),
             GearTruth::Model { name, .. } => name.clone(),
         }
@@ -104,8 +105,8 @@ impl GearTruth {
 
     fn start(&self) -> Result<TruthState, HilError> {
         Ok(match self {
-            GearTruth::Physics { physics: Physics::Genetic, genetic } => {
-                TruthState::Model(Box::new(GearModel::Genetic(*genetic).evaluator(TRUTH_BAND)?))
+            GearTruth::Physics { physics: Physics::Model, model } => {
+                TruthState::Model(Box::new(model.evaluator(TRUTH_BAND)?))
             }
             GearTruth::Physics { physics: Physics::MicroSlip(params), .. } => {
                 TruthState::Path(Box::new(MicroSlipGear::new(*params)?))
@@ -121,7 +122,7 @@ impl GearTruth {
 /// A truth gear with its state.
 enum TruthState {
     Path(Box<dyn Gear>),
-    Model(Box<Evaluator>),
+    Model(Box<Evaluator<f64>>),
 }
 
 impl TruthState {
@@ -231,7 +232,7 @@ mod tests {
     fn slip() -> GearTruth {
         GearTruth::Physics {
             physics: Physics::MicroSlip(MicroSlip::default()),
-            genetic: model_core::checks::SEED_TABLE_FIT,
+            model: GearModel::Genetic(model_core::checks::SEED_TABLE_FIT),
         }
     }
 

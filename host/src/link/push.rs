@@ -1,9 +1,8 @@
 //! Pushing a parameter set to a joint: check versions, write, read back, commit.
 use super::{Link, LinkError};
-use crate::gear::GearModel;
-use model_core::MODEL_VERSION;
+use model_core::{GearModel, MODEL_VERSION};
 use std::time::{Duration, Instant};
-use swg_protocol::{DeviceInfo, ErrorReply, JointModel, JointParams, SlipModel, PROTOCOL_VERSION};
+use swg_protocol::{DeviceInfo, ErrorReply, JointParams, PROTOCOL_VERSION};
 
 /// How the joint applies the model, pushed with it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -46,29 +45,13 @@ fn narrow(name: &str, value: f64) -> Result<f32, PushError> {
     }
 }
 
-/// The model of either kind as the device will hold it, f32.
-pub fn joint_model(model: &GearModel) -> Result<JointModel, PushError> {
-    Ok(match model {
-        GearModel::Genetic(params) => JointModel::Genetic(params.try_map(|name, value| narrow(name.as_str(), value))?),
-        GearModel::MicroSlip(params) => {
-            let mut stiffness = [0.0f32; swg_protocol::SLIP_ELEMENTS];
-            for (i, (k, value)) in stiffness.iter_mut().zip(params.stiffness).enumerate() {
-                *k = narrow(&format!("stiffness[{i}]"), value)?;
-            }
-            JointModel::MicroSlip(SlipModel {
-                c1: narrow("c1", params.c1)?,
-                c2: narrow("c2", params.c2)?,
-                c3: narrow("c3", params.c3)?,
-                stiffness,
-                slip_min: narrow("slip_min", params.slip_min)?,
-                slip_max: narrow("slip_max", params.slip_max)?,
-            })
-        }
-    })
+/// The model as the device will hold it, f32.
+pub fn joint_model(model: &GearModel<f64>) -> Result<GearModel<f32>, PushError> {
+    model.try_map(|name, value| narrow(&name.to_string(), value))
 }
 
 /// The set as the device will hold it (f32), validated here with the device's own rules.
-pub fn joint_params(model: &GearModel, settings: &JointSettings) -> Result<JointParams, PushError> {
+pub fn joint_params(model: &GearModel<f64>, settings: &JointSettings) -> Result<JointParams, PushError> {
     let joint = JointParams {
         model_version: MODEL_VERSION,
         model: joint_model(model)?,
@@ -121,12 +104,11 @@ pub fn push(link: &mut Link, params: &JointParams) -> Result<PushReport, PushErr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gear::SLIP_ELEMENTS;
     use crate::link::fake::FakeDevice;
-    use model_core::{Params, SlipParams};
+    use model_core::{ParamName, Params, SlipParams, SLIP_ELEMENTS};
     use swg_protocol::{ParamFault, ParamField};
 
-    const SEED: GearModel =
+    const SEED: GearModel<f64> =
         GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 });
     const SLIP: SlipParams<f64, SLIP_ELEMENTS> = SlipParams {
         c1: 6.0e3,
@@ -153,7 +135,7 @@ mod tests {
     fn push_sends_a_micro_slip_model() {
         let mut link = FakeDevice::new().link();
         let params = joint_params(&GearModel::MicroSlip(SLIP), &SETTINGS).unwrap();
-        let JointModel::MicroSlip(slip) = params.model else { panic!("{params:?}") };
+        let GearModel::MicroSlip(slip) = params.model else { panic!("{params:?}") };
         assert_eq!(slip.stiffness, [187.5; SLIP_ELEMENTS]);
         assert_eq!((slip.slip_min, slip.slip_max), (2.0e-5, 2.0e-3));
         let report = push(&mut link, &params).unwrap();
@@ -183,7 +165,7 @@ mod tests {
         assert!(matches!(
             joint_params(&GearModel::MicroSlip(slip), &SETTINGS),
             Err(PushError::Invalid(ErrorReply::InvalidParam {
-                field: ParamField::SlipMin,
+                field: ParamField::Model(ParamName::SlipMin),
                 fault: ParamFault::OutOfRange
             }))
         ));
@@ -214,30 +196,26 @@ mod tests {
         }
         link.write_params(&good).unwrap();
 
-        let mut cases: Vec<(GearModel, ParamField)> = Vec::new();
-        for name in model_core::ParamName::ALL {
-            let p = PAPER_TABLE_2.with(name, if name == model_core::ParamName::Omega { 1e-38 } else { 1e38 });
-            cases.push((GearModel::Genetic(p), ParamField::from(name)));
+        let mut cases: Vec<(GearModel<f64>, ParamField)> = Vec::new();
+        for base in [GearModel::Genetic(PAPER_TABLE_2), GearModel::MicroSlip(MICRO_SLIP_SET)] {
+            let mut names = Vec::new();
+            base.map(|name, value| {
+                names.push(name);
+                value
+            });
+            for name in names {
+                let huge = match name {
+                    ParamName::Omega => 1e-38,
+                    // Below it, the other end of the range is the culprit (below).
+                    ParamName::SlipMin => continue,
+                    _ => 1e38,
+                };
+                cases.push((base.with(name, huge), ParamField::Model(name)));
+            }
         }
-        let slip = |edit: &dyn Fn(&mut SlipParams<f64, SLIP_ELEMENTS>)| {
-            let mut p = MICRO_SLIP_SET;
-            edit(&mut p);
-            GearModel::MicroSlip(p)
-        };
-        cases.push((slip(&|p| p.c1 = 1e38), ParamField::C1));
-        cases.push((slip(&|p| p.c2 = 1e38), ParamField::C2));
-        cases.push((slip(&|p| p.c3 = 1e38), ParamField::C3));
-        for i in 0..SLIP_ELEMENTS {
-            cases.push((slip(&|p| p.stiffness[i] = 1e38), ParamField::SlipStiffness(i as u8)));
-        }
-        cases.push((slip(&|p| p.slip_max = 1e38), ParamField::SlipMax));
-        cases.push((
-            slip(&|p| {
-                p.slip_min = 1e37;
-                p.slip_max = 1e38;
-            }),
-            ParamField::SlipMin,
-        ));
+        let both_ends =
+            GearModel::MicroSlip(MICRO_SLIP_SET).with(ParamName::SlipMin, 1e37).with(ParamName::SlipMax, 1e38);
+        cases.push((both_ends, ParamField::Model(ParamName::SlipMin)));
         for (model, field) in cases {
             let reason = ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange };
             let error = joint_params(&model, &SETTINGS).unwrap_err();

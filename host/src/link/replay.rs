@@ -1,13 +1,12 @@
 //! Streaming encoder samples through the firmware and comparing its T_ff and K with the
 //! host's f64 model run through exactly the deflections the firmware used, from rest.
 use super::{Link, LinkError};
-use crate::gear::{Evaluator, GearModel, SLIP_ELEMENTS};
 use crate::input::Recording;
-use model_core::memory::{branch, Hysteretic, TurningPoint};
-use model_core::tolerance::{loop_scales, Bound, RELATIVE_TOLERANCE};
-use model_core::{Evaluation, Model, Params, Polynomial, SlipParams};
+use model_core::memory::Hysteretic;
+use model_core::tolerance::{Bound, RELATIVE_TOLERANCE};
+use model_core::{Evaluator, GearModel};
 use std::collections::HashMap;
-use swg_protocol::{Compensation, EncoderSample, EvalPath, Feedforward, JointModel, JointParams};
+use swg_protocol::{Compensation, EncoderSample, EvalPath, Feedforward, JointParams};
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -125,25 +124,14 @@ impl std::fmt::Display for ReplayReport {
 ///
 /// The tolerance of each sample, for a model with memory: [`RELATIVE_TOLERANCE`] of the
 /// motion's scale (max |T| and max |K| of the model over |θ| up to the largest deflection so
-/// far, [`loop_scales`] for the genetic kind, |poly| + Σ k_i·d_i and poly′ + Σ k_i for the
-/// micro-slip kind), plus how far the exact model moves when the f32 quantities it depends on
-/// move by their rounding:
-///
-/// - genetic: the current branch (from its start, the top turning point, to its target) is
-///   re-evaluated with θ and each end's θ moved by ±2⁻²² of the largest of them — the f32
-///   rounding of θ − c and of the half-width w, which near a branch's ends, where the model is
-///   steep in (θ − c)/w, is what no f32 evaluation can do better than (the analogue of
-///   [`Bound::at`] on one loop, at the branch's own half-width);
-/// - micro-slip: K·2⁻²²·|θ| for θ, and for each element within 10⁻⁵·d_i + 2⁻²¹·(|θ| + d_i)
-///   of its slip limit (where f32 and f64 may disagree on sticking) its k_i on K and
-///   k_i·that margin on T.
-///
-/// The memories are compared too: the genetic kind's direction and number of turning points
-/// must be the host's exactly (the turning points are the samples themselves, exact in both).
+/// far, model-core's `GearModel::scales`), plus how far the exact model moves when the f32
+/// quantities it depends on move by their rounding (model-core's `Evaluator::rounding`, which
+/// says how for each kind). The memories are compared too: direction and depth, within the
+/// rounding's allowance.
 pub fn replay(
     link: &mut Link,
     joint: &JointParams,
-    model: &GearModel,
+    model: &GearModel<f64>,
     samples: &[(f32, f32)],
     path: EvalPath,
 ) -> Result<ReplayReport, ReplayError> {
@@ -155,15 +143,11 @@ pub fn replay(
     Ok(comparison.finish())
 }
 
-/// The host's side of the comparison: the f64 model with its memory, and the tolerance.
-enum Host {
-    Genetic { model: Model<f64>, polynomial: Polynomial<f64>, evaluator: Evaluator },
-    MicroSlip { params: SlipParams<f64, SLIP_ELEMENTS>, evaluator: Evaluator },
-}
-
-/// Accumulates the comparison, sample by sample.
+/// Accumulates the comparison, sample by sample: the f64 model with its memory, and the
+/// tolerance.
 struct Comparison {
-    host: Host,
+    model: GearModel<f64>,
+    evaluator: Evaluator<f64>,
     torque_limit: f64,
     /// The largest |θ| so far: the motion's amplitude for the scale of the tolerance.
     envelope: f64,
@@ -176,22 +160,11 @@ struct Comparison {
     report: ReplayReport,
 }
 
-/// 2⁻²²: the relative rounding of an f32 quantity after a few operations.
-const ROUNDING: f64 = 1.0 / 4_194_304.0;
-
 impl Comparison {
-    fn new(model: &GearModel, joint: &JointParams) -> Result<Self, ReplayError> {
-        let evaluator = model.evaluator(f64::from(joint.direction_band))?;
-        let host = match model {
-            GearModel::Genetic(params) => Host::Genetic {
-                model: Model::new(*params)?,
-                polynomial: Polynomial::new(params.c1, params.c2, params.c3)?,
-                evaluator,
-            },
-            GearModel::MicroSlip(params) => Host::MicroSlip { params: *params, evaluator },
-        };
+    fn new(model: &GearModel<f64>, joint: &JointParams) -> Result<Self, ReplayError> {
         Ok(Comparison {
-            host,
+            model: *model,
+            evaluator: model.evaluator(f64::from(joint.direction_band))?,
             torque_limit: f64::from(joint.torque_limit),
             envelope: 0.0,
             scales: HashMap::new(),
@@ -210,16 +183,7 @@ impl Comparison {
             return Ok(scales);
         }
         let amplitude = (f64::from(key) / 8.0).exp2();
-        let scales = match &self.host {
-            Host::Genetic { model, .. } => loop_scales(model, amplitude / 0.99)?,
-            Host::MicroSlip { params, .. } => {
-                let poly = Polynomial::new(params.c1, params.c2, params.c3)?.evaluate(amplitude);
-                let grid = model_core::memory::slip_grid::<f64, SLIP_ELEMENTS>(params.slip_min, params.slip_max)?;
-                let elements: f64 = params.stiffness.iter().zip(grid).map(|(k, d)| k * d.min(amplitude)).sum();
-                let stiffness: f64 = params.stiffness.iter().sum();
-                (poly.torque.abs() + elements, poly.stiffness.abs() + stiffness)
-            }
-        };
+        let scales = self.model.scales(amplitude)?;
         self.scales.insert(key, scales);
         Ok(scales)
     }
@@ -230,47 +194,23 @@ impl Comparison {
         self.envelope = self.envelope.max(theta.abs());
         let scales = self.scales()?;
         let base = (RELATIVE_TOLERANCE * scales.0, RELATIVE_TOLERANCE * scales.1);
-        match &mut self.host {
-            Host::Genetic { model, polynomial, evaluator } => {
-                let exact = evaluator.step(theta)?;
-                let Evaluator::Genetic(memory) = evaluator else { unreachable!("a genetic host model") };
-                let points = memory.turning_points();
-                let depth = points.len();
-                if self.last_direction.is_some() && memory.direction() != self.last_direction {
-                    self.report.reversals += 1;
-                }
-                self.last_direction = memory.direction();
-                let same_memory = fw.direction == memory.direction() && usize::from(fw.memory) == depth;
-                let spread = branch_spread(model, polynomial, points, theta)?;
-                Ok((Bound { exact, torque: base.0 + spread.0, stiffness: base.1 + spread.1 }, same_memory))
-            }
-            Host::MicroSlip { params, evaluator } => {
-                let exact = evaluator.step(theta)?;
-                let Evaluator::MicroSlip(slip) = evaluator else { unreachable!("a micro-slip host model") };
-                let elements = slip.elements();
-                let (mut torque, mut stiffness) = (exact.stiffness.abs() * ROUNDING * theta.abs(), 0.0);
-                let mut marginal = 0;
-                let mut slipping = 0;
-                for ((k, e), d) in params.stiffness.iter().zip(elements.elastic()).zip(elements.slip()) {
-                    let margin = 1.0e-5 * d + 2.0 * ROUNDING * (theta.abs() + d);
-                    if d - e.abs() <= margin {
-                        marginal += 1;
-                        stiffness += k;
-                        torque += k * margin;
-                    }
-                    if !(e.abs() < *d) {
-                        slipping += 1;
-                    }
-                }
-                if let Some((previous, before)) = self.last_theta {
-                    if (theta - previous) * (previous - before) < 0.0 {
-                        self.report.reversals += 1;
-                    }
-                }
-                let same_memory = fw.direction.is_none() && usize::from(fw.memory).abs_diff(slipping) <= marginal;
-                Ok((Bound { exact, torque: base.0 + torque, stiffness: base.1 + stiffness }, same_memory))
-            }
+        let exact = self.evaluator.step(theta)?;
+        let rounding = self.evaluator.rounding(theta, &exact)?;
+        let memory = self.evaluator.memory();
+        // Reversals: the evaluator's direction flips where it follows one (with its band), else
+        // where θ reversed.
+        let reversed = match (memory.direction, self.last_theta) {
+            (Some(_), _) => self.last_direction.is_some() && memory.direction != self.last_direction,
+            (None, Some((previous, before))) => (theta - previous) * (previous - before) < 0.0,
+            (None, None) => false,
+        };
+        if reversed {
+            self.report.reversals += 1;
         }
+        self.last_direction = memory.direction;
+        let same_memory =
+            fw.direction == memory.direction && usize::from(fw.memory).abs_diff(memory.depth) <= rounding.memory;
+        Ok((Bound { exact, torque: base.0 + rounding.torque, stiffness: base.1 + rounding.stiffness }, same_memory))
     }
 
     fn add(&mut self, index: usize, fw: &Feedforward) -> Result<(), ReplayError> {
@@ -326,86 +266,14 @@ impl Comparison {
     }
 }
 
-/// How far the genetic model's T and K at θ move when θ and the current branch's two ends move
-/// by ±2⁻²² of the largest of them (their f32 rounding). The branch runs from the top turning
-/// point to the one below it, or to its mirror (−θ, −H) when it is alone; at rest (no turning
-/// points) T is the polynomial alone.
-fn branch_spread(
-    model: &Model<f64>,
-    polynomial: &Polynomial<f64>,
-    points: &[TurningPoint<f64>],
-    theta: f64,
-) -> Result<(f64, f64), ReplayError> {
-    let evaluate =
-        |from: Option<(TurningPoint<f64>, TurningPoint<f64>)>, t: f64| -> Result<Evaluation<f64>, ReplayError> {
-            let spring = polynomial.evaluate(t);
-            Ok(match from {
-                None => spring,
-                Some((a, b)) => spring.plus(branch(model, a, b, t)?),
-            })
-        };
-    let ends = match points {
-        [] => None,
-        [.., below, top] => Some((*top, *below)),
-        [top] => Some((*top, TurningPoint { theta: -top.theta, hysteresis: -top.hysteresis })),
-    };
-    let exact = evaluate(ends, theta)?;
-    let size = ends.map_or(theta.abs(), |(a, b)| theta.abs().max(a.theta.abs()).max(b.theta.abs()));
-    let delta = ROUNDING * size;
-    let moved = |dt: f64, da: f64, db: f64| {
-        let ends =
-            ends.map(|(a, b)| (TurningPoint { theta: a.theta + da, ..a }, TurningPoint { theta: b.theta + db, ..b }));
-        evaluate(ends, theta + dt)
-    };
-    let mut spread = (0.0f64, 0.0f64);
-    for (dt, da, db) in [
-        (delta, 0.0, 0.0),
-        (-delta, 0.0, 0.0),
-        (0.0, delta, 0.0),
-        (0.0, -delta, 0.0),
-        (0.0, 0.0, delta),
-        (0.0, 0.0, -delta),
-    ] {
-        if ends.is_none() && dt == 0.0 {
-            continue;
-        }
-        let e = moved(dt, da, db)?;
-        spread.0 = spread.0.max((e.torque - exact.torque).abs());
-        spread.1 = spread.1.max((e.stiffness - exact.stiffness).abs());
-    }
-    Ok(spread)
-}
-
 /// The device's parameters, which replay needs.
 pub fn device_params(link: &mut Link) -> Result<JointParams, ReplayError> {
     link.read_params()?.ok_or(ReplayError::NoParams)
 }
 
 /// The f64 model of a device set, exactly as the device holds it (every f32 is an f64).
-pub fn device_model(joint: &JointParams) -> GearModel {
-    match joint.model {
-        JointModel::Genetic(params) => GearModel::Genetic(widen(&params)),
-        JointModel::MicroSlip(slip) => GearModel::MicroSlip(SlipParams {
-            c1: slip.c1.into(),
-            c2: slip.c2.into(),
-            c3: slip.c3.into(),
-            stiffness: slip.stiffness.map(f64::from),
-            slip_min: slip.slip_min.into(),
-            slip_max: slip.slip_max.into(),
-        }),
-    }
-}
-
-/// The f64 genetic parameters of a device set.
-pub fn widen(params: &Params<f32>) -> Params<f64> {
-    Params {
-        c1: params.c1.into(),
-        c2: params.c2.into(),
-        c3: params.c3.into(),
-        alpha: params.alpha.into(),
-        beta: params.beta.into(),
-        omega: params.omega.into(),
-    }
+pub fn device_model(joint: &JointParams) -> GearModel<f64> {
+    joint.model.map(|_, value| f64::from(value))
 }
 
 #[cfg(test)]
@@ -417,15 +285,15 @@ mod tests {
 
     use model_core::checks::{MICRO_SLIP_SET, SEED_AMPLITUDE as AMPLITUDE, SEED_TABLE_FIT as SEED_PARAMS};
 
-    const SEED: GearModel = GearModel::Genetic(SEED_PARAMS);
+    const SEED: GearModel<f64> = GearModel::Genetic(SEED_PARAMS);
 
-    fn slip() -> GearModel {
+    fn slip() -> GearModel<f64> {
         GearModel::MicroSlip(MICRO_SLIP_SET)
     }
 
     fn recording(input_bits: Option<u32>) -> Recording {
         simulate(&Simulation {
-            params: SEED_PARAMS,
+            params: SEED,
             amplitude_rad: AMPLITUDE,
             frequencies_hz: vec![1.0],
             cycles: 2,
@@ -468,7 +336,7 @@ mod tests {
         [biased, nested]
     }
 
-    fn pushed(model: &GearModel, torque_limit: f64) -> (Link, JointParams) {
+    fn pushed(model: &GearModel<f64>, torque_limit: f64) -> (Link, JointParams) {
         let mut link = FakeDevice::new().link();
         let settings = JointSettings { gear_ratio: 50.0, torque_limit, direction_band: 2.0e-6 };
         let joint = joint_params(model, &settings).unwrap();
@@ -531,7 +399,7 @@ mod tests {
     #[test]
     fn a_different_model_fails_the_comparison() {
         let samples = motions()[1].clone();
-        let other = GearModel::Genetic(Params { c1: SEED_PARAMS.c1 * 1.001, ..SEED_PARAMS });
+        let other = GearModel::Genetic(model_core::Params { c1: SEED_PARAMS.c1 * 1.001, ..SEED_PARAMS });
         let (mut link, joint) = pushed(&SEED, 100.0);
         let report = replay(&mut link, &joint, &other, &samples, EvalPath::Fast).unwrap();
         assert!(!report.passed() && report.first_violation.is_some(), "{report}");

@@ -1,10 +1,8 @@
 //! What `fit` reports: the JSON document (also the parameter file) and the human summary.
-use super::params::SlipParamsFile;
 use crate::fit::baselines::{BranchLine, ThreeSegment};
 use crate::fit::{Fit, Identified, MotionFit, SearchSummary};
-use crate::gear::GearModel;
 use crate::prepare::NoiseModel;
-use model_core::{Params, MODEL_VERSION};
+use model_core::{GearModel, ParamName, MODEL_VERSION};
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -13,8 +11,9 @@ pub struct FitReport {
     pub model: &'static str,
     pub model_version: u16,
     pub input: InputSummary,
-    /// The kind's parameters: canonical genetic ones (ω = 1), or micro-slip ones.
-    pub params: ParamsReport,
+    /// The kind's parameters by name (canonical genetic ones have ω = 1).
+    #[serde(serialize_with = "GearModel::serialize_params")]
+    pub params: GearModel<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub identifiable: Option<IdentifiableReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -41,23 +40,6 @@ pub struct FitReport {
     pub candidates: Vec<CandidateReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub search: Option<SearchSummary>,
-}
-
-/// A model's parameters as files write them.
-#[derive(Clone, Debug, Serialize)]
-#[serde(untagged)]
-pub enum ParamsReport {
-    Genetic(Params<f64>),
-    MicroSlip(SlipParamsFile),
-}
-
-impl From<&GearModel> for ParamsReport {
-    fn from(model: &GearModel) -> Self {
-        match model {
-            GearModel::Genetic(params) => ParamsReport::Genetic(*params),
-            GearModel::MicroSlip(params) => ParamsReport::MicroSlip(params.into()),
-        }
-    }
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -87,7 +69,7 @@ pub struct InputSummary {
     pub turning_points: Option<usize>,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Copy, Debug, Serialize)]
 pub struct IdentifiableReport {
     /// h = A·α/(ω(1 + r²)), N·m.
     pub h: f64,
@@ -108,7 +90,8 @@ pub struct BaselineReport {
 pub struct ComparedReport {
     pub path: String,
     pub model: &'static str,
-    pub params: ParamsReport,
+    #[serde(serialize_with = "GearModel::serialize_params")]
+    pub params: GearModel<f64>,
     pub rss: f64,
 }
 
@@ -138,6 +121,11 @@ impl FitReport {
             Identified::Motion(outcome) => {
                 let chosen = &outcome.chosen;
                 let model = chosen.model;
+                let identifiable = model.identifiable(outcome.reference_amplitude).map(|id| IdentifiableReport {
+                    h: id.h,
+                    r: id.r,
+                    amplitude_rad: outcome.reference_amplitude,
+                });
                 let candidate = |fit: &MotionFit| CandidateReport {
                     model: fit.model.kind().name(),
                     rss: fit.rss,
@@ -149,14 +137,10 @@ impl FitReport {
                     model: model.kind().name(),
                     model_version: MODEL_VERSION,
                     input,
-                    params: (&model).into(),
-                    identifiable: match model {
-                        GearModel::Genetic(params) => params.identifiable(outcome.reference_amplitude).ok().map(|id| {
-                            IdentifiableReport { h: id.h, r: id.r, amplitude_rad: outcome.reference_amplitude }
-                        }),
-                        GearModel::MicroSlip(_) => None,
-                    },
-                    convention: matches!(model, GearModel::Genetic(_)).then_some(MEMORY_CONVENTION),
+                    params: model,
+                    identifiable,
+                    // Where only part of the parameters is identifiable, the point written.
+                    convention: identifiable.is_some().then_some(MEMORY_CONVENTION),
                     rss: chosen.rss,
                     rms: chosen.rms,
                     n: chosen.n,
@@ -180,7 +164,7 @@ impl FitReport {
             model: model_core::MODEL_NAME,
             model_version: MODEL_VERSION,
             input,
-            params: ParamsReport::Genetic(fit.params),
+            params: GearModel::Genetic(fit.params),
             identifiable: Some(IdentifiableReport {
                 h: fit.identifiable.h,
                 r: fit.identifiable.r,
@@ -208,63 +192,29 @@ impl FitReport {
             let _ = write!(s, ", {tp} turning points");
         }
         let _ = writeln!(s, ")");
-        match &self.params {
-            ParamsReport::Genetic(p) => {
-                let _ = writeln!(s, "model {} v{}: T = c1·θ + c2·θ³ + c3·θ⁵ + z(θ)", self.model, self.model_version);
-                let _ = writeln!(s, "  c1 = {:>12.5e} N·m/rad", p.c1);
-                let _ = writeln!(s, "  c2 = {:>12.5e} N·m/rad³", p.c2);
-                let _ = writeln!(s, "  c3 = {:>12.5e} N·m/rad⁵", p.c3);
-                match (&self.identifiable, self.band_rad) {
-                    (Some(id), None) => {
-                        let _ = writeln!(
-                            s,
-                            "  hysteresis, identifiable: h = {:.5} N·m, r = β/ω = {:.5}  (at A = {:.4} mrad)",
-                            id.h,
-                            id.r,
-                            id.amplitude_rad * 1e3
-                        );
-                        let _ = writeln!(
-                            s,
-                            "  canonical point (ω = 1): α = {:.5e}, β = {:.5}, ω = {}  — any (sα, sβ, sω) fits the same",
-                            p.alpha, p.beta, p.omega
-                        );
-                    }
-                    (identifiable, _) => {
-                        let _ = writeln!(
-                            s,
-                            "  hysteresis with memory (Madelung's rules): α = {:.5e}, β = {:.5}, ω = {} (r = β/ω)",
-                            p.alpha, p.beta, p.omega
-                        );
-                        if let Some(id) = identifiable {
-                            let _ = writeln!(
-                                s,
-                                "  on a loop of A = {:.4} mrad (half the range): h = {:.5} N·m",
-                                id.amplitude_rad * 1e3,
-                                id.h
-                            );
-                        }
-                    }
-                }
-            }
-            ParamsReport::MicroSlip(p) => {
+        let _ = writeln!(s, "model {} v{}: {}", self.model, self.model_version, self.params.kind().equation());
+        write_parameters(&mut s, &self.params);
+        match (&self.identifiable, self.band_rad) {
+            (Some(id), None) => {
                 let _ = writeln!(
                     s,
-                    "model {} v{}: T = c1·θ + c2·θ³ + c3·θ⁵ + Σ k_i·e_i, {} elasto-slip elements",
-                    self.model,
-                    self.model_version,
-                    p.stiffness.len()
-                );
-                let _ = writeln!(s, "  c1 = {:>12.5e} N·m/rad", p.c1);
-                let _ = writeln!(s, "  c2 = {:>12.5e} N·m/rad³", p.c2);
-                let _ = writeln!(s, "  c3 = {:>12.5e} N·m/rad⁵", p.c3);
-                let total: f64 = p.stiffness.iter().sum();
-                let active = p.stiffness.iter().filter(|k| **k > 0.0).count();
-                let _ = writeln!(
-                    s,
-                    "  slip deflections {:.3e} … {:.3e} rad (log grid); {active} elements with k > 0, Σ k = {:.5e} N·m/rad",
-                    p.slip_min, p.slip_max, total
+                    "  hysteresis, identifiable: h = {:.5} N·m, r = β/ω = {:.5}  (at A = {:.4} mrad); any (sα, sβ, sω) \
+                     fits the same, the parameters are the point with ω = 1",
+                    id.h,
+                    id.r,
+                    id.amplitude_rad * 1e3
                 );
             }
+            (Some(id), Some(_)) => {
+                let _ = writeln!(
+                    s,
+                    "  on a loop of A = {:.4} mrad (half the range): h = {:.5} N·m, r = β/ω = {:.5}",
+                    id.amplitude_rad * 1e3,
+                    id.h,
+                    id.r
+                );
+            }
+            (None, _) => {}
         }
         if let Some(noise) = &self.noise {
             let _ = writeln!(
@@ -289,10 +239,7 @@ impl FitReport {
         let _ = writeln!(s, "fit quality (unweighted torque residuals)");
         let _ = writeln!(s, "  {:<34} {:>12} {:>10}", "model", "RSS (N·m)²", "RMS N·m");
         let rms = |rss: f64| (rss / self.n as f64).sqrt();
-        let this = match self.params {
-            ParamsReport::Genetic(_) => "genetic hysteresis (this fit)",
-            ParamsReport::MicroSlip(_) => "micro-slip (this fit)",
-        };
+        let this = format!("{} (this fit)", self.params.kind().label());
         let _ = writeln!(s, "  {:<34} {:>12.5} {:>10.4}", this, self.rss, self.rms);
         for b in &self.baselines {
             let name = match b.name {
@@ -306,5 +253,35 @@ impl FitReport {
             let _ = writeln!(s, "  {:<34} {:>12.5} {:>10.4}", c.path, c.rss, rms(c.rss));
         }
         s
+    }
+}
+
+/// One line per parameter of `model` with its unit; the elements of a family (the micro-slip
+/// stiffnesses) on one line.
+fn write_parameters(s: &mut String, model: &GearModel<f64>) {
+    let mut lines: Vec<(ParamName, Vec<f64>)> = Vec::new();
+    model.map(|name, value| {
+        match lines.last_mut() {
+            Some((last, values)) if last.as_str() == name.as_str() => values.push(value),
+            _ => lines.push((name, vec![value])),
+        }
+        value
+    });
+    for (name, values) in lines {
+        let _ = match values.as_slice() {
+            [value] => writeln!(s, "  {:<8} = {value:>12.5e} {}", name.as_str(), name.unit()),
+            many => {
+                let total: f64 = many.iter().sum();
+                let listed: Vec<String> = many.iter().map(|v| format!("{v:.3e}")).collect();
+                writeln!(
+                    s,
+                    "  {} ({} elements, Σ = {total:.5e}) = [{}] {}",
+                    name.as_str(),
+                    many.len(),
+                    listed.join(", "),
+                    name.unit()
+                )
+            }
+        };
     }
 }

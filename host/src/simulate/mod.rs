@@ -10,7 +10,7 @@ pub mod physics;
 
 use crate::diagnose::effects::{backlash, kinematic_error, Effect, EffectValue};
 use crate::input::{deflection, Angles, Recording, MAX_TORQUE_NM};
-use model_core::{Direction, GeneticMemory, Hysteretic, Model, Params};
+use model_core::{Direction, Evaluator, GearModel, Hysteretic};
 pub use motion::{read_trajectory, Motion, Trajectory};
 use motion::{Played, Timing};
 pub use physics::{read_physics_params, BoucWen, MicroSlip, Physics, PhysicsParamError};
@@ -21,7 +21,8 @@ use std::f64::consts::TAU;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Simulation {
-    pub params: Params<f64>,
+    /// The gear's model, the truth of [`Physics::Model`].
+    pub params: GearModel<f64>,
     /// Deflection amplitude A, rad.
     pub amplitude_rad: f64,
     /// Excitation frequencies, played one after the other, Hz.
@@ -64,9 +65,6 @@ pub enum SimulateError {
     PhysicsParam(#[from] PhysicsParamError),
 }
 
-/// Turning points the genetic model with memory keeps (deeper nested excursions retrace).
-pub const GENETIC_MEMORY_DEPTH: usize = 64;
-
 /// A simulation with the motion it plays and the gear's truth physics: what
 /// `swg-host simulate` runs. From a [`Simulation`] alone: today's sine through the genetic model.
 #[derive(Clone, Debug, PartialEq)]
@@ -78,7 +76,7 @@ pub struct Experiment {
 
 impl From<Simulation> for Experiment {
     fn from(simulation: Simulation) -> Self {
-        Experiment { simulation, motion: Motion::Sine, physics: Physics::Genetic }
+        Experiment { simulation, motion: Motion::Sine, physics: Physics::Model }
     }
 }
 
@@ -132,7 +130,7 @@ impl Simulation {
 
 /// The recording the simulation describes: today's sine through the params' genetic model.
 pub fn simulate(sim: &Simulation) -> Result<Recording, SimulateError> {
-    run(sim, &Motion::Sine, &Physics::Genetic)
+    run(sim, &Motion::Sine, &Physics::Model)
 }
 
 /// The recording of `experiment`: its motion through its physics.
@@ -142,29 +140,30 @@ pub fn simulate_experiment(experiment: &Experiment) -> Result<Recording, Simulat
 
 /// The gear the torque comes from, with its state.
 enum Truth {
-    /// The genetic model on the sine's loop: stateless, the direction picks the branch.
+    /// The model on the sine's loop, where its kind has a stateless one: the direction picks
+    /// the branch.
     Loop(model_core::Loop<f64>),
-    /// The genetic model with Madelung's rules, stepped along the deflection's path from rest.
-    Memory(Box<GeneticMemory<f64, GENETIC_MEMORY_DEPTH>>),
+    /// The model with its memory, stepped along the deflection's path from rest.
+    Memory(Box<Evaluator<f64>>),
     /// A host physics with memory, stepped along the deflection's path from rest.
     Path(Box<dyn Gear>),
 }
 
 fn truth(sim: &Simulation, motion: &Motion, physics: &Physics, width: f64) -> Result<Truth, SimulateError> {
     Ok(match physics {
-        Physics::Genetic if !matches!(motion, Motion::Sine) => {
-            Truth::Memory(Box::new(GeneticMemory::new(Model::new(sim.params)?, 0.0)))
-        }
-        Physics::Genetic => {
-            check(
-                "backlash",
-                width,
-                (0.0..2.0 * sim.amplitude_rad).contains(&width),
-                "from 0 to below twice the amplitude",
-            )?;
-            // Behind the dead band the elastic loop is narrower by half its width.
-            Truth::Loop(Model::new(sim.params)?.at_amplitude(sim.amplitude_rad - width / 2.0)?)
-        }
+        Physics::Model => match (motion, sim.params.symmetric_model()?) {
+            (Motion::Sine, Some(model)) => {
+                check(
+                    "backlash",
+                    width,
+                    (0.0..2.0 * sim.amplitude_rad).contains(&width),
+                    "from 0 to below twice the amplitude",
+                )?;
+                // Behind the dead band the elastic loop is narrower by half its width.
+                Truth::Loop(model.at_amplitude(sim.amplitude_rad - width / 2.0)?)
+            }
+            _ => Truth::Memory(Box::new(sim.params.evaluator(0.0)?)),
+        },
         Physics::BoucWen(params) => Truth::Path(Box::new(BoucWenGear::new(*params)?)),
         Physics::MicroSlip(params) => Truth::Path(Box::new(MicroSlipGear::new(*params)?)),
     })
@@ -182,13 +181,13 @@ fn sign(v: f64) -> f64 {
 fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording, SimulateError> {
     sim.validate()?;
     let width = sim.effect(Effect::Backlash);
-    if !matches!((motion, physics), (Motion::Sine, Physics::Genetic)) {
+    let mut truth = truth(sim, motion, physics, width)?;
+    if !matches!(truth, Truth::Loop(_)) {
         check("backlash", width, width >= 0.0, ">= 0 rad")?;
     }
     if let Motion::Biased { bias_rad: Some(level) } | Motion::Hold { load_rad: Some(level) } = motion {
         check("bias", *level, true, "a finite deflection, rad")?;
     }
-    let mut truth = truth(sim, motion, physics, width)?;
     let timing = Timing {
         amplitude: sim.amplitude_rad,
         frequencies_hz: &sim.frequencies_hz,
@@ -243,7 +242,7 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
         Motion::File(trajectory) => metadata.push(("motion".into(), format!("file {}", trajectory.name()))),
         _ => metadata.push(("motion".into(), motion.name().into())),
     }
-    if !matches!(physics, Physics::Genetic) {
+    if !matches!(physics, Physics::Model) {
         metadata.push(("physics".into(), physics.name().into()));
     }
     let mut rec = Recording {
@@ -254,7 +253,7 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
         ..Recording::default()
     };
     let linear_stiffness = match &truth {
-        Truth::Loop(_) | Truth::Memory(_) => sim.params.c1,
+        Truth::Loop(_) | Truth::Memory(_) => sim.params.linear_stiffness(),
         Truth::Path(gear) => gear.linear_stiffness(),
     };
     for i in 0..n {
@@ -328,7 +327,7 @@ mod tests {
 
     fn base() -> Simulation {
         Simulation {
-            params: SEED_FIT,
+            params: GearModel::Genetic(SEED_FIT),
             amplitude_rad: 1.168e-3,
             frequencies_hz: vec![0.5],
             cycles: 2,
@@ -350,9 +349,9 @@ mod tests {
         // gives today's torque bit for bit. (Where the samples straddle the peak it reverses at
         // the sampled extreme instead of ±A, and differs; so `sine` keeps the symmetric rule.)
         let sim = base();
-        let model = Model::new(sim.params).unwrap();
-        let mut memory: GeneticMemory<f64, 64> =
-            GeneticMemory::on_loop(model, 0.0, sim.amplitude_rad, Direction::Rising).unwrap();
+        let model = model_core::Model::new(SEED_FIT).unwrap();
+        let mut memory: model_core::GeneticMemory<f64, 64> =
+            model_core::GeneticMemory::on_loop(model, 0.0, sim.amplitude_rad, Direction::Rising).unwrap();
         let rec = simulate(&sim).unwrap();
         for i in 0..rec.time.len() {
             let x = sim.amplitude_rad * (std::f64::consts::TAU * 0.5 * rec.time[i]).sin();
@@ -382,7 +381,7 @@ mod tests {
     }
 
     fn physics() -> [Physics; 3] {
-        [Physics::Genetic, Physics::BoucWen(BoucWen::default()), Physics::MicroSlip(MicroSlip::default())]
+        [Physics::Model, Physics::BoucWen(BoucWen::default()), Physics::MicroSlip(MicroSlip::default())]
     }
 
     #[test]
@@ -464,7 +463,7 @@ mod tests {
 
     #[test]
     fn the_genetic_model_starts_at_rest_off_the_sine() {
-        let experiment = Experiment { simulation: base(), motion: Motion::Nested, physics: Physics::Genetic };
+        let experiment = Experiment { simulation: base(), motion: Motion::Nested, physics: Physics::Model };
         let rec = simulate_experiment(&experiment).unwrap();
         assert_eq!(rec.torque[0], 0.0);
         assert_eq!(rec.metadata.iter().find(|(k, _)| k == "motion").unwrap().1, "nested");

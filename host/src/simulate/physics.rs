@@ -10,9 +10,10 @@ use std::path::Path;
 /// Which physics makes the torque.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub enum Physics {
-    /// The params file's genetic hysteresis model (today's loop rule under `sine`).
+    /// The params file's model, of any kind (the genetic seed fit by default; its symmetric loop
+    /// rule under `sine`).
     #[default]
-    Genetic,
+    Model,
     /// Maxwell-slip / Iwan: many spring–slider elements and a linear + cubic spring.
     MicroSlip(MicroSlip),
     /// Bouc–Wen, n = 1, with a cubic spring.
@@ -20,10 +21,11 @@ pub enum Physics {
 }
 
 impl Physics {
-    /// The name `--physics` takes.
+    /// The name `--physics` takes (`genetic` for the params file's model: the seed fit's kind,
+    /// and what the flag has always been called).
     pub fn name(&self) -> &'static str {
         match self {
-            Physics::Genetic => "genetic",
+            Physics::Model => "genetic",
             Physics::MicroSlip(_) => "micro-slip",
             Physics::BoucWen(_) => "bouc-wen",
         }

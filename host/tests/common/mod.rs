@@ -48,5 +48,5 @@ pub fn write_params_file(dir: &Path, params: &model_core::Params<f64>) -> PathBu
 
 /// The model's parameter names, as files write them.
 pub fn param_names() -> [&'static str; 6] {
-    model_core::ParamName::ALL.map(|name| name.as_str())
+    model_core::ParamName::GENETIC.map(|name| name.as_str())
 }

@@ -3,14 +3,14 @@ use super::*;
 use crate::flash::RamFlash;
 use embedded_storage::nor_flash::{ErrorType, NorFlashErrorKind, ReadNorFlash};
 use model_core::{Params, MODEL_VERSION};
-use swg_protocol::{SlipModel, SLIP_ELEMENTS};
+use swg_protocol::{GearModel, SlipParams, SLIP_ELEMENTS};
 
 type Flash = RamFlash<4096>;
 
 fn params(c1: f32) -> JointParams {
     JointParams {
         model_version: MODEL_VERSION,
-        model: JointModel::Genetic(Params { c1, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.3, omega: 1.0 }),
+        model: GearModel::Genetic(Params { c1, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.3, omega: 1.0 }),
         gear_ratio: 100.0,
         torque_limit: 50.0,
         direction_band: 2.0e-5,
@@ -213,7 +213,7 @@ fn too_small_a_flash_is_refused() {
 fn golden_params() -> JointParams {
     JointParams {
         model_version: MODEL_VERSION,
-        model: JointModel::Genetic(Params {
+        model: GearModel::Genetic(Params {
             c1: 2.5e4,
             c2: 1.5e9,
             c3: -1.25e14,
@@ -271,7 +271,7 @@ fn flash_with(slot_0: &[u8]) -> Flash {
 #[test]
 fn golden_params_have_distinct_fields() {
     let p = golden_params();
-    let JointModel::Genetic(m) = p.model else { unreachable!() };
+    let GearModel::Genetic(m) = p.model else { unreachable!() };
     let fields = [m.c1, m.c2, m.c3, m.alpha, m.beta, m.omega, p.gear_ratio, p.torque_limit, p.direction_band];
     for (i, a) in fields.iter().enumerate() {
         for b in &fields[i + 1..] {
@@ -289,7 +289,7 @@ fn golden_slip_params() -> JointParams {
     }
     JointParams {
         model_version: MODEL_VERSION,
-        model: JointModel::MicroSlip(SlipModel {
+        model: GearModel::MicroSlip(SlipParams {
             c1: 7.5e3,
             c2: 3.0e9,
             c3: -6.25e13,
@@ -312,7 +312,7 @@ const GOLDEN_RECORD_2: [u8; 64] = [
     0x02, // format 2
     0xFF, // reserved
     0x01, // model_version 1 (postcard varint)
-    0x00, // JointModel::Genetic
+    0x00, // GearModel::Genetic
     0x00, 0x50, 0xC3, 0x46, // c1 2.5e4 (f32 LE)
     0x5E, 0xD0, 0xB2, 0x4E, // c2 1.5e9
     0xA9, 0x5F, 0xE3, 0xD6, // c3 -1.25e14
@@ -344,7 +344,7 @@ const GOLDEN_SLIP_RECORD: [u8; 120] = [
     0x02, // format 2
     0xFF, // reserved
     0x01, // model_version 1
-    0x01, // JointModel::MicroSlip
+    0x01, // GearModel::MicroSlip
     0x00, 0x60, 0xEA, 0x45, // c1 7.5e3
     0x5E, 0xD0, 0x32, 0x4F, // c2 3e9
     0xA9, 0x5F, 0x63, 0xD6, // c3 -6.25e13
@@ -408,7 +408,7 @@ fn format_1_records_load_as_the_genetic_kind_and_the_next_commit_writes_format_2
     let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD)).unwrap();
     let loaded = store.load().unwrap();
     assert_eq!(loaded, Stored { params: golden_params(), sequence: 1 });
-    assert!(matches!(loaded.params.model, JointModel::Genetic(_)));
+    assert!(matches!(loaded.params.model, GearModel::Genetic(_)));
     // A micro-slip set goes to slot 1 in format 2; the format-1 record stays the fallback.
     assert_eq!(store.save(&golden_slip_params()), Ok(2));
     let mut flash = store.into_flash();

@@ -11,8 +11,10 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use model_core::checks::{MICRO_SLIP_SET, SEED_TABLE_FIT};
 use model_core::{Direction, Model};
-use swg_joint::{Compensator, Controller, FastModel, TURNING_POINTS};
-use swg_protocol::{ControlMode, ControllerConfig, EvalPath, JointModel, JointParams, MODEL_VERSION, SLIP_ELEMENTS};
+use swg_joint::{Compensator, Controller, FastModel};
+use swg_protocol::{
+    ControlMode, ControllerConfig, EvalPath, GearModel, JointParams, MODEL_VERSION, SLIP_ELEMENTS, TURNING_POINTS,
+};
 
 const INSTRUCTIONS_PER_TICK: u32 = 40;
 const RUNS: u32 = 2000;
@@ -167,12 +169,12 @@ fn main() -> ! {
     let (Ok(model), Ok(fast)) = (Model::new(params), FastModel::new(&params)) else { swg_firmware_qemu::exit(false) };
     let genetic = JointParams {
         model_version: MODEL_VERSION,
-        model: JointModel::Genetic(params),
+        model: GearModel::Genetic(params),
         gear_ratio: RATIO,
         torque_limit: 100.0,
         direction_band: 1.0e-6,
     };
-    let slip = JointParams { model: JointModel::MicroSlip(MICRO_SLIP_SET.to_f32().into()), ..genetic };
+    let slip = JointParams { model: GearModel::MicroSlip(MICRO_SLIP_SET.to_f32()), ..genetic };
 
     // The loop and the black boxes alone, subtracted from every measurement.
     let baseline = ticks(|| {
