@@ -234,6 +234,15 @@ impl<F: Real> GearModel<F> {
         }
     }
 
+    /// The genetic kind's parameters, for what is defined on that kind alone (the loop fit of a
+    /// loop table, the diagnosis' effect search).
+    pub fn as_genetic(&self) -> Option<&Params<F>> {
+        match self {
+            GearModel::Genetic(params) => Some(params),
+            GearModel::MicroSlip(_) => None,
+        }
+    }
+
     /// The stateless model of symmetric loops, where the kind has one
     /// ([`Kind::has_symmetric_loop`]): the paper's loop at any amplitude A, which a sine between
     /// ±A follows without memory and a loop table holds one of.

@@ -105,7 +105,8 @@ pub fn genetic<F: Real>(params: &Params<F>, max_deflection: F, depth: usize) -> 
             ParamName::Beta => p.beta = 0.0,
             // r = ±1: the neutral ω for this β.
             ParamName::Omega => p.omega = if p.beta == 0.0 { 1.0 } else { p.beta.abs() },
-            ParamName::SlipStiffness(_) | ParamName::SlipMin | ParamName::SlipMax => {}
+            // Not the genetic kind's: never named here.
+            _ => {}
         }
         p
     };

@@ -55,10 +55,8 @@ pub fn read_params(path: &Path) -> Result<Params<f64>, ParamsFileError> {
 
 /// [`read_params`] of a text already read.
 pub fn parse_params(path: &Path, text: &str) -> Result<Params<f64>, ParamsFileError> {
-    match parse_model(path, text)? {
-        GearModel::Genetic(params) => Ok(params),
-        other => Err(ParamsFileError::WrongModel { path: path.to_owned(), found: other.kind().name() }),
-    }
+    let model = parse_model(path, text)?;
+    model.as_genetic().copied().ok_or(ParamsFileError::WrongModel { path: path.to_owned(), found: model.kind().name() })
 }
 
 /// [`read_model`] of a text already read.
