@@ -33,7 +33,7 @@ pub const MODEL_NAME: &str = "genetic-hysteresis";
 pub const MODEL_VERSION: u16 = 1;
 
 /// The float types the model runs on: `f32` on the microcontroller, `f64` on the host.
-pub trait Real: Float + FloatConst + fmt::Debug + private::Sealed {
+pub trait Real: Float + FloatConst + Default + fmt::Debug + private::Sealed {
     /// Cap on the singular factor 1/|cos ωt| in the stiffness, see [`Loop::stiffness`].
     const MIN_COS: Self;
     /// 3, used by dT/dθ of the polynomial.
@@ -88,6 +88,16 @@ pub enum ParamName {
     SlipStiffness(u8),
     SlipMin,
     SlipMax,
+    /// θ0, the deflection's zero.
+    Zero,
+    /// The x of the spring's knot i.
+    Knot(u8),
+    /// The stiffness at the spring's knot i.
+    KnotStiffness(u8),
+    /// The low end of the spring's identified range.
+    RangeMin,
+    /// The high end of the spring's identified range.
+    RangeMax,
 }
 
 impl ParamName {
@@ -109,18 +119,28 @@ impl ParamName {
             ParamName::SlipStiffness(_) => "stiffness",
             ParamName::SlipMin => "slip_min",
             ParamName::SlipMax => "slip_max",
+            ParamName::Zero => "zero",
+            ParamName::Knot(_) => "knot",
+            ParamName::KnotStiffness(_) => "knot_stiffness",
+            ParamName::RangeMin => "range_min",
+            ParamName::RangeMax => "range_max",
         }
     }
 
     /// The parameter's unit, for reports.
     pub const fn unit(self) -> &'static str {
         match self {
-            ParamName::C1 | ParamName::SlipStiffness(_) => "N·m/rad",
+            ParamName::C1 | ParamName::SlipStiffness(_) | ParamName::KnotStiffness(_) => "N·m/rad",
             ParamName::C2 => "N·m/rad³",
             ParamName::C3 => "N·m/rad⁵",
             ParamName::Alpha => "N·m/rad per unit of ω",
             ParamName::Beta | ParamName::Omega => "1/s",
-            ParamName::SlipMin | ParamName::SlipMax => "rad",
+            ParamName::SlipMin
+            | ParamName::SlipMax
+            | ParamName::Zero
+            | ParamName::Knot(_)
+            | ParamName::RangeMin
+            | ParamName::RangeMax => "rad",
         }
     }
 }
@@ -129,7 +149,9 @@ impl fmt::Display for ParamName {
     /// The name as in files; an element's stiffness with its index, `stiffness[3]`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ParamName::SlipStiffness(i) => write!(f, "stiffness[{i}]"),
+            ParamName::SlipStiffness(i) | ParamName::Knot(i) | ParamName::KnotStiffness(i) => {
+                write!(f, "{}[{i}]", self.as_str())
+            }
             name => f.write_str(name.as_str()),
         }
     }
@@ -154,6 +176,9 @@ pub enum Error {
     InvalidSlipStiffness(usize),
     /// The micro-slip deflections need 0 < d_min < d_max, both finite.
     InvalidSlipRange,
+    /// A spring's knots are not finite and increasing with stiffnesses ≥ 0, or its range does
+    /// not hold x = 0.
+    InvalidSpring,
 }
 
 impl fmt::Display for Error {
@@ -172,6 +197,9 @@ impl fmt::Display for Error {
             Error::InvalidSlipRange => {
                 f.write_str("micro-slip deflections must satisfy 0 < d_min < d_max, both finite rad")
             }
+            Error::InvalidSpring => f.write_str(
+                "spring knots must be finite and increasing with stiffness >= 0 N·m/rad, its range must hold x = 0",
+            ),
         }
     }
 }
@@ -608,6 +636,7 @@ pub mod memory;
 pub mod range;
 #[cfg(feature = "serde")]
 mod serde_array;
+pub mod spring;
 pub use gear::{Evaluator, GearModel, Kind, Memory, ParamFault, SLIP_ELEMENTS, TURNING_POINTS};
 pub use memory::{GeneticMemory, Hysteretic, MicroSlip, SlipElements, SlipParams, TurningPoint};
 pub mod tolerance;

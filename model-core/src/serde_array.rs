@@ -49,3 +49,53 @@ pub fn deserialize<'de, D: Deserializer<'de>, T: Deserialize<'de> + Default, con
 
     deserializer.deserialize_tuple(N, Elements::<T, N>(PhantomData))
 }
+
+/// serde for the first `count` elements of `([T; N], count)`: a list of at most N elements (an
+/// element count beyond N is refused), as serde writes a slice.
+pub mod prefix {
+    use core::fmt;
+    use core::marker::PhantomData;
+    use serde::de::{Error, SeqAccess, Visitor};
+    use serde::ser::SerializeSeq;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer, T: Serialize, const N: usize>(
+        (array, count): &([T; N], u8),
+        serializer: S,
+    ) -> Result<S::Ok, S::Error> {
+        let used =
+            array.get(..usize::from(*count)).ok_or_else(|| serde::ser::Error::custom("count beyond the array"))?;
+        let mut seq = serializer.serialize_seq(Some(used.len()))?;
+        for element in used {
+            seq.serialize_element(element)?;
+        }
+        seq.end()
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>, T: Deserialize<'de> + Default + Copy, const N: usize>(
+        deserializer: D,
+    ) -> Result<([T; N], u8), D::Error> {
+        struct Prefix<T, const N: usize>(PhantomData<T>);
+
+        impl<'de, T: Deserialize<'de> + Default + Copy, const N: usize> Visitor<'de> for Prefix<T, N> {
+            type Value = ([T; N], u8);
+
+            fn expecting(&self, formatter: &mut fmt::Formatter) -> fmt::Result {
+                write!(formatter, "a list of at most {N} entries")
+            }
+
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<([T; N], u8), A::Error> {
+                let mut array = [T::default(); N];
+                let mut count = 0usize;
+                while let Some(element) = seq.next_element()? {
+                    let slot = array.get_mut(count).ok_or_else(|| Error::invalid_length(count + 1, &self))?;
+                    *slot = element;
+                    count += 1;
+                }
+                Ok((array, u8::try_from(count).map_err(|_| Error::invalid_length(count, &self))?))
+            }
+        }
+
+        deserializer.deserialize_seq(Prefix::<T, N>(PhantomData))
+    }
+}

@@ -1,0 +1,328 @@
+//! The gear's elastic (memoryless) torque S(x) as a function of x = θ − θ0, the deflection from
+//! its zero: every kind adds its hysteresis to it.
+//!
+//! ```text
+//! S(x) = c1·x + c2·x³ + c3·x⁵ + P(x),   P(x) = ∫₀ˣ k(u) du
+//! k(u) = the stiffness at the knots x_0 < … < x_(n−1), linear between them, constant beyond
+//! ```
+//!
+//! - **Free form, linear in its parameters.** With the knots fixed, S is linear in c1, c2, c3 and
+//!   the knots' stiffnesses K_j: P = Σ K_j·B_j(x), B_j the integral from 0 of the hat function of
+//!   knot j ([`basis`]), so a fit solves for them exactly. K_j ≥ 0 makes P monotone (the stiffness
+//!   between knots interpolates non-negative values); the fit asks that, as the physics does.
+//! - **Asymmetric.** The knots and their stiffnesses on the + and − sides are independent.
+//! - **Special cases.** The paper's odd polynomial is the spring without knots; the catalogue's
+//!   three-segment curve (stiffness K1, K2, K3 with steps at two torques) is knots in pairs close
+//!   around each step.
+//! - **Beyond the identified range** [`Spring::range`] it continues with its stiffness at the
+//!   range's edge: a straight line, never the polynomial's runaway. Host and joint alike.
+use crate::{Error, Evaluation, ParamFault, ParamName, Polynomial, Real};
+
+/// Most knots a spring has: 8 a side and the one at x = 0.
+pub const MAX_KNOTS: usize = 17;
+
+/// One knot of the stiffness curve.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Knot<F> {
+    /// x, rad (from the deflection's zero).
+    pub x: F,
+    /// The stiffness there, N·m/rad.
+    pub stiffness: F,
+}
+
+/// The spring: an odd polynomial plus a piecewise-linear stiffness on knots, within an identified
+/// range of x. See the module's documentation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(bound(deserialize = "F: serde::Deserialize<'de> + Default + Copy")))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Spring<F> {
+    /// N·m/rad.
+    pub c1: F,
+    /// N·m/rad³.
+    pub c2: F,
+    /// N·m/rad⁵.
+    pub c3: F,
+    /// The knots, x increasing; the first `knot_count` are used.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_array::prefix", rename = "knots"))]
+    pub knots: ([Knot<F>; MAX_KNOTS], u8),
+    /// The identified range of x, [lo, hi] rad, lo ≤ 0 ≤ hi: beyond it the spring continues with
+    /// the stiffness at its edge.
+    pub range: [F; 2],
+}
+
+/// x beyond which no gear deflects, rad: the range of a spring that was not fitted on a
+/// recording (the paper's polynomial of a loop table, a params file of model version 1). The
+/// readers refuse |θ| > 1 rad as a reading error.
+pub const UNBOUNDED_RANGE: f64 = 1.0;
+
+impl<F: Real> Spring<F> {
+    /// The paper's odd polynomial c1·x + c2·x³ + c3·x⁵ alone, unbounded.
+    pub fn polynomial(c1: F, c2: F, c3: F) -> Self {
+        let edge = F::from(UNBOUNDED_RANGE).unwrap_or_else(F::one);
+        Spring { c1, c2, c3, knots: ([Knot::default(); MAX_KNOTS], 0), range: [-edge, edge] }
+    }
+
+    /// A spring of knots only (no polynomial) over `range`: what a fit writes.
+    pub fn of_knots(knots: &[Knot<F>], range: [F; 2]) -> Result<Self, Error> {
+        let mut all = [Knot::default(); MAX_KNOTS];
+        let count = knots.len();
+        all.get_mut(..count).ok_or(Error::InvalidSpring)?.copy_from_slice(knots);
+        let spring = Spring { c1: F::zero(), c2: F::zero(), c3: F::zero(), knots: (all, count as u8), range };
+        spring.check().map_err(|_| Error::InvalidSpring)?;
+        Ok(spring)
+    }
+
+    /// The knots in use.
+    pub fn knots(&self) -> &[Knot<F>] {
+        self.knots.0.get(..usize::from(self.knots.1)).unwrap_or(&[])
+    }
+
+    /// The first parameter that is not finite or out of its range: knots not increasing, a
+    /// negative knot stiffness, a range that does not hold x = 0.
+    pub fn check(&self) -> Result<(), (ParamName, ParamFault)> {
+        for (name, value) in [(ParamName::C1, self.c1), (ParamName::C2, self.c2), (ParamName::C3, self.c3)] {
+            if !value.is_finite() {
+                return Err((name, ParamFault::NotFinite));
+            }
+        }
+        if usize::from(self.knots.1) > MAX_KNOTS {
+            return Err((ParamName::Knot(MAX_KNOTS as u8), ParamFault::OutOfRange));
+        }
+        let mut previous: Option<F> = None;
+        for (i, knot) in (0u8..).zip(self.knots()) {
+            if !knot.x.is_finite() {
+                return Err((ParamName::Knot(i), ParamFault::NotFinite));
+            }
+            if !knot.stiffness.is_finite() {
+                return Err((ParamName::KnotStiffness(i), ParamFault::NotFinite));
+            }
+            if previous.is_some_and(|p| !(knot.x > p)) {
+                return Err((ParamName::Knot(i), ParamFault::OutOfRange));
+            }
+            if knot.stiffness < F::zero() {
+                return Err((ParamName::KnotStiffness(i), ParamFault::OutOfRange));
+            }
+            previous = Some(knot.x);
+        }
+        let [lo, hi] = self.range;
+        for (name, value) in [(ParamName::RangeMin, lo), (ParamName::RangeMax, hi)] {
+            if !value.is_finite() {
+                return Err((name, ParamFault::NotFinite));
+            }
+        }
+        if lo > F::zero() {
+            return Err((ParamName::RangeMin, ParamFault::OutOfRange));
+        }
+        if !(hi > lo) || hi < F::zero() {
+            return Err((ParamName::RangeMax, ParamFault::OutOfRange));
+        }
+        Ok(())
+    }
+
+    /// The spring ready to evaluate: per segment its start, torque and stiffness there and the
+    /// stiffness's slope, and the values at the range's edges.
+    pub fn prepare(&self) -> Result<PreparedSpring<F>, Error> {
+        self.check().map_err(|_| Error::InvalidSpring)?;
+        let polynomial = Polynomial::new(self.c1, self.c2, self.c3)?;
+        let knots = self.knots();
+        let half = F::one() / (F::one() + F::one());
+        let mut segments = [Segment::default(); MAX_KNOTS + 1];
+        // Segment 0 runs up to the first knot with its stiffness; segment j + 1 from knot j to
+        // knot j + 1; the last beyond the last knot. Each starts at a knot (the first from the
+        // left, backwards), P measured from knot 0 and shifted so that P(0) = 0 below.
+        let mut torque = F::zero();
+        for (j, knot) in knots.iter().enumerate() {
+            let next = knots.get(j + 1);
+            let slope = match next {
+                Some(next) => (next.stiffness - knot.stiffness) / (next.x - knot.x),
+                None => F::zero(),
+            };
+            if let Some(segment) = segments.get_mut(j + 1) {
+                *segment = Segment { start: knot.x, torque, stiffness: knot.stiffness, slope };
+            }
+            if let Some(next) = next {
+                torque = torque + (knot.stiffness + next.stiffness) * half * (next.x - knot.x);
+            }
+        }
+        if let (Some(first), Some(segment)) = (knots.first(), segments.first_mut()) {
+            *segment = Segment { start: first.x, torque: F::zero(), stiffness: first.stiffness, slope: F::zero() };
+        }
+        let count = if knots.is_empty() { 0 } else { knots.len() + 1 };
+        let mut prepared = PreparedSpring {
+            polynomial,
+            segments,
+            count,
+            range: self.range,
+            at_range: [Evaluation::default(); 2],
+            cursor: 0,
+        };
+        // P(0) = 0: shift every segment's torque by P at x = 0.
+        let at_zero = prepared.knots_part(F::zero());
+        for segment in prepared.segments.iter_mut().take(count) {
+            segment.torque = segment.torque - at_zero.torque;
+        }
+        prepared.cursor = 0;
+        let [lo, hi] = self.range;
+        prepared.at_range = [prepared.inside(lo), prepared.inside(hi)];
+        let finite = |e: &Evaluation<F>| e.torque.is_finite() && e.stiffness.is_finite();
+        if !prepared.at_range.iter().all(finite) || !prepared.segments.iter().all(|s| s.torque.is_finite()) {
+            return Err(Error::Overflow);
+        }
+        Ok(prepared)
+    }
+}
+
+/// One piece of the stiffness curve: from `start`, P = torque + (stiffness + slope·d/2)·d and
+/// k = stiffness + slope·d, d = x − start.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Segment<F> {
+    start: F,
+    torque: F,
+    stiffness: F,
+    slope: F,
+}
+
+/// A [`Spring`] ready to evaluate sample by sample; it remembers the last segment, so that a
+/// tick finds the next one in a step or two (x moves little between ticks).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedSpring<F> {
+    polynomial: Polynomial<F>,
+    segments: [Segment<F>; MAX_KNOTS + 1],
+    /// Segments in use: knots + 1, or 0 without knots.
+    count: usize,
+    range: [F; 2],
+    /// S and its stiffness at the range's two edges.
+    at_range: [Evaluation<F>; 2],
+    cursor: usize,
+}
+
+impl<F: Real> PreparedSpring<F> {
+    /// S(x) and dS/dx, x = θ − θ0 in rad; beyond the range, the line of the edge's stiffness.
+    #[inline(always)]
+    pub fn evaluate(&mut self, x: F) -> Evaluation<F> {
+        let [lo, hi] = self.range;
+        let [at_lo, at_hi] = self.at_range;
+        if x > hi {
+            Evaluation { torque: at_hi.torque + at_hi.stiffness * (x - hi), stiffness: at_hi.stiffness }
+        } else if x < lo {
+            Evaluation { torque: at_lo.torque + at_lo.stiffness * (x - lo), stiffness: at_lo.stiffness }
+        } else {
+            self.inside(x)
+        }
+    }
+
+    /// Whether x lies beyond the identified range, and by how much (rad, ≥ 0).
+    pub fn excess(&self, x: F) -> F {
+        let [lo, hi] = self.range;
+        if x > hi {
+            x - hi
+        } else if x < lo {
+            lo - x
+        } else {
+            F::zero()
+        }
+    }
+
+    /// The identified range of x, rad.
+    pub fn range(&self) -> [F; 2] {
+        self.range
+    }
+
+    #[inline(always)]
+    fn inside(&mut self, x: F) -> Evaluation<F> {
+        self.polynomial.evaluate(x).plus(self.knots_part(x))
+    }
+
+    /// P(x) and k(x), moving the cursor to x's segment.
+    #[inline(always)]
+    fn knots_part(&mut self, x: F) -> Evaluation<F> {
+        if self.count == 0 {
+            return Evaluation::default();
+        }
+        // Segment j + 1 starts at knot j; segment 0 holds everything left of knot 0.
+        let last = self.count - 1;
+        let mut cursor = self.cursor.min(last);
+        while cursor < last && self.segments.get(cursor + 1).is_some_and(|s| x >= s.start) {
+            cursor += 1;
+        }
+        while cursor > 0 && self.segments.get(cursor).is_some_and(|s| x < s.start) {
+            cursor -= 1;
+        }
+        self.cursor = cursor;
+        let Some(segment) = self.segments.get(cursor) else { return Evaluation::default() };
+        let d = x - segment.start;
+        let half = F::one() / (F::one() + F::one());
+        let stiffness = segment.stiffness + segment.slope * d;
+        Evaluation { torque: segment.torque + (segment.stiffness + segment.slope * d * half) * d, stiffness }
+    }
+}
+
+/// The fit's columns of the knots' stiffnesses at x: `torque[j]` = B_j(x) = ∫₀ˣ h_j(u) du and
+/// `stiffness[j]` = h_j(x), h_j the hat function of knot j (1 at knot j, 0 at its neighbours,
+/// linear between; the end knots' hats stay 1 beyond them), for knots `knots` (x increasing).
+/// So P(x) = Σ K_j·B_j(x) and k(x) = Σ K_j·h_j(x). Only the first `knots.len()` entries of the
+/// outputs are written.
+pub fn basis<F: Real>(knots: &[F], x: F, torque: &mut [F], stiffness: &mut [F]) {
+    for (j, (t, k)) in torque.iter_mut().zip(stiffness.iter_mut()).enumerate().take(knots.len()) {
+        *t = hat_integral(knots, j, x) - hat_integral(knots, j, F::zero());
+        *k = hat(knots, j, x);
+    }
+}
+
+/// h_j(x).
+fn hat<F: Real>(knots: &[F], j: usize, x: F) -> F {
+    let here = knots.get(j).copied().unwrap_or_else(F::zero);
+    let rising = j.checked_sub(1).and_then(|i| knots.get(i)).map(|&left| (left, here));
+    let falling = knots.get(j + 1).map(|&right| (here, right));
+    if x <= here {
+        match rising {
+            None => F::one(),
+            Some((left, _)) if x <= left => F::zero(),
+            Some((left, right)) => (x - left) / (right - left),
+        }
+    } else {
+        match falling {
+            None => F::one(),
+            Some((_, right)) if x >= right => F::zero(),
+            Some((left, right)) => (right - x) / (right - left),
+        }
+    }
+}
+
+/// ∫ from knot 0 to x of h_j (negative for x left of knot 0).
+fn hat_integral<F: Real>(knots: &[F], j: usize, x: F) -> F {
+    let half = F::one() / (F::one() + F::one());
+    let first = knots.first().copied().unwrap_or_else(F::zero);
+    let here = knots.get(j).copied().unwrap_or_else(F::zero);
+    let left = j.checked_sub(1).and_then(|i| knots.get(i)).copied();
+    let right = knots.get(j + 1).copied();
+    // The rising half, from the left neighbour (or, for knot 0, from knot 0 itself where the hat
+    // has been 1 all along) to the knot.
+    let rising = match left {
+        None => (x.min(here) - first).min(F::zero()),
+        Some(left) if x <= left => F::zero(),
+        Some(left) => {
+            let d = x.min(here) - left;
+            d * d * half / (here - left)
+        }
+    };
+    let falling = if x <= here {
+        F::zero()
+    } else {
+        match right {
+            None => x - here,
+            Some(right) => {
+                let width = right - here;
+                let beyond = (right - x.min(right)) / width;
+                width * half * (F::one() - beyond * beyond)
+            }
+        }
+    };
+    rising + falling
+}
+
+#[cfg(test)]
+mod tests;
