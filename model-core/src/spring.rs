@@ -99,7 +99,7 @@ impl<F: Real> Spring<F> {
             if !knot.stiffness.is_finite() {
                 return Err((ParamName::KnotStiffness(i), ParamFault::NotFinite));
             }
-            if previous.is_some_and(|p| !(knot.x > p)) {
+            if previous.is_some_and(|p| knot.x <= p) {
                 return Err((ParamName::Knot(i), ParamFault::OutOfRange));
             }
             if knot.stiffness < F::zero() {
@@ -116,7 +116,7 @@ impl<F: Real> Spring<F> {
         if lo > F::zero() {
             return Err((ParamName::RangeMin, ParamFault::OutOfRange));
         }
-        if !(hi > lo) || hi < F::zero() {
+        if hi <= lo || hi < F::zero() {
             return Err((ParamName::RangeMax, ParamFault::OutOfRange));
         }
         Ok(())
