@@ -13,8 +13,8 @@ use crate::input::{deflection, Angles, Recording, MAX_TORQUE_NM};
 use model_core::{Direction, Evaluator, GearModel, Hysteretic};
 pub use motion::{read_trajectory, Motion, Trajectory};
 use motion::{Played, Timing};
-pub use physics::{read_physics_params, BoucWen, MicroSlip, Physics, PhysicsParamError};
-use physics::{BoucWenGear, Gear, MicroSlipGear};
+use physics::Gear;
+pub use physics::{read_physics_params, BoucWen, Catalogue, MicroSlip, Physics, PhysicsParamError};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use std::f64::consts::TAU;
@@ -150,22 +150,21 @@ enum Truth {
 }
 
 fn truth(sim: &Simulation, motion: &Motion, physics: &Physics, width: f64) -> Result<Truth, SimulateError> {
-    Ok(match physics {
-        Physics::Model => match (motion, sim.params.symmetric_model()?) {
-            (Motion::Sine, Some(model)) => {
-                check(
-                    "backlash",
-                    width,
-                    (0.0..2.0 * sim.amplitude_rad).contains(&width),
-                    "from 0 to below twice the amplitude",
-                )?;
-                // Behind the dead band the elastic loop is narrower by half its width.
-                Truth::Loop(model.at_amplitude(sim.amplitude_rad - width / 2.0)?)
-            }
-            _ => Truth::Memory(Box::new(sim.params.evaluator(0.0)?)),
-        },
-        Physics::BoucWen(params) => Truth::Path(Box::new(BoucWenGear::new(*params)?)),
-        Physics::MicroSlip(params) => Truth::Path(Box::new(MicroSlipGear::new(*params)?)),
+    if let Some(gear) = physics.gear()? {
+        return Ok(Truth::Path(gear));
+    }
+    Ok(match (motion, sim.params.symmetric_model()?) {
+        (Motion::Sine, Some(model)) => {
+            check(
+                "backlash",
+                width,
+                (0.0..2.0 * sim.amplitude_rad).contains(&width),
+                "from 0 to below twice the amplitude",
+            )?;
+            // Behind the dead band the elastic loop is narrower by half its width.
+            Truth::Loop(model.at_amplitude(sim.amplitude_rad - width / 2.0)?)
+        }
+        _ => Truth::Memory(Box::new(sim.params.evaluator(0.0)?)),
     })
 }
 
@@ -380,8 +379,13 @@ mod tests {
         ]
     }
 
-    fn physics() -> [Physics; 3] {
-        [Physics::Model, Physics::BoucWen(BoucWen::default()), Physics::MicroSlip(MicroSlip::default())]
+    fn physics() -> [Physics; 4] {
+        [
+            Physics::Model,
+            Physics::BoucWen(BoucWen::default()),
+            Physics::MicroSlip(MicroSlip::default()),
+            Physics::Catalogue(Catalogue::default()),
+        ]
     }
 
     #[test]
@@ -445,7 +449,7 @@ mod tests {
     }
 
     #[test]
-    fn both_truth_physics_are_passive_on_the_closed_cycles_of_every_periodic_motion() {
+    fn the_truth_physics_are_passive_on_the_closed_cycles_of_every_periodic_motion() {
         // 0.5 Hz at 1 kHz: a cycle is 2000 samples; the last cycle (after the ramp) is closed.
         for motion in [Motion::Sine, Motion::Biased { bias_rad: None }, Motion::Nested, Motion::Hold { load_rad: None }]
         {
