@@ -219,6 +219,7 @@ fn the_truth_physics_loops_are_passive_and_a_few_percent_wide() {
     let dir = tempfile::tempdir().unwrap();
     for physics in ["bouc-wen", "micro-slip", "catalogue"] {
         let rec = simulate(dir.path(), "loop.csv", &["--physics", physics, "--torque-noise", "0", "--rate", "1200"]);
+        assert_eq!(meta(&rec, "start"), Some("rest"), "{physics}");
         let (work, width, peak) = loop_figures(&rec);
         assert!(work > 0.0, "{physics}: ∮T dθ = {work}");
         assert!((25.0..32.0).contains(&peak), "{physics}: peak {peak}");

@@ -149,6 +149,13 @@ enum Truth {
     Path(Box<dyn Gear>),
 }
 
+impl Truth {
+    /// Whether the gear starts unstressed at θ = 0 (all but the loop, which starts on it).
+    fn starts_at_rest(&self) -> bool {
+        !matches!(self, Truth::Loop(_))
+    }
+}
+
 fn truth(sim: &Simulation, motion: &Motion, physics: &Physics, width: f64) -> Result<Truth, SimulateError> {
     if let Some(gear) = physics.gear()? {
         return Ok(Truth::Path(gear));
@@ -243,6 +250,9 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
     }
     if !matches!(physics, Physics::Model) {
         metadata.push(("physics".into(), physics.name().into()));
+    }
+    if truth.starts_at_rest() {
+        metadata.push(("start".into(), "rest".into()));
     }
     let mut rec = Recording {
         ratio: sim.ratio,
@@ -471,6 +481,33 @@ mod tests {
         let rec = simulate_experiment(&experiment).unwrap();
         assert_eq!(rec.torque[0], 0.0);
         assert_eq!(rec.metadata.iter().find(|(k, _)| k == "motion").unwrap().1, "nested");
+    }
+
+    fn meta<'a>(rec: &'a Recording, key: &str) -> Option<&'a str> {
+        rec.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+
+    #[test]
+    fn every_truth_but_the_sines_loop_writes_start_rest() {
+        let slip_model = Simulation { params: GearModel::MicroSlip(model_core::checks::MICRO_SLIP_SET), ..base() };
+        for simulation in [base(), slip_model] {
+            // The micro-slip kind has no stateless loop: its memory runs from rest under the sine too.
+            let has_loop = simulation.params.symmetric_model().unwrap().is_some();
+            for motion in motions() {
+                for physics in physics() {
+                    let on_loop = has_loop && motion == Motion::Sine && physics == Physics::Model;
+                    let experiment = Experiment { simulation: simulation.clone(), motion: motion.clone(), physics };
+                    let rec = simulate_experiment(&experiment).unwrap();
+                    let what =
+                        format!("{} {} {:?}", motion.name(), experiment.physics.name(), simulation.params.kind());
+                    assert_eq!(rec.starts_at_rest(), !on_loop, "{what}");
+                    assert_eq!(meta(&rec, "start"), (!on_loop).then_some("rest"), "{what}");
+                }
+            }
+        }
+        // The genetic seed fit has its loop: the default recording is as it was.
+        assert!(base().params.symmetric_model().unwrap().is_some());
+        assert!(!simulate(&base()).unwrap().metadata.iter().any(|(k, _)| k == "start"));
     }
 
     #[test]
