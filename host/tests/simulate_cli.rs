@@ -274,6 +274,22 @@ fn physics_parameter_files_override_the_defaults() {
 }
 
 #[test]
+fn a_deflection_zero_offsets_the_recorded_deflection_within_the_encoder_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = ["--physics", "catalogue", "--motion", "nested", "--input-bits", "20", "--output-bits", "20"];
+    let zeroed = simulate(dir.path(), "a.csv", &args);
+    let offset = simulate(dir.path(), "b.csv", &[&args[..], &["--deflection-zero", "-3e-4"]].concat());
+    assert_eq!(meta(&zeroed, "deflection_zero_rad"), None);
+    assert_eq!(meta(&offset, "deflection_zero_rad"), Some("-0.0003"));
+    assert_eq!(meta(&offset, "start"), Some("rest"));
+    let step = std::f64::consts::TAU / f64::from(1 << 20);
+    for (a, b) in zeroed.deflection.iter().zip(&offset.deflection) {
+        assert!((b - a + 3e-4).abs() <= step, "{a} {b}");
+    }
+    assert_eq!(zeroed.torque, offset.torque);
+}
+
+#[test]
 fn every_option_keeps_working_with_the_truth_physics() {
     let dir = tempfile::tempdir().unwrap();
     for physics in ["bouc-wen", "micro-slip", "catalogue", "genetic"] {
@@ -325,7 +341,7 @@ fn bad_options_are_named_and_nothing_is_written() {
     let json = dir.path().join("p.json");
     std::fs::write(&json, "{\n  \"k\": 9000,\n  \"kk\": 1\n}\n").unwrap();
     let params = repo("data/seed/lht-20-50-fit.json");
-    let cases: [(&[&str], &str); 10] = [
+    let cases: [(&[&str], &str); 11] = [
         (&["--motion", "sinus"], "invalid value 'sinus' for '--motion"),
         (&["--physics", "preisach"], "invalid value 'preisach' for '--physics"),
         (&["--bias", "1e-3"], "--bias is for --motion biased or hold, not --motion sine"),
@@ -340,6 +356,7 @@ fn bad_options_are_named_and_nothing_is_written() {
         ),
         (&["--physics", "micro-slip", "--physics-params", json.to_str().unwrap()], "unknown field `k`"),
         (&["--physics", "catalogue", "--physics-params", json.to_str().unwrap()], "unknown field `k`"),
+        (&["--deflection-zero", "2"], "deflection zero must be within ±1 rad, got 2"),
         (&["--motion", "biased", "--bias", "nan"], "bias must be a finite deflection"),
         (&["--physics", "bouc-wen", "--effect", "backlash=0.1", "--rate", "0"], "sample rate must be > 0 Hz"),
     ];

@@ -112,6 +112,11 @@ pub struct SimulateArgs {
     /// channel_delay=S (the torque channel late by S seconds; negative: early).
     #[arg(long = "effect", value_name = "NAME=VALUE")]
     effects: Vec<EffectValue>,
+    /// The deflection's zero θ0: the encoders were zeroed off the gear's true zero, so every
+    /// recorded deflection is the true one + θ0 (the output encoder reads θ0 less, before its
+    /// quantisation). Written as `# deflection_zero_rad:` when not 0.
+    #[arg(long, default_value_t = 0.0, value_name = "RAD", allow_hyphen_values = true)]
+    deflection_zero: f64,
     /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -217,7 +222,8 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         effects: args.effects,
         seed: args.seed,
     };
-    let recording = simulate_experiment(&Experiment { simulation, motion, physics })?;
+    let experiment = Experiment { simulation, motion, physics, deflection_zero_rad: args.deflection_zero };
+    let recording = simulate_experiment(&experiment)?;
     if let Some(column) = recording.first_non_finite() {
         bail!("the simulated recording is not finite: column {column} holds NaN or infinity");
     }

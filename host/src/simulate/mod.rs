@@ -9,7 +9,7 @@ pub mod motion;
 pub mod physics;
 
 use crate::diagnose::effects::{backlash, kinematic_error, Effect, EffectValue};
-use crate::input::{deflection, Angles, Recording, MAX_TORQUE_NM};
+use crate::input::{deflection, Angles, Recording, MAX_DEFLECTION_RAD, MAX_TORQUE_NM};
 use model_core::{Direction, Evaluator, GearModel, Hysteretic};
 pub use motion::{read_trajectory, Motion, Trajectory};
 use motion::{Played, Timing};
@@ -65,18 +65,22 @@ pub enum SimulateError {
     PhysicsParam(#[from] PhysicsParamError),
 }
 
-/// A simulation with the motion it plays and the gear's truth physics: what
-/// `swg-host simulate` runs. From a [`Simulation`] alone: today's sine through the genetic model.
+/// A simulation with the motion it plays, the gear's truth physics and where the encoders were
+/// zeroed: what `swg-host simulate` runs. From a [`Simulation`] alone: today's sine through the
+/// genetic model, encoders zeroed at the gear's true zero.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Experiment {
     pub simulation: Simulation,
     pub motion: Motion,
     pub physics: Physics,
+    /// The deflection's zero θ0, rad: the encoders were zeroed off the gear's true zero, so
+    /// every recorded deflection is the true one + θ0 (the output encoder reads θ0 less).
+    pub deflection_zero_rad: f64,
 }
 
 impl From<Simulation> for Experiment {
     fn from(simulation: Simulation) -> Self {
-        Experiment { simulation, motion: Motion::Sine, physics: Physics::Model }
+        Experiment { simulation, motion: Motion::Sine, physics: Physics::Model, deflection_zero_rad: 0.0 }
     }
 }
 
@@ -130,12 +134,13 @@ impl Simulation {
 
 /// The recording the simulation describes: today's sine through the params' genetic model.
 pub fn simulate(sim: &Simulation) -> Result<Recording, SimulateError> {
-    run(sim, &Motion::Sine, &Physics::Model)
+    simulate_experiment(&sim.clone().into())
 }
 
-/// The recording of `experiment`: its motion through its physics.
+/// The recording of `experiment`: its motion through its physics, read by encoders zeroed at
+/// its deflection zero.
 pub fn simulate_experiment(experiment: &Experiment) -> Result<Recording, SimulateError> {
-    run(&experiment.simulation, &experiment.motion, &experiment.physics)
+    run(experiment)
 }
 
 /// The gear the torque comes from, with its state.
@@ -184,8 +189,10 @@ fn sign(v: f64) -> f64 {
     }
 }
 
-fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording, SimulateError> {
+fn run(experiment: &Experiment) -> Result<Recording, SimulateError> {
+    let Experiment { simulation: sim, motion, physics, deflection_zero_rad: zero } = experiment;
     sim.validate()?;
+    check("deflection zero", *zero, zero.abs() <= MAX_DEFLECTION_RAD, "within ±1 rad")?;
     let width = sim.effect(Effect::Backlash);
     let mut truth = truth(sim, motion, physics, width)?;
     if !matches!(truth, Truth::Loop(_)) {
@@ -254,6 +261,9 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
     if truth.starts_at_rest() {
         metadata.push(("start".into(), "rest".into()));
     }
+    if *zero != 0.0 {
+        metadata.push(("deflection_zero_rad".into(), zero.to_string()));
+    }
     let mut rec = Recording {
         ratio: sim.ratio,
         metadata,
@@ -268,7 +278,7 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
     for i in 0..n {
         let motion::Sample { t, x, rate } = played.sample(i);
         // The bench drives the gear's deflection x; the encoders see x minus the kinematic
-        // error, the teeth see x behind the backlash dead band.
+        // error, off by the zero they were set to, the teeth see x behind the backlash dead band.
         let direction = if rate >= 0.0 { Direction::Rising } else { Direction::Falling };
         let theta_in = sim.input_speed_rad_s * t;
         let elastic = backlash(x, width);
@@ -282,7 +292,7 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
         // What the gear transmits; the sensor's offset and noise are added once it is sampled.
         let torque =
             gear_torque + linear_stiffness * thermal * warming * elastic + friction * sign(rate) + damping * rate;
-        let measured = x - kinematic_error(kinematic, kinematic_phases, theta_in);
+        let measured = x - kinematic_error(kinematic, kinematic_phases, theta_in) + zero;
         let theta_out = theta_in / sim.ratio - measured;
         let (measured_in, measured_out) = (quantise(theta_in, sim.input_bits), quantise(theta_out, sim.output_bits));
         rec.time.push(t);
@@ -416,7 +426,8 @@ mod tests {
         };
         for motion in motions() {
             for physics in physics() {
-                let experiment = Experiment { simulation: sim.clone(), motion: motion.clone(), physics };
+                let experiment =
+                    Experiment { simulation: sim.clone(), motion: motion.clone(), physics, deflection_zero_rad: 0.0 };
                 let rec = simulate_experiment(&experiment).unwrap();
                 let expected = if let Motion::File(t) = &motion { t.time().len() } else { rec.time.len() };
                 assert_eq!(rec.time.len(), expected);
@@ -465,7 +476,8 @@ mod tests {
         {
             // Not the seed fit's genetic model: its own loop is not passive (README: r < 0).
             for physics in physics().into_iter().skip(1) {
-                let experiment = Experiment { simulation: base(), motion: motion.clone(), physics };
+                let experiment =
+                    Experiment { simulation: base(), motion: motion.clone(), physics, deflection_zero_rad: 0.0 };
                 let rec = simulate_experiment(&experiment).unwrap();
                 let end = rec.time.len() - 1;
                 assert!((rec.deflection[end - 2000] - rec.deflection[end]).abs() < 1e-15);
@@ -477,7 +489,12 @@ mod tests {
 
     #[test]
     fn the_genetic_model_starts_at_rest_off_the_sine() {
-        let experiment = Experiment { simulation: base(), motion: Motion::Nested, physics: Physics::Model };
+        let experiment = Experiment {
+            simulation: base(),
+            motion: Motion::Nested,
+            physics: Physics::Model,
+            deflection_zero_rad: 0.0,
+        };
         let rec = simulate_experiment(&experiment).unwrap();
         assert_eq!(rec.torque[0], 0.0);
         assert_eq!(rec.metadata.iter().find(|(k, _)| k == "motion").unwrap().1, "nested");
@@ -496,7 +513,12 @@ mod tests {
             for motion in motions() {
                 for physics in physics() {
                     let on_loop = has_loop && motion == Motion::Sine && physics == Physics::Model;
-                    let experiment = Experiment { simulation: simulation.clone(), motion: motion.clone(), physics };
+                    let experiment = Experiment {
+                        simulation: simulation.clone(),
+                        motion: motion.clone(),
+                        physics,
+                        deflection_zero_rad: 0.0,
+                    };
                     let rec = simulate_experiment(&experiment).unwrap();
                     let what =
                         format!("{} {} {:?}", motion.name(), experiment.physics.name(), simulation.params.kind());
@@ -511,11 +533,68 @@ mod tests {
     }
 
     #[test]
+    fn a_deflection_zero_moves_the_recorded_deflection_and_nothing_else() {
+        let step = TAU / (1u64 << 20) as f64;
+        let effects = ["backlash=1e-4", "kinematic_error=2e-6", "thermal_drift=0.01"]
+            .into_iter()
+            .map(|e| e.parse().unwrap())
+            .collect();
+        let simulation = Simulation {
+            input_speed_rad_s: 3.0,
+            input_bits: Some(20),
+            output_bits: Some(20),
+            torque_noise_nm: 0.05,
+            temperature: Some((25.0, 0.2)),
+            effects,
+            ..base()
+        };
+        for (motion, physics) in [
+            (Motion::Sine, Physics::Model),
+            (Motion::Nested, Physics::Catalogue(Catalogue::default())),
+            (Motion::Random, Physics::BoucWen(BoucWen::default())),
+        ] {
+            let run = |zero: f64| {
+                let experiment = Experiment {
+                    simulation: simulation.clone(),
+                    motion: motion.clone(),
+                    physics: physics.clone(),
+                    deflection_zero_rad: zero,
+                };
+                simulate_experiment(&experiment).unwrap()
+            };
+            let (zeroed, offset) = (run(0.0), run(-0.5e-3));
+            assert_eq!(meta(&zeroed, "deflection_zero_rad"), None);
+            assert_eq!(meta(&offset, "deflection_zero_rad"), Some("-0.0005"));
+            // Within one encoder step of the true deflection + θ0 (each reading is within half a step).
+            for (i, (a, b)) in zeroed.deflection.iter().zip(&offset.deflection).enumerate() {
+                assert!((b - a + 0.5e-3).abs() <= step, "{} sample {i}: {a} {b}", motion.name());
+            }
+            assert_ne!(zeroed.deflection, offset.deflection);
+            assert_eq!(zeroed.torque, offset.torque);
+            assert_eq!(zeroed.time, offset.time);
+            assert_eq!(zeroed.temperature, offset.temperature);
+            assert_eq!(zeroed.angles.as_ref().unwrap().input, offset.angles.as_ref().unwrap().input);
+            let mut metadata = offset.metadata.clone();
+            metadata.retain(|(k, _)| k != "deflection_zero_rad");
+            assert_eq!(metadata, zeroed.metadata);
+        }
+        // The encoders read 0 at the true zero + θ0: off by θ0 before any motion.
+        let exact = Experiment { deflection_zero_rad: 2e-4, ..Experiment::from(base()) };
+        assert_eq!(simulate_experiment(&exact).unwrap().deflection[0], 2e-4);
+        let bad = Experiment { deflection_zero_rad: f64::INFINITY, ..Experiment::from(base()) };
+        assert_eq!(
+            simulate_experiment(&bad).unwrap_err().to_string(),
+            "deflection zero must be within ±1 rad, got inf"
+        );
+    }
+
+    #[test]
     fn bad_values_are_named() {
         let biased = Experiment {
             simulation: base(),
             motion: Motion::Biased { bias_rad: Some(f64::NAN) },
             physics: Physics::BoucWen(BoucWen::default()),
+            deflection_zero_rad: 0.0,
         };
         assert_eq!(
             simulate_experiment(&biased).unwrap_err().to_string(),
@@ -525,6 +604,7 @@ mod tests {
             simulation: base(),
             motion: Motion::Sine,
             physics: Physics::MicroSlip(MicroSlip { max_slip_rad: -1.0, ..MicroSlip::default() }),
+            deflection_zero_rad: 0.0,
         };
         let message = simulate_experiment(&bad).unwrap_err().to_string();
         assert_eq!(message, "micro-slip parameter max_slip_rad must be > min_slip_rad, got -1");
@@ -532,6 +612,7 @@ mod tests {
             simulation: Simulation { sample_rate_hz: 1e9, ..base() },
             motion: Motion::Random,
             physics: Physics::BoucWen(BoucWen::default()),
+            deflection_zero_rad: 0.0,
         };
         assert!(matches!(simulate_experiment(&too_long), Err(SimulateError::TooLong(_))));
     }
