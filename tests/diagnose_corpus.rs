@@ -334,7 +334,12 @@ fn corpus(base_seed: u64) -> Vec<Case> {
 /// to its last.
 fn truth_energy_per_cycle(case: &Case) -> (f64, f64) {
     let quiet = Simulation { torque_noise_nm: 0.0, input_bits: None, output_bits: None, ..case.simulation.clone() };
-    let experiment = Experiment { simulation: quiet, motion: case.motion.clone(), physics: case.physics.clone() };
+    let experiment = Experiment {
+        simulation: quiet,
+        motion: case.motion.clone(),
+        physics: case.physics.clone(),
+        deflection_zero_rad: 0.0,
+    };
     let recording = simulate_experiment(&experiment).unwrap();
     let (theta, torque) = (&recording.deflection, &recording.torque);
     let maxima: Vec<usize> =
@@ -348,8 +353,12 @@ fn truth_energy_per_cycle(case: &Case) -> (f64, f64) {
 }
 
 fn run(case: &Case) -> Outcome {
-    let experiment =
-        Experiment { simulation: case.simulation.clone(), motion: case.motion.clone(), physics: case.physics.clone() };
+    let experiment = Experiment {
+        simulation: case.simulation.clone(),
+        motion: case.motion.clone(),
+        physics: case.physics.clone(),
+        deflection_zero_rad: 0.0,
+    };
     let recording = simulate_experiment(&experiment).unwrap();
     // SWG_CORPUS_WRITE=DIR keeps each case's recording, to run `swg-host diagnose` on it.
     if let Ok(dir) = std::env::var("SWG_CORPUS_WRITE") {

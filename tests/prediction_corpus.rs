@@ -50,8 +50,13 @@ pub fn simulation(noisy: bool) -> Simulation {
 }
 
 pub fn record(physics: &Physics, motion: Motion, noisy: bool) -> Recording {
-    simulate_experiment(&Experiment { simulation: simulation(noisy), motion, physics: physics.clone() })
-        .expect("simulation runs")
+    simulate_experiment(&Experiment {
+        simulation: simulation(noisy),
+        motion,
+        physics: physics.clone(),
+        deflection_zero_rad: 0.0,
+    })
+    .expect("simulation runs")
 }
 
 pub fn rms(a: &[f64], b: &[f64]) -> f64 {

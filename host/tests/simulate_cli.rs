@@ -166,7 +166,7 @@ fn a_motion_file_is_played_at_its_times() {
     let (time, x) = ([0.0, 0.01, 0.03, 0.04, 0.1], [0.0, 2e-4, 9e-4, 1e-4, -5e-4]);
     let rows: Vec<String> = time.iter().zip(&x).map(|(t, x)| format!("{t},{x}")).collect();
     std::fs::write(&path, format!("# a bench's motion\ntime_s,deflection_rad\n{}\n", rows.join("\n"))).unwrap();
-    for physics in ["genetic", "bouc-wen", "micro-slip"] {
+    for physics in ["genetic", "bouc-wen", "micro-slip", "catalogue"] {
         let rec = simulate(
             dir.path(),
             "played.csv",
@@ -217,8 +217,9 @@ fn loop_figures(rec: &Recording) -> (f64, f64, f64) {
 #[test]
 fn the_truth_physics_loops_are_passive_and_a_few_percent_wide() {
     let dir = tempfile::tempdir().unwrap();
-    for physics in ["bouc-wen", "micro-slip"] {
+    for physics in ["bouc-wen", "micro-slip", "catalogue"] {
         let rec = simulate(dir.path(), "loop.csv", &["--physics", physics, "--torque-noise", "0", "--rate", "1200"]);
+        assert_eq!(meta(&rec, "start"), Some("rest"), "{physics}");
         let (work, width, peak) = loop_figures(&rec);
         assert!(work > 0.0, "{physics}: ∮T dθ = {work}");
         assert!((25.0..32.0).contains(&peak), "{physics}: peak {peak}");
@@ -250,12 +251,48 @@ fn physics_parameter_files_override_the_defaults() {
     std::fs::write(&bouc, r#"{"k3": 0, "a": 0.5}"#).unwrap();
     let rec = simulate(dir.path(), "c.csv", &["--physics", "bouc-wen", "--physics-params", bouc.to_str().unwrap()]);
     assert!(rec.torque.iter().all(|t| t.is_finite()));
+
+    // A catalogue gear whose + side is 20 % softer: its + peak is the lower one, its − peak
+    // the default's.
+    let catalogue = dir.path().join("catalogue.json");
+    std::fs::write(&catalogue, r#"{"positive_scale": 0.8}"#).unwrap();
+    let args = ["--physics", "catalogue", "--torque-noise", "0", "--rate", "1200"];
+    let peaks = |rec: &Recording| {
+        let max = rec.torque.iter().fold(f64::MIN, |m, &t| m.max(t));
+        let min = rec.torque.iter().fold(f64::MAX, |m, &t| m.min(t));
+        (max, min)
+    };
+    let symmetric = peaks(&simulate(dir.path(), "d.csv", &args));
+    let softer = peaks(&simulate(
+        dir.path(),
+        "e.csv",
+        &[&args[..], &["--physics-params", catalogue.to_str().unwrap()]].concat(),
+    ));
+    assert!((symmetric.0 + symmetric.1).abs() < 0.01 * symmetric.0, "{symmetric:?}");
+    assert!(softer.0 < 0.9 * symmetric.0, "{softer:?} vs {symmetric:?}");
+    assert!((softer.1 - symmetric.1).abs() < 0.01 * symmetric.0, "{softer:?} vs {symmetric:?}");
+}
+
+#[test]
+fn a_deflection_zero_offsets_the_recorded_deflection_within_the_encoder_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = ["--physics", "catalogue", "--motion", "nested", "--input-bits", "20", "--output-bits", "20"];
+    let zeroed = simulate(dir.path(), "a.csv", &args);
+    let offset = simulate(dir.path(), "b.csv", &[&args[..], &["--deflection-zero", "-3e-4"]].concat());
+    assert_eq!(meta(&zeroed, "deflection_zero_rad"), None);
+    assert_eq!(meta(&offset, "deflection_zero_rad"), Some("-0.0003"));
+    assert_eq!(meta(&offset, "start"), Some("rest"));
+    let step = std::f64::consts::TAU / f64::from(1 << 20);
+    for (a, b) in zeroed.deflection.iter().zip(&offset.deflection) {
+        assert!((b - a + 3e-4).abs() <= step, "{a} {b}");
+    }
+    assert_eq!(zeroed.torque, offset.torque);
 }
 
 #[test]
 fn every_option_keeps_working_with_the_truth_physics() {
     let dir = tempfile::tempdir().unwrap();
-    for physics in ["bouc-wen", "micro-slip", "genetic"] {
+    for physics in ["bouc-wen", "micro-slip", "catalogue", "genetic"] {
         let rec = simulate(
             dir.path(),
             "all.csv",
@@ -304,17 +341,22 @@ fn bad_options_are_named_and_nothing_is_written() {
     let json = dir.path().join("p.json");
     std::fs::write(&json, "{\n  \"k\": 9000,\n  \"kk\": 1\n}\n").unwrap();
     let params = repo("data/seed/lht-20-50-fit.json");
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 11] = [
         (&["--motion", "sinus"], "invalid value 'sinus' for '--motion"),
         (&["--physics", "preisach"], "invalid value 'preisach' for '--physics"),
         (&["--bias", "1e-3"], "--bias is for --motion biased or hold, not --motion sine"),
-        (&["--physics-params", json.to_str().unwrap()], "--physics-params is for --physics micro-slip or bouc-wen"),
+        (
+            &["--physics-params", json.to_str().unwrap()],
+            "--physics-params is for --physics micro-slip, bouc-wen or catalogue",
+        ),
         (&["--physics", "bouc-wen", "--params", &params], "--params sets the model of --physics genetic"),
         (
             &["--physics", "bouc-wen", "--physics-params", json.to_str().unwrap()],
             "p.json:3: column 6: unknown field `kk`",
         ),
         (&["--physics", "micro-slip", "--physics-params", json.to_str().unwrap()], "unknown field `k`"),
+        (&["--physics", "catalogue", "--physics-params", json.to_str().unwrap()], "unknown field `k`"),
+        (&["--deflection-zero", "2"], "deflection zero must be within ±1 rad, got 2"),
         (&["--motion", "biased", "--bias", "nan"], "bias must be a finite deflection"),
         (&["--physics", "bouc-wen", "--effect", "backlash=0.1", "--rate", "0"], "sample rate must be > 0 Hz"),
     ];
@@ -325,4 +367,7 @@ fn bad_options_are_named_and_nothing_is_written() {
     std::fs::write(&json, r#"{"a": 1.5}"#).unwrap();
     let stderr = fails(&out, &["--physics", "bouc-wen", "--physics-params", json.to_str().unwrap()]);
     assert!(stderr.contains("bouc-wen parameter a must be in [0, 1), got 1.5"), "{stderr}");
+    std::fs::write(&json, r#"{"t1_nm": 25}"#).unwrap();
+    let stderr = fails(&out, &["--physics", "catalogue", "--physics-params", json.to_str().unwrap()]);
+    assert!(stderr.contains("catalogue parameter t2_nm must be > t1_nm N·m, got 19"), "{stderr}");
 }

@@ -7,8 +7,8 @@ use swg_host::diagnose::effects::EffectValue;
 use swg_host::report::output::Outputs;
 use swg_host::report::params::{parse_model, read_model};
 use swg_host::simulate::{
-    read_physics_params, read_trajectory, simulate_experiment, BoucWen, Experiment, MicroSlip, Motion, Physics,
-    Simulation,
+    read_physics_params, read_trajectory, simulate_experiment, BoucWen, Catalogue, Experiment, MicroSlip, Motion,
+    Physics, Simulation,
 };
 
 /// The fit of the paper's table that ships with the tool (`data/seed/lht-20-50-fit.json`).
@@ -27,8 +27,18 @@ Truth physics (--physics), θ the elastic deflection (rad), T the torque (N·m),
               M elements, k_e = K_slip/M, d_i the quantiles (i + ½)/M of p(d) ∝ d^p on
               [d_min, d_max]. Defaults: k1 = 6000 N·m/rad, k3 = 1.2e10 N·m/rad³, M = 300,
               K_slip = 3000 N·m/rad, d_min = 0, d_max = 2 mrad, p = 0 (uniform).
+  catalogue   T = T_s(θ) + Σ k_e·s_i, the slip elements as micro-slip's and T_s a harmonic-drive
+              catalogue's three segments: stiffness K1 for |T_s| < T1, K2 for T1 ≤ |T_s| < T2,
+              K3 beyond (K1 < K2 < K3), each σ·K_j on the + side (σ = positive_scale). With
+              K_j' = σ·K_j for θ > 0, K_j for θ < 0, θ1 = T1/K1', θ2 = θ1 + (T2 − T1)/K2':
+              T_s = sign(θ)·K1'·|θ| for |θ| < θ1, sign(θ)·(T1 + K2'·(|θ| − θ1)) for |θ| < θ2,
+              sign(θ)·(T2 + K3'·(|θ| − θ2)) beyond: kinks where T_s reaches ±T1, ±T2.
+              Defaults: K1 = 14000, K2 = 26000, K3 = 36000 N·m/rad, T1 = 7, T2 = 19 N·m, σ = 1,
+              M = 300, K_slip = 2000 N·m/rad, d_min = 0, d_max = 2 mrad, p = 0.
 --physics-params FILE.json overrides any of: bouc-wen {k, a, k3, a_bw, beta_bw, gamma_bw};
-micro-slip {k1, k3, elements, slip_stiffness, min_slip_rad, max_slip_rad, slip_exponent}.";
+micro-slip {k1, k3, elements, slip_stiffness, min_slip_rad, max_slip_rad, slip_exponent};
+catalogue {k1, k2, k3, t1_nm, t2_nm, positive_scale, elements, slip_stiffness, min_slip_rad,
+max_slip_rad, slip_exponent}.";
 
 #[derive(Args)]
 #[command(after_long_help = PHYSICS_HELP)]
@@ -59,8 +69,8 @@ pub struct SimulateArgs {
     /// at the end of --help.
     #[arg(long, value_enum, default_value_t = PhysicsArg::Genetic)]
     physics: PhysicsArg,
-    /// Parameters of --physics micro-slip or bouc-wen (JSON object; missing fields keep their
-    /// defaults, listed at the end of --help).
+    /// Parameters of --physics micro-slip, bouc-wen or catalogue (JSON object; missing fields
+    /// keep their defaults, listed at the end of --help).
     #[arg(long, value_name = "FILE.json")]
     physics_params: Option<PathBuf>,
     /// Deflection amplitude A of the loops, rad.
@@ -102,6 +112,11 @@ pub struct SimulateArgs {
     /// channel_delay=S (the torque channel late by S seconds; negative: early).
     #[arg(long = "effect", value_name = "NAME=VALUE")]
     effects: Vec<EffectValue>,
+    /// The deflection's zero θ0: the encoders were zeroed off the gear's true zero, so every
+    /// recorded deflection is the true one + θ0 (the output encoder reads θ0 less, before its
+    /// quantisation). Written as `# deflection_zero_rad:` when not 0.
+    #[arg(long, default_value_t = 0.0, value_name = "RAD", allow_hyphen_values = true)]
+    deflection_zero: f64,
     /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -115,6 +130,8 @@ enum PhysicsArg {
     MicroSlip,
     /// A Bouc–Wen gear (n = 1).
     BoucWen,
+    /// A harmonic-drive catalogue gear: three-segment stiffness with Maxwell-slip elements.
+    Catalogue,
 }
 
 #[derive(Clone, Debug)]
@@ -173,7 +190,9 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     let physics = match (args.physics, &args.physics_params) {
         (PhysicsArg::Genetic, None) => Physics::Model,
         (PhysicsArg::Genetic, Some(_)) => {
-            bail!("--physics-params is for --physics micro-slip or bouc-wen; the genetic model takes --params")
+            bail!(
+                "--physics-params is for --physics micro-slip, bouc-wen or catalogue; the genetic model takes --params"
+            )
         }
         (PhysicsArg::MicroSlip, path) => Physics::MicroSlip(match path {
             Some(path) => read_physics_params(path).context("--physics-params")?,
@@ -182,6 +201,10 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         (PhysicsArg::BoucWen, path) => Physics::BoucWen(match path {
             Some(path) => read_physics_params(path).context("--physics-params")?,
             None => BoucWen::default(),
+        }),
+        (PhysicsArg::Catalogue, path) => Physics::Catalogue(match path {
+            Some(path) => read_physics_params(path).context("--physics-params")?,
+            None => Catalogue::default(),
         }),
     };
     let simulation = Simulation {
@@ -199,7 +222,8 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         effects: args.effects,
         seed: args.seed,
     };
-    let recording = simulate_experiment(&Experiment { simulation, motion, physics })?;
+    let experiment = Experiment { simulation, motion, physics, deflection_zero_rad: args.deflection_zero };
+    let recording = simulate_experiment(&experiment)?;
     if let Some(column) = recording.first_non_finite() {
         bail!("the simulated recording is not finite: column {column} holds NaN or infinity");
     }
@@ -218,6 +242,7 @@ impl PhysicsArg {
             PhysicsArg::Genetic => "genetic",
             PhysicsArg::MicroSlip => "micro-slip",
             PhysicsArg::BoucWen => "bouc-wen",
+            PhysicsArg::Catalogue => "catalogue",
         }
     }
 }

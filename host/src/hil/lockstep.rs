@@ -258,7 +258,8 @@ mod tests {
             effects: Vec::new(),
             seed: 1,
         };
-        let experiment = Experiment { simulation, motion: Motion::Random, physics: physics.clone() };
+        let experiment =
+            Experiment { simulation, motion: Motion::Random, physics: physics.clone(), deflection_zero_rad: 0.0 };
         let recording = simulate_experiment(&experiment).unwrap();
         let kind = if matches!(physics, Physics::Model) { model.kind() } else { Kind::MicroSlip };
         fit_dataset(&Dataset::Recording(recording), ModelChoice::Kind(kind), &[], 1, |_| {}).unwrap().identified.model()

@@ -4,7 +4,7 @@
 //! with a fixed step, [`PlantParams::substeps`] steps per control tick.
 use super::scenario::Environment;
 use super::HilError;
-use crate::simulate::physics::{BoucWenGear, Gear, MicroSlipGear};
+use crate::simulate::physics::Gear;
 use crate::simulate::Physics;
 use model_core::memory::Hysteretic;
 use model_core::{Evaluator, GearModel};
@@ -105,15 +105,11 @@ impl GearTruth {
 
     fn start(&self) -> Result<TruthState, HilError> {
         Ok(match self {
-            GearTruth::Physics { physics: Physics::Model, model } => {
-                TruthState::Model(Box::new(model.evaluator(TRUTH_BAND)?))
-            }
-            GearTruth::Physics { physics: Physics::MicroSlip(params), .. } => {
-                TruthState::Path(Box::new(MicroSlipGear::new(*params)?))
-            }
-            GearTruth::Physics { physics: Physics::BoucWen(params), .. } => {
-                TruthState::Path(Box::new(BoucWenGear::new(*params)?))
-            }
+            // Physics::Model has no host gear: its truth is the model with its memory.
+            GearTruth::Physics { physics, model } => match physics.gear()? {
+                Some(gear) => TruthState::Path(gear),
+                None => TruthState::Model(Box::new(model.evaluator(TRUTH_BAND)?)),
+            },
             GearTruth::Model { model, .. } => TruthState::Model(Box::new(model.evaluator(TRUTH_BAND)?)),
         })
     }

@@ -382,7 +382,19 @@ pub fn deflection(theta_in: f64, theta_out: f64, ratio: f64) -> f64 {
     theta_in / ratio - theta_out
 }
 
+/// The metadata line `# start: rest`: the gear was unstressed at θ = 0 when the recording began
+/// (what `simulate` writes wherever its truth starts at rest, and a board's recording).
+pub const START_KEY: &str = "start";
+pub const START_AT_REST: &str = "rest";
+
 impl Recording {
+    /// Whether the recording says it starts at rest (`# start: rest`). Any other value, or
+    /// none, is "not known to start at rest": the hysteresis state at the first sample is
+    /// unknown.
+    pub fn starts_at_rest(&self) -> bool {
+        self.metadata.iter().any(|(key, value)| key == START_KEY && value == START_AT_REST)
+    }
+
     /// The first column holding a number that is not finite, by its name in the file.
     pub fn first_non_finite(&self) -> Option<&'static str> {
         let bad = |values: &[f64]| values.iter().any(|v| !v.is_finite());
@@ -432,5 +444,38 @@ impl Recording {
             writeln!(out)?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn recording(preamble: &str) -> Recording {
+        let text = format!("# {RECORDING_MAGIC}\n# ratio: 50\n{preamble}time_s,deflection_rad,torque_nm\n0,0,0\n");
+        match parse(Path::new("r.csv"), text.as_bytes(), None).unwrap() {
+            Dataset::Recording(recording) => recording,
+            Dataset::LoopTable(_) => panic!("a loop table"),
+        }
+    }
+
+    #[test]
+    fn only_start_rest_says_a_recording_starts_at_rest() {
+        assert!(recording("# start: rest\n").starts_at_rest());
+        assert!(recording("# source: bench\n#start:   rest  \n").starts_at_rest());
+        for other in ["", "# start: moving\n", "# start: Rest\n", "# start:\n", "# restart: rest\n", "# start rest\n"] {
+            assert!(!recording(other).starts_at_rest(), "{other:?}");
+        }
+        // A value it does not know is kept, as any metadata is.
+        let kept = recording("# start: rest, then moving\n");
+        assert_eq!(kept.metadata.last().unwrap(), &("start".to_owned(), "rest, then moving".to_owned()));
+    }
+
+    #[test]
+    fn start_rest_is_written_back() {
+        let mut text = Vec::new();
+        recording("# start: rest\n").write(&mut text).unwrap();
+        let again = parse(Path::new("again.csv"), &text, None).unwrap();
+        assert!(matches!(again, Dataset::Recording(r) if r.starts_at_rest()));
     }
 }

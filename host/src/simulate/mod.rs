@@ -9,12 +9,12 @@ pub mod motion;
 pub mod physics;
 
 use crate::diagnose::effects::{backlash, kinematic_error, Effect, EffectValue};
-use crate::input::{deflection, Angles, Recording, MAX_TORQUE_NM};
+use crate::input::{deflection, Angles, Recording, MAX_DEFLECTION_RAD, MAX_TORQUE_NM};
 use model_core::{Direction, Evaluator, GearModel, Hysteretic};
 pub use motion::{read_trajectory, Motion, Trajectory};
 use motion::{Played, Timing};
-pub use physics::{read_physics_params, BoucWen, MicroSlip, Physics, PhysicsParamError};
-use physics::{BoucWenGear, Gear, MicroSlipGear};
+use physics::Gear;
+pub use physics::{read_physics_params, BoucWen, Catalogue, MicroSlip, Physics, PhysicsParamError};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use std::f64::consts::TAU;
@@ -65,18 +65,22 @@ pub enum SimulateError {
     PhysicsParam(#[from] PhysicsParamError),
 }
 
-/// A simulation with the motion it plays and the gear's truth physics: what
-/// `swg-host simulate` runs. From a [`Simulation`] alone: today's sine through the genetic model.
+/// A simulation with the motion it plays, the gear's truth physics and where the encoders were
+/// zeroed: what `swg-host simulate` runs. From a [`Simulation`] alone: today's sine through the
+/// genetic model, encoders zeroed at the gear's true zero.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Experiment {
     pub simulation: Simulation,
     pub motion: Motion,
     pub physics: Physics,
+    /// The deflection's zero θ0, rad: the encoders were zeroed off the gear's true zero, so
+    /// every recorded deflection is the true one + θ0 (the output encoder reads θ0 less).
+    pub deflection_zero_rad: f64,
 }
 
 impl From<Simulation> for Experiment {
     fn from(simulation: Simulation) -> Self {
-        Experiment { simulation, motion: Motion::Sine, physics: Physics::Model }
+        Experiment { simulation, motion: Motion::Sine, physics: Physics::Model, deflection_zero_rad: 0.0 }
     }
 }
 
@@ -130,12 +134,13 @@ impl Simulation {
 
 /// The recording the simulation describes: today's sine through the params' genetic model.
 pub fn simulate(sim: &Simulation) -> Result<Recording, SimulateError> {
-    run(sim, &Motion::Sine, &Physics::Model)
+    simulate_experiment(&sim.clone().into())
 }
 
-/// The recording of `experiment`: its motion through its physics.
+/// The recording of `experiment`: its motion through its physics, read by encoders zeroed at
+/// its deflection zero.
 pub fn simulate_experiment(experiment: &Experiment) -> Result<Recording, SimulateError> {
-    run(&experiment.simulation, &experiment.motion, &experiment.physics)
+    run(experiment)
 }
 
 /// The gear the torque comes from, with its state.
@@ -149,23 +154,29 @@ enum Truth {
     Path(Box<dyn Gear>),
 }
 
+impl Truth {
+    /// Whether the gear starts unstressed at θ = 0 (all but the loop, which starts on it).
+    fn starts_at_rest(&self) -> bool {
+        !matches!(self, Truth::Loop(_))
+    }
+}
+
 fn truth(sim: &Simulation, motion: &Motion, physics: &Physics, width: f64) -> Result<Truth, SimulateError> {
-    Ok(match physics {
-        Physics::Model => match (motion, sim.params.symmetric_model()?) {
-            (Motion::Sine, Some(model)) => {
-                check(
-                    "backlash",
-                    width,
-                    (0.0..2.0 * sim.amplitude_rad).contains(&width),
-                    "from 0 to below twice the amplitude",
-                )?;
-                // Behind the dead band the elastic loop is narrower by half its width.
-                Truth::Loop(model.at_amplitude(sim.amplitude_rad - width / 2.0)?)
-            }
-            _ => Truth::Memory(Box::new(sim.params.evaluator(0.0)?)),
-        },
-        Physics::BoucWen(params) => Truth::Path(Box::new(BoucWenGear::new(*params)?)),
-        Physics::MicroSlip(params) => Truth::Path(Box::new(MicroSlipGear::new(*params)?)),
+    if let Some(gear) = physics.gear()? {
+        return Ok(Truth::Path(gear));
+    }
+    Ok(match (motion, sim.params.symmetric_model()?) {
+        (Motion::Sine, Some(model)) => {
+            check(
+                "backlash",
+                width,
+                (0.0..2.0 * sim.amplitude_rad).contains(&width),
+                "from 0 to below twice the amplitude",
+            )?;
+            // Behind the dead band the elastic loop is narrower by half its width.
+            Truth::Loop(model.at_amplitude(sim.amplitude_rad - width / 2.0)?)
+        }
+        _ => Truth::Memory(Box::new(sim.params.evaluator(0.0)?)),
     })
 }
 
@@ -178,8 +189,10 @@ fn sign(v: f64) -> f64 {
     }
 }
 
-fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording, SimulateError> {
+fn run(experiment: &Experiment) -> Result<Recording, SimulateError> {
+    let Experiment { simulation: sim, motion, physics, deflection_zero_rad: zero } = experiment;
     sim.validate()?;
+    check("deflection zero", *zero, zero.abs() <= MAX_DEFLECTION_RAD, "within ±1 rad")?;
     let width = sim.effect(Effect::Backlash);
     let mut truth = truth(sim, motion, physics, width)?;
     if !matches!(truth, Truth::Loop(_)) {
@@ -245,6 +258,12 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
     if !matches!(physics, Physics::Model) {
         metadata.push(("physics".into(), physics.name().into()));
     }
+    if truth.starts_at_rest() {
+        metadata.push(("start".into(), "rest".into()));
+    }
+    if *zero != 0.0 {
+        metadata.push(("deflection_zero_rad".into(), zero.to_string()));
+    }
     let mut rec = Recording {
         ratio: sim.ratio,
         metadata,
@@ -259,7 +278,7 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
     for i in 0..n {
         let motion::Sample { t, x, rate } = played.sample(i);
         // The bench drives the gear's deflection x; the encoders see x minus the kinematic
-        // error, the teeth see x behind the backlash dead band.
+        // error, off by the zero they were set to, the teeth see x behind the backlash dead band.
         let direction = if rate >= 0.0 { Direction::Rising } else { Direction::Falling };
         let theta_in = sim.input_speed_rad_s * t;
         let elastic = backlash(x, width);
@@ -273,7 +292,7 @@ fn run(sim: &Simulation, motion: &Motion, physics: &Physics) -> Result<Recording
         // What the gear transmits; the sensor's offset and noise are added once it is sampled.
         let torque =
             gear_torque + linear_stiffness * thermal * warming * elastic + friction * sign(rate) + damping * rate;
-        let measured = x - kinematic_error(kinematic, kinematic_phases, theta_in);
+        let measured = x - kinematic_error(kinematic, kinematic_phases, theta_in) + zero;
         let theta_out = theta_in / sim.ratio - measured;
         let (measured_in, measured_out) = (quantise(theta_in, sim.input_bits), quantise(theta_out, sim.output_bits));
         rec.time.push(t);
@@ -380,8 +399,13 @@ mod tests {
         ]
     }
 
-    fn physics() -> [Physics; 3] {
-        [Physics::Model, Physics::BoucWen(BoucWen::default()), Physics::MicroSlip(MicroSlip::default())]
+    fn physics() -> [Physics; 4] {
+        [
+            Physics::Model,
+            Physics::BoucWen(BoucWen::default()),
+            Physics::MicroSlip(MicroSlip::default()),
+            Physics::Catalogue(Catalogue::default()),
+        ]
     }
 
     #[test]
@@ -402,7 +426,8 @@ mod tests {
         };
         for motion in motions() {
             for physics in physics() {
-                let experiment = Experiment { simulation: sim.clone(), motion: motion.clone(), physics };
+                let experiment =
+                    Experiment { simulation: sim.clone(), motion: motion.clone(), physics, deflection_zero_rad: 0.0 };
                 let rec = simulate_experiment(&experiment).unwrap();
                 let expected = if let Motion::File(t) = &motion { t.time().len() } else { rec.time.len() };
                 assert_eq!(rec.time.len(), expected);
@@ -445,13 +470,14 @@ mod tests {
     }
 
     #[test]
-    fn both_truth_physics_are_passive_on_the_closed_cycles_of_every_periodic_motion() {
+    fn the_truth_physics_are_passive_on_the_closed_cycles_of_every_periodic_motion() {
         // 0.5 Hz at 1 kHz: a cycle is 2000 samples; the last cycle (after the ramp) is closed.
         for motion in [Motion::Sine, Motion::Biased { bias_rad: None }, Motion::Nested, Motion::Hold { load_rad: None }]
         {
             // Not the seed fit's genetic model: its own loop is not passive (README: r < 0).
             for physics in physics().into_iter().skip(1) {
-                let experiment = Experiment { simulation: base(), motion: motion.clone(), physics };
+                let experiment =
+                    Experiment { simulation: base(), motion: motion.clone(), physics, deflection_zero_rad: 0.0 };
                 let rec = simulate_experiment(&experiment).unwrap();
                 let end = rec.time.len() - 1;
                 assert!((rec.deflection[end - 2000] - rec.deflection[end]).abs() < 1e-15);
@@ -463,10 +489,103 @@ mod tests {
 
     #[test]
     fn the_genetic_model_starts_at_rest_off_the_sine() {
-        let experiment = Experiment { simulation: base(), motion: Motion::Nested, physics: Physics::Model };
+        let experiment = Experiment {
+            simulation: base(),
+            motion: Motion::Nested,
+            physics: Physics::Model,
+            deflection_zero_rad: 0.0,
+        };
         let rec = simulate_experiment(&experiment).unwrap();
         assert_eq!(rec.torque[0], 0.0);
         assert_eq!(rec.metadata.iter().find(|(k, _)| k == "motion").unwrap().1, "nested");
+    }
+
+    fn meta<'a>(rec: &'a Recording, key: &str) -> Option<&'a str> {
+        rec.metadata.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+
+    #[test]
+    fn every_truth_but_the_sines_loop_writes_start_rest() {
+        let slip_model = Simulation { params: GearModel::MicroSlip(model_core::checks::MICRO_SLIP_SET), ..base() };
+        for simulation in [base(), slip_model] {
+            // The micro-slip kind has no stateless loop: its memory runs from rest under the sine too.
+            let has_loop = simulation.params.symmetric_model().unwrap().is_some();
+            for motion in motions() {
+                for physics in physics() {
+                    let on_loop = has_loop && motion == Motion::Sine && physics == Physics::Model;
+                    let experiment = Experiment {
+                        simulation: simulation.clone(),
+                        motion: motion.clone(),
+                        physics,
+                        deflection_zero_rad: 0.0,
+                    };
+                    let rec = simulate_experiment(&experiment).unwrap();
+                    let what =
+                        format!("{} {} {:?}", motion.name(), experiment.physics.name(), simulation.params.kind());
+                    assert_eq!(rec.starts_at_rest(), !on_loop, "{what}");
+                    assert_eq!(meta(&rec, "start"), (!on_loop).then_some("rest"), "{what}");
+                }
+            }
+        }
+        // The genetic seed fit has its loop: the default recording is as it was.
+        assert!(base().params.symmetric_model().unwrap().is_some());
+        assert!(!simulate(&base()).unwrap().metadata.iter().any(|(k, _)| k == "start"));
+    }
+
+    #[test]
+    fn a_deflection_zero_moves_the_recorded_deflection_and_nothing_else() {
+        let step = TAU / (1u64 << 20) as f64;
+        let effects = ["backlash=1e-4", "kinematic_error=2e-6", "thermal_drift=0.01"]
+            .into_iter()
+            .map(|e| e.parse().unwrap())
+            .collect();
+        let simulation = Simulation {
+            input_speed_rad_s: 3.0,
+            input_bits: Some(20),
+            output_bits: Some(20),
+            torque_noise_nm: 0.05,
+            temperature: Some((25.0, 0.2)),
+            effects,
+            ..base()
+        };
+        for (motion, physics) in [
+            (Motion::Sine, Physics::Model),
+            (Motion::Nested, Physics::Catalogue(Catalogue::default())),
+            (Motion::Random, Physics::BoucWen(BoucWen::default())),
+        ] {
+            let run = |zero: f64| {
+                let experiment = Experiment {
+                    simulation: simulation.clone(),
+                    motion: motion.clone(),
+                    physics: physics.clone(),
+                    deflection_zero_rad: zero,
+                };
+                simulate_experiment(&experiment).unwrap()
+            };
+            let (zeroed, offset) = (run(0.0), run(-0.5e-3));
+            assert_eq!(meta(&zeroed, "deflection_zero_rad"), None);
+            assert_eq!(meta(&offset, "deflection_zero_rad"), Some("-0.0005"));
+            // Within one encoder step of the true deflection + θ0 (each reading is within half a step).
+            for (i, (a, b)) in zeroed.deflection.iter().zip(&offset.deflection).enumerate() {
+                assert!((b - a + 0.5e-3).abs() <= step, "{} sample {i}: {a} {b}", motion.name());
+            }
+            assert_ne!(zeroed.deflection, offset.deflection);
+            assert_eq!(zeroed.torque, offset.torque);
+            assert_eq!(zeroed.time, offset.time);
+            assert_eq!(zeroed.temperature, offset.temperature);
+            assert_eq!(zeroed.angles.as_ref().unwrap().input, offset.angles.as_ref().unwrap().input);
+            let mut metadata = offset.metadata.clone();
+            metadata.retain(|(k, _)| k != "deflection_zero_rad");
+            assert_eq!(metadata, zeroed.metadata);
+        }
+        // The encoders read 0 at the true zero + θ0: off by θ0 before any motion.
+        let exact = Experiment { deflection_zero_rad: 2e-4, ..Experiment::from(base()) };
+        assert_eq!(simulate_experiment(&exact).unwrap().deflection[0], 2e-4);
+        let bad = Experiment { deflection_zero_rad: f64::INFINITY, ..Experiment::from(base()) };
+        assert_eq!(
+            simulate_experiment(&bad).unwrap_err().to_string(),
+            "deflection zero must be within ±1 rad, got inf"
+        );
     }
 
     #[test]
@@ -475,6 +594,7 @@ mod tests {
             simulation: base(),
             motion: Motion::Biased { bias_rad: Some(f64::NAN) },
             physics: Physics::BoucWen(BoucWen::default()),
+            deflection_zero_rad: 0.0,
         };
         assert_eq!(
             simulate_experiment(&biased).unwrap_err().to_string(),
@@ -484,6 +604,7 @@ mod tests {
             simulation: base(),
             motion: Motion::Sine,
             physics: Physics::MicroSlip(MicroSlip { max_slip_rad: -1.0, ..MicroSlip::default() }),
+            deflection_zero_rad: 0.0,
         };
         let message = simulate_experiment(&bad).unwrap_err().to_string();
         assert_eq!(message, "micro-slip parameter max_slip_rad must be > min_slip_rad, got -1");
@@ -491,6 +612,7 @@ mod tests {
             simulation: Simulation { sample_rate_hz: 1e9, ..base() },
             motion: Motion::Random,
             physics: Physics::BoucWen(BoucWen::default()),
+            deflection_zero_rad: 0.0,
         };
         assert!(matches!(simulate_experiment(&too_long), Err(SimulateError::TooLong(_))));
     }

@@ -1,7 +1,8 @@
 //! The truth physics of a simulated gear: what the recording's torque comes from. Besides the
-//! genetic model of the params file, two physics that are NOT the model a fit will use, so
-//! that a test which fits a model to them is not circular: a smooth Bouc–Wen gear and a
-//! Maxwell-slip (Iwan) gear with hundreds of slip elements on a continuous distribution.
+//! genetic model of the params file, three physics that are NOT the model a fit will use, so
+//! that a test which fits a model to them is not circular: a smooth Bouc–Wen gear, a
+//! Maxwell-slip (Iwan) gear with hundreds of slip elements on a continuous distribution, and a
+//! harmonic-drive catalogue gear (a kinked three-segment spring with such elements).
 use crate::input::table::read_text;
 use crate::input::InputError;
 use serde::{Deserialize, Serialize};
@@ -18,6 +19,8 @@ pub enum Physics {
     MicroSlip(MicroSlip),
     /// Bouc–Wen, n = 1, with a cubic spring.
     BoucWen(BoucWen),
+    /// A catalogue's three-segment spring with Maxwell-slip elements.
+    Catalogue(Catalogue),
 }
 
 impl Physics {
@@ -28,7 +31,19 @@ impl Physics {
             Physics::Model => "genetic",
             Physics::MicroSlip(_) => "micro-slip",
             Physics::BoucWen(_) => "bouc-wen",
+            Physics::Catalogue(_) => "catalogue",
         }
+    }
+
+    /// The physics' gear at rest, with its state; `None` for [`Physics::Model`], whose state
+    /// is the model's evaluator.
+    pub fn gear(&self) -> Result<Option<Box<dyn Gear>>, PhysicsParamError> {
+        Ok(match self {
+            Physics::Model => None,
+            Physics::MicroSlip(params) => Some(Box::new(MicroSlipGear::new(*params)?)),
+            Physics::BoucWen(params) => Some(Box::new(BoucWenGear::new(*params)?)),
+            Physics::Catalogue(params) => Some(Box::new(CatalogueGear::new(*params)?)),
+        })
     }
 }
 
@@ -107,6 +122,64 @@ impl Default for MicroSlip {
     }
 }
 
+/// A harmonic-drive catalogue gear: the catalogue's three-segment torsional stiffness curve in
+/// parallel with Maxwell-slip elements like [`MicroSlip`]'s, T = T_s(θ) + Σ k_e·s_i.
+///
+/// The spring T_s is piecewise linear in θ with kinks where it reaches the torques ±T1, ±T2:
+/// stiffness K1 for |T_s| < T1, K2 for T1 ≤ |T_s| < T2, K3 beyond (0 < K1 < K2 < K3, a
+/// stiffening gear). On the + side the stiffnesses are σ·K_j (σ = `positive_scale`), on the −
+/// side K_j, so the kinks lie at the same torques but at deflections
+/// θ1 = T1/K1', θ2 = θ1 + (T2 − T1)/K2' (K_j' = σ·K_j for θ > 0, K_j for θ < 0):
+///   T_s(θ) = sign(θ)·{ K1'·|θ|                   for |θ| < θ1,
+///                     T1 + K2'·(|θ| − θ1)        for θ1 ≤ |θ| < θ2,
+///                     T2 + K3'·(|θ| − θ2)        beyond }.
+/// The slip elements: s_i ← clamp(s_i + Δθ, −d_i, d_i), s_i = 0 at rest, k_e = K_slip/M, d_i
+/// the quantiles (i + ½)/M of p(d) ∝ d^p on [d_min, d_max], as for [`MicroSlip`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Catalogue {
+    /// Stiffness below T1, between T1 and T2, and beyond T2 (− side), N·m/rad.
+    pub k1: f64,
+    pub k2: f64,
+    pub k3: f64,
+    /// The torques T1 < T2 where the stiffness steps, N·m.
+    pub t1_nm: f64,
+    pub t2_nm: f64,
+    /// σ: the + side's stiffnesses are σ·K1, σ·K2, σ·K3 (1: point-symmetric).
+    pub positive_scale: f64,
+    /// Number of slip elements M.
+    pub elements: usize,
+    /// Total stiffness of the slip elements K_slip = M·k_e, N·m/rad.
+    pub slip_stiffness: f64,
+    /// Smallest and largest slip deflection d_min, d_max, rad.
+    pub min_slip_rad: f64,
+    pub max_slip_rad: f64,
+    /// Exponent p of the slip-deflection density p(d) ∝ d^p.
+    pub slip_exponent: f64,
+}
+
+impl Default for Catalogue {
+    fn default() -> Self {
+        // Steps at 7 and 19 N·m, reached at θ1 = 0.5 mrad and θ2 = 0.96 mrad, both inside the
+        // default amplitude 1.168 mrad; the stiffness rises from 16000 N·m/rad at rest (K1 plus
+        // the sticking elements) to K3 = 36000. The loop at A = 1.168 mrad peaks at 28.1 N·m and
+        // is 0.68 N·m wide at θ = 0 (2.4 % of the peak).
+        Catalogue {
+            k1: 14_000.0,
+            k2: 26_000.0,
+            k3: 36_000.0,
+            t1_nm: 7.0,
+            t2_nm: 19.0,
+            positive_scale: 1.0,
+            elements: 300,
+            slip_stiffness: 2000.0,
+            min_slip_rad: 0.0,
+            max_slip_rad: 2.0e-3,
+            slip_exponent: 0.0,
+        }
+    }
+}
+
 /// A physics parameter out of its range: which, what was expected, what it was.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("{physics} parameter {name} must be {expected}, got {value}")]
@@ -149,25 +222,122 @@ impl BoucWen {
 }
 
 impl MicroSlip {
-    /// At most this many elements (each is updated every sample).
-    pub const MAX_ELEMENTS: usize = 100_000;
-
     pub fn validate(&self) -> Result<(), PhysicsParamError> {
         let p = "micro-slip";
         require(p, "k1", self.k1, true, "finite")?;
         require(p, "k3", self.k3, true, "finite")?;
-        let m = self.elements as f64;
-        require(p, "elements", m, (1..=Self::MAX_ELEMENTS).contains(&self.elements), "1 to 100000")?;
-        require(p, "slip_stiffness", self.slip_stiffness, self.slip_stiffness >= 0.0, ">= 0 N·m/rad")?;
-        require(p, "min_slip_rad", self.min_slip_rad, self.min_slip_rad >= 0.0, ">= 0 rad")?;
-        require(p, "max_slip_rad", self.max_slip_rad, self.max_slip_rad > self.min_slip_rad, "> min_slip_rad")?;
-        let positive_min = self.slip_exponent > -1.0 || self.min_slip_rad > 0.0;
-        require(p, "slip_exponent", self.slip_exponent, positive_min, "> -1 unless min_slip_rad > 0")
+        self.distribution().validate(p)
     }
 
     /// The M slip deflections d_i, ascending.
     pub fn slips(&self) -> Vec<f64> {
-        let (lo, hi, p) = (self.min_slip_rad, self.max_slip_rad, self.slip_exponent);
+        self.distribution().slips()
+    }
+
+    fn distribution(&self) -> SlipDistribution {
+        SlipDistribution {
+            elements: self.elements,
+            stiffness: self.slip_stiffness,
+            min_rad: self.min_slip_rad,
+            max_rad: self.max_slip_rad,
+            exponent: self.slip_exponent,
+        }
+    }
+}
+
+impl Catalogue {
+    pub fn validate(&self) -> Result<(), PhysicsParamError> {
+        let p = "catalogue";
+        require(p, "k1", self.k1, self.k1 > 0.0, "> 0 N·m/rad")?;
+        require(p, "k2", self.k2, self.k2 > self.k1, "> k1 N·m/rad (a stiffening gear)")?;
+        require(p, "k3", self.k3, self.k3 > self.k2, "> k2 N·m/rad (a stiffening gear)")?;
+        require(p, "t1_nm", self.t1_nm, self.t1_nm > 0.0, "> 0 N·m")?;
+        require(p, "t2_nm", self.t2_nm, self.t2_nm > self.t1_nm, "> t1_nm N·m")?;
+        require(p, "positive_scale", self.positive_scale, self.positive_scale > 0.0, "> 0")?;
+        self.distribution().validate(p)
+    }
+
+    /// The spring's torque T_s(θ), N·m.
+    pub fn spring_torque(&self, theta: f64) -> f64 {
+        let ([k1, k2, k3], [theta1, theta2]) = self.side(theta);
+        let u = theta.abs();
+        let torque = if u < theta1 {
+            k1 * u
+        } else if u < theta2 {
+            self.t1_nm + k2 * (u - theta1)
+        } else {
+            self.t2_nm + k3 * (u - theta2)
+        };
+        theta.signum() * torque
+    }
+
+    /// The spring's stiffness dT_s/dθ at θ (the higher segment's at a kink), N·m/rad.
+    pub fn spring_stiffness(&self, theta: f64) -> f64 {
+        let ([k1, k2, k3], [theta1, theta2]) = self.side(theta);
+        let u = theta.abs();
+        if u < theta1 {
+            k1
+        } else if u < theta2 {
+            k2
+        } else {
+            k3
+        }
+    }
+
+    /// The deflections of the kinks on θ's side, |θ1| < |θ2|, signed like θ (+ at θ = 0).
+    pub fn kinks(&self, theta: f64) -> [f64; 2] {
+        let sign = if theta < 0.0 { -1.0 } else { 1.0 };
+        self.side(theta).1.map(|u| sign * u)
+    }
+
+    /// The stiffnesses [K1', K2', K3'] of θ's side and its kinks' |θ1|, |θ2|.
+    fn side(&self, theta: f64) -> ([f64; 3], [f64; 2]) {
+        let scale = if theta < 0.0 { 1.0 } else { self.positive_scale };
+        let k = [self.k1, self.k2, self.k3].map(|k| scale * k);
+        let theta1 = self.t1_nm / k[0];
+        (k, [theta1, theta1 + (self.t2_nm - self.t1_nm) / k[1]])
+    }
+
+    fn distribution(&self) -> SlipDistribution {
+        SlipDistribution {
+            elements: self.elements,
+            stiffness: self.slip_stiffness,
+            min_rad: self.min_slip_rad,
+            max_rad: self.max_slip_rad,
+            exponent: self.slip_exponent,
+        }
+    }
+}
+
+/// M Maxwell-slip elements of equal stiffness k_e = K_slip/M whose slip deflections d_i are
+/// the quantiles (i + ½)/M of p(d) ∝ d^p on [d_min, d_max]: the hysteresis of the micro-slip
+/// and catalogue gears.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SlipDistribution {
+    elements: usize,
+    stiffness: f64,
+    min_rad: f64,
+    max_rad: f64,
+    exponent: f64,
+}
+
+impl SlipDistribution {
+    /// At most this many elements (each is updated every sample).
+    const MAX_ELEMENTS: usize = 100_000;
+
+    fn validate(&self, p: &'static str) -> Result<(), PhysicsParamError> {
+        let m = self.elements as f64;
+        require(p, "elements", m, (1..=Self::MAX_ELEMENTS).contains(&self.elements), "1 to 100000")?;
+        require(p, "slip_stiffness", self.stiffness, self.stiffness >= 0.0, ">= 0 N·m/rad")?;
+        require(p, "min_slip_rad", self.min_rad, self.min_rad >= 0.0, ">= 0 rad")?;
+        require(p, "max_slip_rad", self.max_rad, self.max_rad > self.min_rad, "> min_slip_rad")?;
+        let positive_min = self.exponent > -1.0 || self.min_rad > 0.0;
+        require(p, "slip_exponent", self.exponent, positive_min, "> -1 unless min_slip_rad > 0")
+    }
+
+    /// The M slip deflections d_i, ascending.
+    fn slips(&self) -> Vec<f64> {
+        let (lo, hi, p) = (self.min_rad, self.max_rad, self.exponent);
         let m = self.elements;
         (0..m)
             .map(|i| {
@@ -180,6 +350,41 @@ impl MicroSlip {
                 }
             })
             .collect()
+    }
+}
+
+/// Slip elements with their state s_i (rad), every one unstressed at rest.
+#[derive(Clone, Debug)]
+struct SlipElements {
+    element_stiffness: f64,
+    slips: Vec<f64>,
+    state: Vec<f64>,
+}
+
+impl SlipElements {
+    fn at_rest(distribution: SlipDistribution) -> Self {
+        let slips = distribution.slips();
+        SlipElements {
+            element_stiffness: distribution.stiffness / distribution.elements as f64,
+            state: vec![0.0; slips.len()],
+            slips,
+        }
+    }
+
+    /// Moves every element by Δθ, each slipping at its d_i; returns Σ k_e·s_i, N·m.
+    fn step(&mut self, delta: f64) -> f64 {
+        let mut sum = 0.0;
+        for (s, &d) in self.state.iter_mut().zip(&self.slips) {
+            *s = (*s + delta).clamp(-d, d);
+            sum += *s;
+        }
+        self.element_stiffness * sum
+    }
+
+    /// The sticking elements' stiffness, N·m/rad.
+    fn stiffness(&self) -> f64 {
+        let sticking = self.state.iter().zip(&self.slips).filter(|(s, d)| s.abs() < **d).count();
+        self.element_stiffness * sticking as f64
     }
 }
 
@@ -261,9 +466,7 @@ impl Gear for BoucWenGear {
 #[derive(Clone, Debug)]
 pub struct MicroSlipGear {
     params: MicroSlip,
-    element_stiffness: f64,
-    slips: Vec<f64>,
-    state: Vec<f64>,
+    elements: SlipElements,
     theta: f64,
 }
 
@@ -271,33 +474,20 @@ impl MicroSlipGear {
     /// At rest: θ = 0, every element unstressed.
     pub fn new(params: MicroSlip) -> Result<Self, PhysicsParamError> {
         params.validate()?;
-        let slips = params.slips();
-        Ok(MicroSlipGear {
-            params,
-            element_stiffness: params.slip_stiffness / params.elements as f64,
-            state: vec![0.0; slips.len()],
-            slips,
-            theta: 0.0,
-        })
+        Ok(MicroSlipGear { params, elements: SlipElements::at_rest(params.distribution()), theta: 0.0 })
     }
 
     /// Tangent stiffness at the present state, N·m/rad: the spring's plus the sticking elements'.
     pub fn stiffness(&self) -> f64 {
-        let sticking = self.state.iter().zip(&self.slips).filter(|(s, d)| s.abs() < **d).count();
-        self.params.k1 + 3.0 * self.params.k3 * self.theta.powi(2) + self.element_stiffness * sticking as f64
+        self.params.k1 + 3.0 * self.params.k3 * self.theta.powi(2) + self.elements.stiffness()
     }
 }
 
 impl Gear for MicroSlipGear {
     fn step(&mut self, theta: f64) -> f64 {
-        let delta = theta - self.theta;
-        let mut sum = 0.0;
-        for (s, &d) in self.state.iter_mut().zip(&self.slips) {
-            *s = (*s + delta).clamp(-d, d);
-            sum += *s;
-        }
+        let slip_torque = self.elements.step(theta - self.theta);
         self.theta = theta;
-        self.params.k1 * theta + self.params.k3 * theta.powi(3) + self.element_stiffness * sum
+        self.params.k1 * theta + self.params.k3 * theta.powi(3) + slip_torque
     }
 
     fn linear_stiffness(&self) -> f64 {
@@ -305,8 +495,42 @@ impl Gear for MicroSlipGear {
     }
 }
 
+/// A catalogue gear and its state.
+#[derive(Clone, Debug)]
+pub struct CatalogueGear {
+    params: Catalogue,
+    elements: SlipElements,
+    theta: f64,
+}
+
+impl CatalogueGear {
+    /// At rest: θ = 0, every element unstressed.
+    pub fn new(params: Catalogue) -> Result<Self, PhysicsParamError> {
+        params.validate()?;
+        Ok(CatalogueGear { params, elements: SlipElements::at_rest(params.distribution()), theta: 0.0 })
+    }
+
+    /// Tangent stiffness at the present state, N·m/rad: the spring's plus the sticking elements'.
+    pub fn stiffness(&self) -> f64 {
+        self.params.spring_stiffness(self.theta) + self.elements.stiffness()
+    }
+}
+
+impl Gear for CatalogueGear {
+    fn step(&mut self, theta: f64) -> f64 {
+        let slip_torque = self.elements.step(theta - self.theta);
+        self.theta = theta;
+        self.params.spring_torque(theta) + slip_torque
+    }
+
+    /// K1 of the − side (the + side's is σ·K1).
+    fn linear_stiffness(&self) -> f64 {
+        self.params.k1
+    }
+}
+
 /// Reads a physics parameter file (`--physics-params`): a JSON object with the fields of
-/// [`BoucWen`] or [`MicroSlip`], each optional (missing ones keep their defaults), no others.
+/// [`BoucWen`], [`MicroSlip`] or [`Catalogue`], each optional (missing ones keep their defaults), no others.
 pub fn read_physics_params<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, InputError> {
     let text = read_text(path)?;
     serde_json::from_str(&text).map_err(|e| {
@@ -408,11 +632,12 @@ mod tests {
     }
 
     #[test]
-    fn both_physics_loops_are_passive_hysteretic_and_a_few_percent_wide() {
+    fn the_physics_loops_are_passive_hysteretic_and_a_few_percent_wide() {
         let n = 2400;
-        let gears: [(&str, Box<dyn Gear>); 2] = [
+        let gears: [(&str, Box<dyn Gear>); 3] = [
             ("bouc-wen", Box::new(BoucWenGear::new(BoucWen::default()).unwrap())),
             ("micro-slip", Box::new(MicroSlipGear::new(MicroSlip::default()).unwrap())),
+            ("catalogue", Box::new(CatalogueGear::new(Catalogue::default()).unwrap())),
         ];
         for (name, mut gear) in gears {
             let path = sine(gear.as_mut(), A, 3, n);
@@ -509,6 +734,74 @@ mod tests {
     }
 
     #[test]
+    fn the_catalogue_spring_kinks_at_its_torques_with_each_sides_stiffness() {
+        for scale in [1.0, 0.8] {
+            let params = Catalogue { positive_scale: scale, ..Catalogue::default() };
+            for sign in [1.0, -1.0] {
+                let side = if sign > 0.0 { scale } else { 1.0 };
+                let k = [params.k1, params.k2, params.k3].map(|k| side * k);
+                let kinks = params.kinks(sign);
+                let eps = 1e-8;
+                for (j, (&kink, torque)) in kinks.iter().zip([params.t1_nm, params.t2_nm]).enumerate() {
+                    assert!((params.spring_torque(kink) - sign * torque).abs() < 1e-12, "{scale} {sign} kink {j}");
+                    // The secant stiffness just inside and just outside the kink.
+                    let (inner, outer) = (kink - sign * eps, kink + sign * eps);
+                    let below = (params.spring_torque(kink) - params.spring_torque(inner)) / (kink - inner);
+                    let above = (params.spring_torque(outer) - params.spring_torque(kink)) / (outer - kink);
+                    assert!((below - k[j]).abs() < 1e-6 * k[j], "{scale} {sign} kink {j}: {below} vs {}", k[j]);
+                    assert!((above - k[j + 1]).abs() < 1e-6 * k[j + 1], "{scale} {sign} kink {j}: {above}");
+                    assert_eq!(params.spring_stiffness(inner), k[j]);
+                    assert_eq!(params.spring_stiffness(outer), k[j + 1]);
+                }
+                // Continuous everywhere: no step beyond the steepest slope over a fine grid to 3 mrad.
+                let grid: Vec<f64> = (0..=30_000).map(|i| sign * i as f64 * 1e-7).collect();
+                let worst = grid
+                    .windows(2)
+                    .map(|w| (params.spring_torque(w[1]) - params.spring_torque(w[0])).abs() / 1e-7)
+                    .fold(0.0, f64::max);
+                assert!(worst <= k[2] * (1.0 + 1e-6), "{scale} {sign}: slope {worst}");
+            }
+            // The + side's kinks lie at the same torques, 1/σ times further out.
+            let (plus, minus) = (params.kinks(1.0), params.kinks(-1.0));
+            assert!((plus[0] + minus[0] / scale).abs() < 1e-15 && (plus[1] + minus[1] / scale).abs() < 1e-15);
+        }
+        let symmetric = Catalogue::default();
+        assert_eq!(symmetric.spring_torque(0.0), 0.0);
+        assert_eq!(symmetric.spring_torque(-1.1e-3), -symmetric.spring_torque(1.1e-3));
+    }
+
+    #[test]
+    fn the_catalogue_gear_stiffens_at_the_kinks_and_its_slip_elements_add_their_own() {
+        let params = Catalogue::default();
+        let [theta1, theta2] = params.kinks(1.0);
+        let k_e = params.slip_stiffness / params.elements as f64;
+        let mut gear = CatalogueGear::new(params).unwrap();
+        assert_eq!(gear.stiffness(), params.k1 + params.slip_stiffness);
+        for (kink, jump) in [(theta1, params.k2 - params.k1), (theta2, params.k3 - params.k2)] {
+            gear.step(kink - 1e-9);
+            let before = gear.stiffness();
+            gear.step(kink + 1e-9);
+            // Within one element that may start slipping on the way.
+            assert!((gear.stiffness() - before - jump).abs() <= k_e * 1.000001, "{}", gear.stiffness() - before);
+        }
+    }
+
+    #[test]
+    fn the_catalogue_gears_default_loop() {
+        // At the default amplitude: peak 28.09 N·m, 0.682 N·m (2.43 %) wide at θ = 0.
+        let n = 2400;
+        let mut gear = CatalogueGear::new(Catalogue::default()).unwrap();
+        let path = sine(&mut gear, A, 3, n);
+        let (width, peak) = width_at_zero(&path, n);
+        println!("catalogue at A = {A} rad: peak {peak:.3} N·m, width {width:.3} N·m ({:.2} %)", 100.0 * width / peak);
+        assert!((peak - 28.09).abs() < 0.01, "peak {peak}");
+        assert!((width - 0.682).abs() < 0.001, "width {width}");
+        // The width is the slip elements' alone: without them the loop closes.
+        let mut spring = CatalogueGear::new(Catalogue { slip_stiffness: 0.0, ..Catalogue::default() }).unwrap();
+        assert!(width_at_zero(&sine(&mut spring, A, 3, n), n).0.abs() < 1e-9);
+    }
+
+    #[test]
     fn bad_parameters_are_named() {
         let e = BoucWenGear::new(BoucWen { a: 1.0, ..BoucWen::default() }).unwrap_err();
         assert_eq!(e.to_string(), "bouc-wen parameter a must be in [0, 1), got 1");
@@ -517,6 +810,28 @@ mod tests {
         let e = MicroSlip { slip_exponent: -2.0, ..MicroSlip::default() }.validate().unwrap_err();
         assert_eq!(e.name, "slip_exponent");
         assert!(BoucWen { gamma_bw: -1250.0, ..BoucWen::default() }.validate().is_err());
+        let catalogue = |params: Catalogue| CatalogueGear::new(params).unwrap_err().to_string();
+        assert_eq!(
+            catalogue(Catalogue { k2: 14_000.0, ..Catalogue::default() }),
+            "catalogue parameter k2 must be > k1 N·m/rad (a stiffening gear), got 14000"
+        );
+        assert_eq!(
+            catalogue(Catalogue { k3: 20_000.0, ..Catalogue::default() }),
+            "catalogue parameter k3 must be > k2 N·m/rad (a stiffening gear), got 20000"
+        );
+        assert_eq!(
+            catalogue(Catalogue { t2_nm: 7.0, ..Catalogue::default() }),
+            "catalogue parameter t2_nm must be > t1_nm N·m, got 7"
+        );
+        assert_eq!(
+            catalogue(Catalogue { positive_scale: 0.0, ..Catalogue::default() }),
+            "catalogue parameter positive_scale must be > 0, got 0"
+        );
+        assert_eq!(
+            catalogue(Catalogue { elements: 0, ..Catalogue::default() }),
+            "catalogue parameter elements must be 1 to 100000, got 0"
+        );
+        assert!(catalogue(Catalogue { t1_nm: f64::NAN, ..Catalogue::default() }).contains("t1_nm"));
     }
 
     #[test]
@@ -530,5 +845,12 @@ mod tests {
         let e = read_physics_params::<BoucWen>(&path).unwrap_err();
         assert_eq!(e.line, Some(3));
         assert!(e.to_string().contains("unknown field `beta`"), "{e}");
+        std::fs::write(&path, r#"{"positive_scale": 0.8, "t2_nm": 20, "elements": 40}"#).unwrap();
+        let read: Catalogue = read_physics_params(&path).unwrap();
+        assert_eq!(read, Catalogue { positive_scale: 0.8, t2_nm: 20.0, elements: 40, ..Catalogue::default() });
+        std::fs::write(&path, "{\"k1\": 1e4,\n \"k4\": 5e4}").unwrap();
+        let e = read_physics_params::<Catalogue>(&path).unwrap_err();
+        assert_eq!(e.line, Some(2));
+        assert!(e.to_string().contains("unknown field `k4`"), "{e}");
     }
 }
