@@ -341,6 +341,17 @@ impl<F: Real> Model<F> {
     #[inline(always)]
     pub fn scale_with<E: Elementary<F>>(&self, amplitude: F) -> Result<Scale<F>, Error> {
         check_amplitude(amplitude)?;
+        let scale = self.scale_of::<E>(amplitude, amplitude.recip());
+        if !scale.h.is_finite() {
+            return Err(Error::Overflow);
+        }
+        Ok(scale)
+    }
+
+    /// [`Model::scale_with`] of an amplitude known to be finite and > 0, given with its
+    /// reciprocal, and h not checked: where it is not finite, neither is any z made with it.
+    #[inline(always)]
+    pub(crate) fn scale_of<E: Elementary<F>>(&self, amplitude: F, inv_amplitude: F) -> Scale<F> {
         let (h, decay) = match self.direct_k {
             Some(k) if E::DIRECT_DECAY => (k * amplitude, Decay::Direct),
             _ => {
@@ -348,10 +359,7 @@ impl<F: Real> Model<F> {
                 (self.sign_k * E::exp(ln_abs_h), Decay::Log { ln_abs_h })
             }
         };
-        if !h.is_finite() {
-            return Err(Error::Overflow);
-        }
-        Ok(Scale { inv_amplitude: amplitude.recip(), h, decay })
+        Scale { inv_amplitude, h, decay }
     }
 
     /// The hysteresis term z and dz/dθ alone at `theta` on the loop of `scale`, moving in
@@ -362,7 +370,7 @@ impl<F: Real> Model<F> {
         let phase = Phase::new::<E>(theta * scale.inv_amplitude, direction);
         let h_decay = match scale.decay {
             // h = 0 when α = 0, so no special case.
-            Decay::Direct => scale.h * E::exp(-self.r * phase.angle),
+            Decay::Direct => scale.h * E::exp_direct(-self.r * phase.angle),
             // h·e^(−rφ) in the log domain, so that huge r with tiny α stays finite.
             Decay::Log { ln_abs_h } => {
                 if self.sign_k == F::zero() {
@@ -523,6 +531,12 @@ pub trait Elementary<F> {
     /// changes. Otherwise (the default, and [`Libm`]'s choice) as ±exp(ln|h| − rφ), which stays
     /// finite for any r.
     const DIRECT_DECAY: bool = false;
+    /// e^y for the direct form's exponents, |y| ≤ [`MAX_DIRECT_DECAY_R`]·3π/2 (< 76): what
+    /// may skip the range handling that [`Elementary::exp`] needs for any y.
+    #[inline(always)]
+    fn exp_direct(y: F) -> F {
+        Self::exp(y)
+    }
 }
 
 /// The elementary functions of libm (through `num_traits::Float`).

@@ -119,7 +119,7 @@ pub fn branch_with<F: Real, E: Elementary<F>>(
     if !theta.is_finite() {
         return Err(Error::NonFiniteDeflection);
     }
-    finite(Branch::new::<E>(model, from, to, false)?.evaluate::<E>(model, theta))
+    finite(Branch::new::<E>(model, from, to, false).evaluate::<E>(model, theta))
 }
 
 /// What [`branch`] computes from a branch's two ends before it looks at θ: the loop's centre,
@@ -182,34 +182,37 @@ impl<F: Real> Branch<F> {
     }
 
     /// The constants of the branch from `from` to `to`, with the elementary functions of `E`
-    /// (h = w·k: see [`Model::scale_with`]), left where [`exits`] says. An error where h
-    /// overflows.
+    /// (h = w·k: see [`Model::scale_with`]), left where [`exits`] says. Not checked: where h
+    /// overflows, no evaluation on the branch is finite.
     #[inline(always)]
-    fn new<E: Elementary<F>>(
-        model: &Model<F>,
-        from: TurningPoint<F>,
-        to: TurningPoint<F>,
-        retracing: bool,
-    ) -> Result<Self, Error> {
+    fn new<E: Elementary<F>>(model: &Model<F>, from: TurningPoint<F>, to: TurningPoint<F>, retracing: bool) -> Self {
         let half = two::<F>().recip();
         // Halves first: (θ_b − θ_a)/2 cannot overflow, and halving is exact.
         let (start, end) = (from.theta * half, to.theta * half);
         let span = end - start;
         let width = span.abs();
-        let direction = if span > F::zero() { Direction::Rising } else { Direction::Falling };
-        let exits = exits(from.theta, to.theta, retracing);
-        let (zero, ends) = (F::zero(), (from.hysteresis, to.hysteresis));
-        if !(width > F::zero() && width.recip().is_finite()) {
+        let inv_width = width.recip();
+        let (ends, zero) = ((from.hysteresis, to.hysteresis), F::zero());
+        if !(inv_width < F::infinity()) {
+            // Zero width, or one so narrow that 1/w overflows: flat.
+            let direction = if span > zero { Direction::Rising } else { Direction::Falling };
+            let exits = exits(from.theta, to.theta, retracing);
             let (from, to) = ends;
-            return Ok(Branch { from, to, start, span, centre: zero, beyond: zero, slope: zero, direction, scale: None, exits });
+            return Branch { from, to, start, span, centre: zero, beyond: zero, slope: zero, direction, scale: None, exits };
         }
-        // θ − c beyond the loop's end (clamped there) at and past the ends, where z = 0.
-        let far = span + span * half;
-        let beyond = if far.is_finite() { far } else { span };
+        // The span is not 0, so its sign is that of θ_b − θ_a (halving keeps the order).
+        let (direction, exits) = if span > zero {
+            (Direction::Rising, (if retracing { from.theta } else { F::neg_infinity() }, to.theta))
+        } else {
+            (Direction::Falling, (to.theta, if retracing { from.theta } else { F::infinity() }))
+        };
+        // θ − c beyond the loop's end (clamped there) at and past the ends, where z = 0; ±∞
+        // where 1.5·span overflows clamps to the end all the same.
+        let beyond = span + span * half;
         let slope = (to.hysteresis * half - from.hysteresis * half) / span;
-        let scale = Some(model.scale_with::<E>(width)?);
+        let scale = Some(model.scale_of::<E>(width, inv_width));
         let (from, to) = ends;
-        Ok(Branch { from, to, start, span, centre: start + end, beyond, slope, direction, scale, exits })
+        Branch { from, to, start, span, centre: start + end, beyond, slope, direction, scale, exits }
     }
 
     /// H and dH/dθ at `theta` (finite), with the elementary functions of `E`; not checked for
@@ -221,24 +224,17 @@ impl<F: Real> Branch<F> {
             return Evaluation { torque: self.from, stiffness: F::zero() };
         };
         let half = two::<F>().recip();
-        // s is exactly 0 at θ_a and exactly 1 at θ_b.
+        // s is exactly 0 at θ_a and exactly 1 at θ_b. At and past the ends s is clamped and
+        // θ − c is beyond the loop's end (clamped there), where z = 0.
         let s = (theta * half - self.start) / self.span;
-        // θ − c, or beyond the loop's end (clamped there) at and past the ends, where z = 0.
-        let offset = if s >= F::one() {
-            self.beyond
+        let (s, offset) = if s >= F::one() {
+            (F::one(), self.beyond)
         } else if s <= F::zero() {
-            -self.beyond
+            (F::zero(), -self.beyond)
         } else {
-            theta - self.centre
+            (s, theta - self.centre)
         };
         let z = model.hysteresis_with::<E>(scale, offset, self.direction);
-        let s = if s >= F::one() {
-            F::one()
-        } else if s <= F::zero() {
-            F::zero()
-        } else {
-            s
-        };
         let line = self.from * (F::one() - s) + self.to * s;
         Evaluation { torque: line + z.torque, stiffness: self.slope + z.stiffness }
     }
@@ -329,7 +325,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
         };
         memory.push(TurningPoint { theta: bottom, hysteresis: F::zero() });
         memory.push(TurningPoint { theta: top, hysteresis: F::zero() });
-        memory.branch = memory.fresh_branch::<Libm>()?;
+        memory.branch = memory.fresh_branch::<Libm>();
         let at_rest = memory.hysteresis(F::zero())?;
         memory.direction = Some(direction);
         memory.extreme = TurningPoint { theta: F::zero(), hysteresis: at_rest.torque };
@@ -403,7 +399,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
             let plan = self.restack(theta, turned);
             let (evaluation, h) = if plan.changed {
                 let branch = match plan.current {
-                    Some((from, to, _)) => Branch::new::<E>(&self.model, from, to, plan.retracing)?,
+                    Some((from, to, _)) => Branch::new::<E>(&self.model, from, to, plan.retracing),
                     None => Branch::rest(),
                 };
                 let (evaluation, h) = Self::evaluate_on::<E>(&self.model, &branch, theta);
@@ -467,9 +463,9 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     /// The current branch's constants made afresh from the stack with the elementary
     /// functions of `E` (`None` at rest).
     #[inline(always)]
-    fn fresh_branch<E: Elementary<F>>(&self) -> Result<Branch<F>, Error> {
+    fn fresh_branch<E: Elementary<F>>(&self) -> Branch<F> {
         match self.current() {
-            None => Ok(Branch::rest()),
+            None => Branch::rest(),
             Some((from, to, _)) => Branch::new::<E>(&self.model, from, to, self.retracing),
         }
     }
@@ -514,6 +510,19 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
         }
     }
 
+    /// θ at the start and the target of the branch on `stack[..depth]` topped by `pushed`, and
+    /// whether the target is stored ([`GeneticMemory::branch_at`] without the H).
+    #[inline(always)]
+    fn ends_at(&self, depth: usize, pushed: Option<TurningPoint<F>>) -> Option<(F, F, bool)> {
+        match (pushed, self.stack.get(..depth)?) {
+            (Some(from), [.., to]) => Some((from.theta, to.theta, true)),
+            (Some(from), []) => Some((from.theta, -from.theta, false)),
+            (None, [.., to, from]) => Some((from.theta, to.theta, true)),
+            (None, [from]) => Some((from.theta, -from.theta, false)),
+            (None, []) => None,
+        }
+    }
+
     /// The stack after a sample that reversed (`turned`) or left the current branch, by
     /// Madelung's rules, worked out without writing anything:
     ///
@@ -532,8 +541,8 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
                 retracing = false;
             } else {
                 let point = self.extreme;
-                if let Some((_, to, stored)) = self.branch_at(depth, None) {
-                    if point.theta == to.theta {
+                if let Some((_, to, stored)) = self.ends_at(depth, None) {
+                    if point.theta == to {
                         depth -= if stored { 2 } else { 1 };
                     }
                 }
@@ -546,35 +555,29 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
                 }
             }
         }
-        let mut current = self.branch_at(depth, pushed);
-        // Each pass pops at least one point, so this ends within N + 1 passes. (A half-open
-        // range: `0..=N` keeps a flag that cost instructions on every pass.)
-        for _ in 0..N + 1 {
-            let Some((from, to, stored)) = current else { break };
-            let rising = to.theta > from.theta;
-            let falling = to.theta < from.theta;
-            // The branch's start goes: the pushed point if there is one, else the top.
-            let pop_start = |depth: &mut usize, pushed: &mut Option<TurningPoint<F>>| {
-                if pushed.take().is_none() {
-                    *depth -= 1;
-                }
-            };
-            if (rising && theta > to.theta) || (falling && theta < to.theta) {
-                pop_start(&mut depth, &mut pushed);
-                if stored {
-                    depth -= 1;
-                }
-            } else if retracing && ((rising && theta < from.theta) || (falling && theta > from.theta)) {
-                // Retraced past the branch's start: continue on the branch it lay on.
-                pop_start(&mut depth, &mut pushed);
-                retracing = false;
-            } else {
+        // Each pass pops at least one point, so this ends.
+        while let Some((from, to, stored)) = self.ends_at(depth, pushed) {
+            let rising = to > from;
+            let falling = to < from;
+            let past_target = (rising && theta > to) || (falling && theta < to);
+            // Retraced back past the branch's start: θ continues on the branch it lay on.
+            let back_past_start = retracing && ((rising && theta < from) || (falling && theta > from));
+            if !(past_target || back_past_start) {
                 break;
             }
+            // The start goes (the pushed point if there is one, else the top), and past the
+            // target the target too.
+            if pushed.take().is_none() {
+                depth -= 1;
+            }
+            if !past_target {
+                retracing = false;
+            } else if stored {
+                depth -= 1;
+            }
             changed = true;
-            current = self.branch_at(depth, pushed);
         }
-        Restack { depth, pushed, retracing, current, changed }
+        Restack { depth, pushed, retracing, current: self.branch_at(depth, pushed), changed }
     }
 
     /// T and K at `theta` on `branch` (an error where they are not finite), and H there.

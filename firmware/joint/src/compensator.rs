@@ -27,26 +27,22 @@ enum Evaluator {
 }
 
 impl Evaluator {
-    /// One sample: the same state whichever `path` runs it.
+    /// One sample (the same state whichever `path` runs it), and what [`Feedforward`] reports
+    /// of the memory then: the genetic kind's direction and stored turning points, the
+    /// micro-slip kind's slipping elements.
     #[inline(always)]
-    fn step(&mut self, theta: f32, path: EvalPath) -> Option<Evaluation<f32>> {
+    fn step(&mut self, theta: f32, path: EvalPath) -> (Option<Evaluation<f32>>, Option<Direction>, u8) {
         match self {
-            Evaluator::Genetic { memory, fast: true } if path == EvalPath::Fast => {
-                memory.step_with::<FastMath>(theta).ok()
+            Evaluator::Genetic { memory, fast } => {
+                let evaluation = if *fast && path == EvalPath::Fast {
+                    memory.step_with::<FastMath>(theta)
+                } else {
+                    memory.step(theta)
+                };
+                (evaluation.ok(), memory.direction(), memory.depth() as u8)
             }
-            Evaluator::Genetic { memory, .. } => memory.step(theta).ok(),
             // No transcendental functions: both paths are the same code.
-            Evaluator::MicroSlip(slip) => slip.step(theta).ok(),
-        }
-    }
-
-    /// What [`Feedforward`] reports of the memory: the genetic kind's direction and stored
-    /// turning points, the micro-slip kind's slipping elements.
-    #[inline(always)]
-    fn memory(&self) -> (Option<Direction>, u8) {
-        match self {
-            Evaluator::Genetic { memory, .. } => (memory.direction(), memory.depth() as u8),
-            Evaluator::MicroSlip(slip) => (None, slip.slipping() as u8),
+            Evaluator::MicroSlip(slip) => (slip.step(theta).ok(), None, slip.slipping() as u8),
         }
     }
 }
@@ -160,8 +156,7 @@ impl Compensator {
         if deflection.is_nan() || deflection.abs() > MAX_DEFLECTION {
             return OFF;
         }
-        let evaluation = installed.evaluator.step(deflection, path);
-        let (direction, memory) = installed.evaluator.memory();
+        let (evaluation, direction, memory) = installed.evaluator.step(deflection, path);
         let Some(evaluation) = evaluation else {
             return Feedforward { deflection, direction, memory, ..OFF };
         };

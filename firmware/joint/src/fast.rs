@@ -109,6 +109,10 @@ impl Elementary<f32> for FastMath {
     }
     // h·e^(−rφ) as h times exp(−rφ): no ln and exp of h when a branch begins.
     const DIRECT_DECAY: bool = true;
+    #[inline(always)]
+    fn exp_direct(y: f32) -> f32 {
+        exp_within_range(y)
+    }
 }
 
 /// √v with the FPU's `vsqrt.f32` on the Cortex-M4F; libm (also correctly rounded) elsewhere.
@@ -178,7 +182,12 @@ pub fn asin(x: f32) -> f32 {
 pub fn exp(y: f32) -> f32 {
     // The usual |y| ≤ 87 in one comparison, where the clamp takes two; beyond it (and NaN)
     // the clamp as before.
-    let y = if y.abs() <= 87.0 { y } else { limit(y, -87.0, 87.0) };
+    exp_within_range(if y.abs() <= 87.0 { y } else { limit(y, -87.0, 87.0) })
+}
+
+/// [`exp`] of a y known to lie within ±87 (beyond, 2^n does not fit the exponent bits).
+#[inline(always)]
+fn exp_within_range(y: f32) -> f32 {
     // n = y·log2(e) rounded to the nearest integer by adding and taking away 1.5·2²³, which
     // leaves no fraction bits (|y·log2(e)| < 2²²): three FPU instructions, where rounding by
     // ±0.5 and a conversion took eleven.
