@@ -153,7 +153,8 @@ impl Compensator {
         let active = if self.second_active { &mut self.slots.1 } else { &mut self.slots.0 };
         let Some(installed) = active.as_mut() else { return OFF };
         let deflection = input_angle / installed.params.gear_ratio - output_angle;
-        if deflection.is_nan() || deflection.abs() > MAX_DEFLECTION {
+        // One comparison refuses NaN too.
+        if !(deflection.abs() <= MAX_DEFLECTION) {
             return OFF;
         }
         let (evaluation, direction, memory) = installed.evaluator.step(deflection, path);
