@@ -324,6 +324,12 @@ impl<F: Real> Model<F> {
         self.sign_k * self.ln_abs_k.exp()
     }
 
+    /// Whether elementary functions that ask for it ([`Elementary::DIRECT_DECAY`]) form
+    /// h·e^(−rφ) directly: |r| ≤ [`MAX_DIRECT_DECAY_R`] and k fits the float type.
+    pub fn has_direct_decay(&self) -> bool {
+        self.direct_k.is_some()
+    }
+
     /// The model on a loop of amplitude `amplitude` (rad), ready for per-sample evaluation.
     pub fn at_amplitude(&self, amplitude: F) -> Result<Loop<F>, Error> {
         self.at_amplitude_with::<Libm>(amplitude)
@@ -475,7 +481,13 @@ impl<F: Real> Loop<F> {
     /// Torque and stiffness together, sharing the transcendental functions.
     #[inline]
     pub fn evaluate(&self, theta: F, direction: Direction) -> Result<Evaluation<F>, Error> {
-        let (spring, hysteresis) = self.evaluate_parts(theta, direction)?;
+        self.evaluate_with::<Libm>(theta, direction)
+    }
+
+    /// [`Loop::evaluate`] with the elementary functions of `E`.
+    #[inline(always)]
+    pub fn evaluate_with<E: Elementary<F>>(&self, theta: F, direction: Direction) -> Result<Evaluation<F>, Error> {
+        let (spring, hysteresis) = self.evaluate_parts_with::<E>(theta, direction)?;
         let evaluation = spring.plus(hysteresis);
         if evaluation.torque.is_finite() && evaluation.stiffness.is_finite() {
             Ok(evaluation)

@@ -193,7 +193,8 @@ impl<F: Real> Branch<F> {
         let width = span.abs();
         let inv_width = width.recip();
         let (ends, zero) = ((from.hysteresis, to.hysteresis), F::zero());
-        if !(inv_width < F::infinity()) {
+        // 1/w ≥ 0 is never NaN: +∞ for w = 0 and for widths whose reciprocal overflows.
+        if inv_width == F::infinity() {
             // Zero width, or one so narrow that 1/w overflows: flat.
             let direction = if span > zero { Direction::Rising } else { Direction::Falling };
             let exits = exits(from.theta, to.theta, retracing);
@@ -397,24 +398,15 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
             (evaluation?, h)
         } else {
             let plan = self.restack(theta, turned);
-            let (evaluation, h) = if plan.changed {
-                let branch = match plan.current {
-                    Some((from, to, _)) => Branch::new::<E>(&self.model, from, to, plan.retracing),
-                    None => Branch::rest(),
-                };
-                let (evaluation, h) = Self::evaluate_on::<E>(&self.model, &branch, theta);
-                let evaluation = evaluation?;
-                self.branch = branch;
-                (evaluation, h)
-            } else {
+            let branch = match plan.current {
+                Some((from, to, _)) if plan.changed => Branch::new::<E>(&self.model, from, to, plan.retracing),
                 // A retrace that starts or ends: the same branch, left elsewhere.
-                let (evaluation, h) = Self::evaluate_on::<E>(&self.model, &self.branch, theta);
-                let evaluation = evaluation?;
-                if let Some((from, to, _)) = plan.current {
-                    self.branch.exits = exits(from.theta, to.theta, plan.retracing);
-                }
-                (evaluation, h)
+                Some((from, to, _)) => Branch { exits: exits(from.theta, to.theta, plan.retracing), ..self.branch },
+                None => Branch::rest(),
             };
+            let (evaluation, h) = Self::evaluate_on::<E>(&self.model, &branch, theta);
+            let evaluation = evaluation?;
+            self.branch = branch;
             if let Some(point) = plan.pushed {
                 if let Some(slot) = self.stack.get_mut(plan.depth) {
                     *slot = point;

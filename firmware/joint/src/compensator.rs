@@ -1,4 +1,4 @@
-use crate::fast::{FastMath, FastModel};
+use crate::fast::FastMath;
 use model_core::{Evaluation, GeneticMemory, Hysteretic, MicroSlip, Model};
 use swg_protocol::{
     Compensation, Direction, ErrorReply, EvalPath, Feedforward, JointModel, JointParams, SLIP_ELEMENTS,
@@ -17,7 +17,7 @@ pub const TURNING_POINTS: usize = swg_protocol::TURNING_POINTS;
 /// The installed model's stateful evaluator (model-core's `memory`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Evaluator {
-    /// `fast`: the set is inside the fast path's range ([`FastModel::new`] accepts it), so
+    /// `fast`: the set is inside the fast path's range ([`crate::FastModel::new`] accepts it), so
     /// [`EvalPath::Fast`] runs the same evaluator with [`FastMath`].
     Genetic {
         memory: GeneticMemory<f32, TURNING_POINTS>,
@@ -105,7 +105,7 @@ impl Compensator {
                 let model = Model::new(genetic).map_err(|_| ErrorReply::ModelOverflow)?;
                 // The model must be evaluable on the loops it will see.
                 model.at_amplitude(1.0).map_err(|_| ErrorReply::ModelOverflow)?;
-                let fast = FastModel::new(&genetic).is_ok();
+                let fast = model.has_direct_decay();
                 Evaluator::Genetic { memory: GeneticMemory::new(model, params.direction_band), fast }
             }
             JointModel::MicroSlip(slip) => {
@@ -154,7 +154,8 @@ impl Compensator {
         let Some(installed) = active.as_mut() else { return OFF };
         let deflection = input_angle / installed.params.gear_ratio - output_angle;
         // One comparison refuses NaN too.
-        if !(deflection.abs() <= MAX_DEFLECTION) {
+        let plausible = deflection.abs() <= MAX_DEFLECTION;
+        if !plausible {
             return OFF;
         }
         let (evaluation, direction, memory) = installed.evaluator.step(deflection, path);

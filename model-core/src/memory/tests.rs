@@ -563,12 +563,18 @@ fn kept_branch_is_fresh<const N: usize>(thetas: &[f64], band: f64) -> Result<(),
         let (by_log, by_direct) = (log.step(theta).unwrap(), direct.step_with::<DirectLibm>(theta).unwrap());
         prop_assert_eq!(log.branch, log.fresh_branch::<Libm>(), "N={} sample {}", N, i);
         prop_assert_eq!(direct.branch, direct.fresh_branch::<DirectLibm>(), "N={} sample {}", N, i);
-        let thetas = |memory: &GeneticMemory<f64, N>| memory.turning_points().iter().map(|p| p.theta).collect::<Vec<_>>();
+        let thetas =
+            |memory: &GeneticMemory<f64, N>| memory.turning_points().iter().map(|p| p.theta).collect::<Vec<_>>();
         prop_assert_eq!(thetas(&log), thetas(&direct));
         let scale = 1.0 + by_log.torque.abs();
         prop_assert!((by_log.torque - by_direct.torque).abs() <= 1e-12 * scale, "{:?} vs {:?}", by_log, by_direct);
         let k_scale = 1e3 + by_log.stiffness.abs();
-        prop_assert!((by_log.stiffness - by_direct.stiffness).abs() <= 1e-12 * k_scale, "{:?} vs {:?}", by_log, by_direct);
+        prop_assert!(
+            (by_log.stiffness - by_direct.stiffness).abs() <= 1e-12 * k_scale,
+            "{:?} vs {:?}",
+            by_log,
+            by_direct
+        );
     }
     Ok(())
 }

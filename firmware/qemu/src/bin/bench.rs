@@ -213,7 +213,15 @@ impl Budgets {
             self.within = false;
             "OVER BUDGET"
         };
-        hprintln!("budget: {} along the {} motion, {}: {:.1} of {} instructions, {}", kind, motion, what, figure, budget, verdict);
+        hprintln!(
+            "budget: {} along the {} motion, {}: {:.1} of {} instructions, {}",
+            kind,
+            motion,
+            what,
+            figure,
+            budget,
+            verdict
+        );
     }
 }
 
@@ -327,10 +335,11 @@ fn main() -> ! {
     hprintln!("(genetic stack: {} turning points stored)", depth);
     let chosen = [last * 1.001, last - 0.05 * AMPLITUDE * last.signum(), 1.05 * AMPLITUDE];
     for path in [EvalPath::Fast, EvalPath::Direct] {
-        let [onward, reversal, wipe_out] =
-            chosen.map(|theta| one_step(&full, theta, &|c: &mut Compensator, t| {
+        let [onward, reversal, wipe_out] = chosen.map(|theta| {
+            one_step(&full, theta, &|c: &mut Compensator, t| {
                 black_box(c.tick(t * RATIO, 0.0, path));
-            }));
+            })
+        });
         hprintln!(
             "genetic, {} turning points, {:?} path, per tick: on the branch {}, reversal {}, wipe-out of all {}",
             TURNING_POINTS,
@@ -350,10 +359,9 @@ fn main() -> ! {
         reversal,
         big
     );
-    for (kind, state, chosen) in [
-        ("genetic", controlling(full, last), chosen),
-        ("micro-slip", controlling(slipping, slip_last), slip_chosen),
-    ] {
+    for (kind, state, chosen) in
+        [("genetic", controlling(full, last), chosen), ("micro-slip", controlling(slipping, slip_last), slip_chosen)]
+    {
         let [onward, reversal, big] = chosen.map(|theta| one_step(&state, theta, &controller_step));
         hprintln!(
             "controller + evaluator (model mode), {}, per tick: on the branch {}, reversal {}, large step {}",
