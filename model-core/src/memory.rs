@@ -524,6 +524,9 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     ///   a full stack records nothing and θ retraces the current branch;
     /// - θ past the current branch's target pops its start and target (rules 2 and 3), and
     ///   retracing back past its start pops the start, as often as θ is past the next one.
+    ///
+    /// A sample that did not turn left the branch through its exits: if not retracing, past
+    /// its target, which the first pass of the wipe-out would only find again.
     #[inline(always)]
     fn restack(&self, theta: F, turned: bool) -> Restack<F> {
         let (mut depth, mut pushed, mut retracing, mut changed) = (self.depth, None, self.retracing, false);
@@ -546,6 +549,11 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
                     retracing = true;
                 }
             }
+        } else if !retracing {
+            // Past the target: the branch's start and, unless it is the mirror, its target go
+            // (a branch at depth 1 heads for the start's mirror).
+            depth = depth.saturating_sub(2);
+            changed = true;
         }
         // Each pass pops at least one point, so this ends.
         while let Some((from, to, stored)) = self.ends_at(depth, pushed) {

@@ -134,6 +134,10 @@ impl Compensator {
     /// Never NaN: without valid parameters, with a deflection that is not finite or beyond
     /// [`MAX_DEFLECTION`], or when the model cannot be evaluated, the compensation is off,
     /// T_ff = K = 0, and the model's memory is left as it was.
+    ///
+    /// Never inlined: the boards, the controller and `bench/firmware.sh` run one and the same
+    /// code, whose instructions per tick the benchmark holds to `crate::budget`.
+    #[inline(never)]
     pub fn tick(&mut self, input_angle: f32, output_angle: f32, path: EvalPath) -> Feedforward {
         // Activation of a staged set, at rest: the one moment the memory is reset.
         if self.staged {
