@@ -21,7 +21,9 @@
 //! # Never panics
 //! Every entry point returns a [`Result`]: non-finite inputs, A ≤ 0, ω = 0 and results that
 //! would overflow are reported as [`Error`] values. Evaluation works in the log domain
-//! (`A·k·e^(−rφ)` as `exp(ln|A·k| − rφ)`), so a large `r` with a small `α` stays finite.
+//! (`A·k·e^(−rφ)` as `exp(ln|A·k| − rφ)`), so a large `r` with a small `α` stays finite;
+//! elementary functions that ask for it form it directly where |r| ≤ [`MAX_DIRECT_DECAY_R`]
+//! ([`Elementary::DIRECT_DECAY`]: the firmware's fast path, which then takes no ln or exp of h).
 #![no_std]
 
 use core::fmt;

@@ -199,7 +199,18 @@ impl<F: Real> Branch<F> {
             let direction = if span > zero { Direction::Rising } else { Direction::Falling };
             let exits = exits(from.theta, to.theta, retracing);
             let (from, to) = ends;
-            return Branch { from, to, start, span, centre: zero, beyond: zero, slope: zero, direction, scale: None, exits };
+            return Branch {
+                from,
+                to,
+                start,
+                span,
+                centre: zero,
+                beyond: zero,
+                slope: zero,
+                direction,
+                scale: None,
+                exits,
+            };
         }
         // The span is not 0, so its sign is that of θ_b − θ_a (halving keeps the order).
         let (direction, exits) = if span > zero {
@@ -384,7 +395,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     ///
     /// Most samples neither reverse nor leave the current branch: they are evaluated on the
     /// branch's kept constants. The others change the stack by Madelung's rules
-    /// ([`GeneticMemory::restack`]) and make the new branch's constants. Either way the state
+    /// (`GeneticMemory::restack`) and make the new branch's constants. Either way the state
     /// is written only once the evaluation has succeeded, so a failed step changes nothing.
     #[inline]
     pub fn step_with<E: Elementary<F>>(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
@@ -582,7 +593,11 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
 
     /// T and K at `theta` on `branch` (an error where they are not finite), and H there.
     #[inline(always)]
-    fn evaluate_on<E: Elementary<F>>(model: &Model<F>, branch: &Branch<F>, theta: F) -> (Result<Evaluation<F>, Error>, F) {
+    fn evaluate_on<E: Elementary<F>>(
+        model: &Model<F>,
+        branch: &Branch<F>,
+        theta: F,
+    ) -> (Result<Evaluation<F>, Error>, F) {
         let h = branch.evaluate::<E>(model, theta);
         (finite(model.polynomial.evaluate(theta).plus(h)), h.torque)
     }
@@ -821,8 +836,8 @@ impl<F: Real, const M: usize> Hysteretic<F> for MicroSlip<F, M> {
 
     /// One pass over the elements moves each, sums T and K and counts the slipping ones; the
     /// new deflections are committed only if T and K are finite. (Stepping a copy of the
-    /// elements, evaluating it in a second pass and counting in a third cost about 200 more
-    /// of the M4F's instructions per tick with 16 elements.)
+    /// elements, evaluating it in a second pass and counting in a third cost the M4F far more
+    /// instructions per tick.)
     fn step(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);

@@ -72,8 +72,7 @@ struct Installed {
 /// nothing else touches the memory: refused sets, reads and commits leave it as it is.
 ///
 /// The set in use and a staged one live in two slots; activation flips which slot is in use,
-/// so the tick that activates a set copies nothing (copying it took about 300 of the M4F's
-/// instructions on that tick, 600 for a micro-slip set).
+/// so the tick that activates a set copies nothing (a copy made that tick the slowest of all).
 #[derive(Clone, Debug, Default)]
 pub struct Compensator {
     slots: (Option<Installed>, Option<Installed>),

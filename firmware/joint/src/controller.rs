@@ -82,7 +82,7 @@ pub struct Controller {
     last_input: Option<f32>,
     slow_velocity: f32,
     /// The low-pass's weight per tick, from the period: computed once in `configure`, as the
-    /// tick's instruction count (`bench/firmware.sh`, ≤ 600 with the evaluator) has no room.
+    /// tick's instruction budget (`crate::budget`) has no room.
     smoothing: f32,
 }
 

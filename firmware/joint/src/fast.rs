@@ -70,10 +70,10 @@ impl FastModel {
     }
 }
 
-/// The fast path's elementary functions: the FPU's square root and polynomial arcsine,
-/// exponential and logarithm. model-core's formulas run with them: [`FastModel::evaluate`]
-/// (one symmetric loop) and the stateful genetic model on the joint
-/// (`GeneticMemory::step_with::<FastMath>`, each branch through `memory::branch_with`).
+/// The fast path's elementary functions: the FPU's square root, a polynomial arcsine and
+/// exponential, and h·e^(−rφ) formed directly. model-core's formulas run with them:
+/// [`FastModel::evaluate`] (one symmetric loop) and the stateful genetic model on the joint
+/// (`GeneticMemory::step_with::<FastMath>`).
 #[derive(Clone, Copy, Debug)]
 pub struct FastMath;
 
@@ -171,8 +171,8 @@ pub fn asin(x: f32) -> f32 {
 #[inline(always)]
 pub fn exp(y: f32) -> f32 {
     // n = y·log2(e) rounded to the nearest integer by adding and taking away 1.5·2²³, which
-    // leaves no fraction bits (|y·log2(e)| < 2²²): three FPU instructions, where rounding by
-    // ±0.5 and a conversion took eleven.
+    // leaves no fraction bits (|y·log2(e)| < 2²²): fewer instructions than adding ±0.5 by the
+    // sign bit and truncating.
     const ROUND: f32 = 12_582_912.0;
     let whole = (y * LOG2_E + ROUND) - ROUND;
     let n = whole as i32;
