@@ -464,7 +464,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     }
 
     /// The current branch's constants made afresh from the stack with the elementary
-    /// functions of `E` (`None` at rest).
+    /// functions of `E` ([`Branch::rest`] at rest).
     #[inline(always)]
     fn fresh_branch<E: Elementary<F>>(&self) -> Branch<F> {
         match self.current() {
@@ -477,11 +477,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     /// mirror of a single point).
     #[inline(always)]
     fn current(&self) -> Option<(TurningPoint<F>, TurningPoint<F>, bool)> {
-        match self.stack.get(..self.depth)? {
-            [.., to, from] => Some((*from, *to, true)),
-            [from] => Some((*from, TurningPoint { theta: -from.theta, hysteresis: -from.hysteresis }, false)),
-            [] => None,
-        }
+        self.branch_at(self.depth, None)
     }
 
     fn push(&mut self, point: TurningPoint<F>) -> bool {
