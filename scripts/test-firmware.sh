@@ -4,7 +4,9 @@
 #   2. clippy over the firmware workspace (lints: firmware/Cargo.toml, firmware/clippy.toml):
 #      joint on the host, each board on thumbv7em
 #   3. the firmware for both boards (QEMU mps2-an386 and STM32F405) builds for thumbv7em
-#   4. model-core's checks and the fast path's error bound on the emulated Cortex-M4F
+#   4. model-core's checks and the fast path's error bound on the emulated Cortex-M4F, and the
+#      firmware's budgets: instructions per tick (the benchmark binary, every tick of its motions)
+#      and flash (firmware/joint/src/budget.rs; RAM with the stack is bench/firmware.sh's)
 #   5. end to end under QEMU: push, read back, replay, bad traffic (host/tests/firmware_e2e.rs)
 #   6. the closed loop in lockstep under QEMU: the firmware's torque controller on the host's
 #      simulated joint, library and `swg-host hil` (host/tests/hil_e2e.rs)
@@ -50,6 +52,14 @@ qemu_run() {
 
 echo "== model-core on the emulated Cortex-M4F (QEMU mps2-an386)"
 qemu_run -kernel "$elf_dir/model-core-checks"
+
+echo "== the firmware's budgets: instructions per tick and flash (firmware/joint/src/budget.rs)"
+mkdir -p target
+thumb_firmware_budgets target/firmware-budgets.txt
+if ((${#FIRMWARE_OVER_BUDGET[@]})); then
+    printf 'OVER BUDGET: %s\n' "${FIRMWARE_OVER_BUDGET[@]}" >&2
+    exit 1
+fi
 
 echo "== end to end under QEMU"
 # --nocapture shows the CLI runs with their replay figures (worst and RMS difference).

@@ -45,3 +45,32 @@ thumb_firmware_setup() {
         FIRMWARE_ELF_DIR="$PWD/firmware/target/$THUMB_TARGET/release"
     fi
 }
+
+# The firmware's budgets (firmware/joint/src/budget.rs), checked on the release ELFs in
+# FIRMWARE_ELF_DIR: runs the instruction-count benchmark under QEMU (`-icount shift=0`; it exits
+# with status 1 when a figure exceeds its budget and prints the budgets of the build's size),
+# its output also written to $1, then compares joint-qemu's flash with the budget. Prints each
+# figure; sets FIRMWARE_RAM_BUDGET (the RAM budget, checked with the stack by
+# bench/firmware.sh) and FIRMWARE_OVER_BUDGET (an array, empty when every figure is within).
+thumb_firmware_budgets() {
+    local out=$1 status=0 flash_budget flash
+    FIRMWARE_OVER_BUDGET=()
+    timeout 300 qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -nographic -icount shift=0 \
+        -semihosting-config enable=on,target=native -kernel "$FIRMWARE_ELF_DIR/bench" | tee "$out" || status=$?
+    if [ "$status" -ne 0 ]; then
+        FIRMWARE_OVER_BUDGET+=("instructions per tick (benchmark status $status; see the OVER BUDGET lines)")
+    fi
+    read -r flash_budget FIRMWARE_RAM_BUDGET < <(sed -n \
+        's/^budgets of the QEMU build: flash \([0-9]*\) B, RAM \([0-9]*\) B$/\1 \2/p' "$out") || true
+    if [ -z "${flash_budget:-}" ] || [ -z "${FIRMWARE_RAM_BUDGET:-}" ]; then
+        FIRMWARE_OVER_BUDGET+=("the benchmark printed no flash and RAM budgets")
+        return 0
+    fi
+    flash=$(arm-none-eabi-size "$FIRMWARE_ELF_DIR/joint-qemu" | awk 'NR == 2 { print $1 + $2 }')
+    if [ "$flash" -gt "$flash_budget" ]; then
+        echo "budget: joint-qemu flash (text + data) $flash B of $flash_budget B, OVER BUDGET"
+        FIRMWARE_OVER_BUDGET+=("flash $flash B > $flash_budget B")
+    else
+        echo "budget: joint-qemu flash (text + data) $flash B of $flash_budget B, within"
+    fi
+}

@@ -217,6 +217,16 @@ impl<F: Real> GearModel<F> {
         }
     }
 
+    /// Whether the evaluator stays where elementary functions approximated for speed (the joint's
+    /// fast path) hold: the genetic kind when it forms h·e^(−rφ) directly
+    /// ([`Model::has_direct_decay`]); kinds without transcendental functions always.
+    pub fn has_fast_path(&self) -> bool {
+        match self {
+            GearModel::Genetic(params) => Model::new(*params).is_ok_and(|model| model.has_direct_decay()),
+            GearModel::MicroSlip(_) => true,
+        }
+    }
+
     /// The spring's stiffness at θ = 0, N·m/rad: the linear stiffness a controller falls back to.
     pub fn linear_stiffness(&self) -> F {
         match self {
@@ -291,6 +301,22 @@ impl<F: Real> Evaluator<F> {
             Evaluator::Genetic(memory) => memory.step_with::<E>(theta),
             // No transcendental functions.
             Evaluator::MicroSlip(slip) => slip.step(theta),
+        }
+    }
+
+    /// [`Evaluator::step_with`] and [`Evaluator::memory`] after it, in one dispatch on the kind
+    /// (the joint's tick: a second dispatch cost instructions every tick).
+    #[inline(always)]
+    pub fn step_reporting<E: Elementary<F>>(&mut self, theta: F) -> (Result<Evaluation<F>, Error>, Memory) {
+        match self {
+            Evaluator::Genetic(memory) => {
+                let evaluation = memory.step_with::<E>(theta);
+                (evaluation, Memory { direction: memory.direction(), depth: memory.depth() })
+            }
+            Evaluator::MicroSlip(slip) => {
+                let evaluation = slip.step(theta);
+                (evaluation, Memory { direction: None, depth: slip.slipping() })
+            }
         }
     }
 

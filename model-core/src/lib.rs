@@ -21,7 +21,9 @@
 //! # Never panics
 //! Every entry point returns a [`Result`]: non-finite inputs, A ≤ 0, ω = 0 and results that
 //! would overflow are reported as [`Error`] values. Evaluation works in the log domain
-//! (`A·k·e^(−rφ)` as `exp(ln|A·k| − rφ)`), so a large `r` with a small `α` stays finite.
+//! (`A·k·e^(−rφ)` as `exp(ln|A·k| − rφ)`), so a large `r` with a small `α` stays finite;
+//! elementary functions that ask for it form it directly where |r| ≤ [`MAX_DIRECT_DECAY_R`]
+//! ([`Elementary::DIRECT_DECAY`]: the firmware's fast path, which then takes no ln or exp of h).
 #![no_std]
 
 use core::fmt;
@@ -301,6 +303,12 @@ impl Params<f64> {
     }
 }
 
+/// Largest |r| = |β/ω| for which elementary functions that ask for it
+/// ([`Elementary::DIRECT_DECAY`]) form h·e^(−rφ) as h times e^(−rφ): with φ ∈ [−π/2, 3π/2],
+/// e^(−rφ) ≤ e^(16·3π/2) ≈ 6·10³², well inside f32. Real gears have |r| ≈ 2 (paper: 1.87,
+/// seed fit: 2.30).
+pub const MAX_DIRECT_DECAY_R: f32 = 16.0;
+
 /// A validated parameter set, with the amplitude-independent constants precomputed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Model<F> {
@@ -310,6 +318,9 @@ pub struct Model<F> {
     ln_abs_k: F,
     /// sign of k, or 0 when α = 0 (no hysteresis).
     sign_k: F,
+    /// k itself, rounded once (formed in f64), where the direct form h·e^(−rφ) applies:
+    /// |r| ≤ [`MAX_DIRECT_DECAY_R`] and k finite; `None` elsewhere.
+    direct_k: Option<F>,
 }
 
 impl<F: Real> Model<F> {
@@ -332,7 +343,20 @@ impl<F: Real> Model<F> {
         let sign = |v: F| if v > F::zero() { F::one() } else { -F::one() };
         let sign_k = if params.alpha == F::zero() { F::zero() } else { sign(params.alpha) * sign(params.omega) };
         let polynomial = Polynomial::new(params.c1, params.c2, params.c3)?;
-        Ok(Model { polynomial, r, ln_abs_k, sign_k })
+        let direct_k = Self::direct_k(&params, r);
+        Ok(Model { polynomial, r, ln_abs_k, sign_k, direct_k })
+    }
+
+    /// k = α/(ω(1 + r²)) in f64, rounded to F once, where the direct form applies.
+    fn direct_k(params: &Params<F>, r: F) -> Option<F> {
+        let max_r = F::from(MAX_DIRECT_DECAY_R)?;
+        // r is finite (Model::new checked).
+        if r.abs() > max_r {
+            return None;
+        }
+        let (alpha, omega, r) = (params.alpha.to_f64()?, params.omega.to_f64()?, r.to_f64()?);
+        let k = F::from(alpha / (omega * (1.0 + r * r)))?;
+        k.is_finite().then_some(k)
     }
 
     /// The polynomial spring c1·θ + c2·θ³ + c3·θ⁵.
@@ -350,6 +374,12 @@ impl<F: Real> Model<F> {
         self.sign_k * self.ln_abs_k.exp()
     }
 
+    /// Whether elementary functions that ask for it ([`Elementary::DIRECT_DECAY`]) form
+    /// h·e^(−rφ) directly: |r| ≤ [`MAX_DIRECT_DECAY_R`] and k fits the float type.
+    pub fn has_direct_decay(&self) -> bool {
+        self.direct_k.is_some()
+    }
+
     /// The model on a loop of amplitude `amplitude` (rad), ready for per-sample evaluation.
     pub fn at_amplitude(&self, amplitude: F) -> Result<Loop<F>, Error> {
         self.at_amplitude_with::<Libm>(amplitude)
@@ -358,13 +388,55 @@ impl<F: Real> Model<F> {
     /// [`Model::at_amplitude`] with the elementary functions of `E` (ln and exp of h).
     #[inline(always)]
     pub fn at_amplitude_with<E: Elementary<F>>(&self, amplitude: F) -> Result<Loop<F>, Error> {
+        Ok(Loop { model: *self, amplitude, scale: self.scale_with::<E>(amplitude)? })
+    }
+
+    /// What the amplitude A fixes of a loop ([`Scale`]), with the elementary functions of `E`:
+    /// h = A·k, in the form `E` asks for ([`Elementary::DIRECT_DECAY`]) where the model allows
+    /// it, else through ln|h| = ln|k| + ln A (so that a huge k with a tiny A stays finite).
+    #[inline(always)]
+    pub fn scale_with<E: Elementary<F>>(&self, amplitude: F) -> Result<Scale<F>, Error> {
         check_amplitude(amplitude)?;
-        let ln_abs_h = self.ln_abs_k + E::ln(amplitude);
-        let h = self.sign_k * E::exp(ln_abs_h);
-        if !h.is_finite() {
+        let scale = self.scale_of::<E>(amplitude, amplitude.recip());
+        if !scale.h.is_finite() {
             return Err(Error::Overflow);
         }
-        Ok(Loop { model: *self, amplitude, inv_amplitude: amplitude.recip(), ln_abs_h, h })
+        Ok(scale)
+    }
+
+    /// [`Model::scale_with`] of an amplitude known to be finite and > 0, given with its
+    /// reciprocal, and h not checked: where it is not finite, neither is any z made with it.
+    #[inline(always)]
+    pub(crate) fn scale_of<E: Elementary<F>>(&self, amplitude: F, inv_amplitude: F) -> Scale<F> {
+        let (h, decay) = match self.direct_k {
+            Some(k) if E::DIRECT_DECAY => (k * amplitude, Decay::Direct),
+            _ => {
+                let ln_abs_h = self.ln_abs_k + E::ln(amplitude);
+                (self.sign_k * E::exp(ln_abs_h), Decay::Log { ln_abs_h })
+            }
+        };
+        Scale { inv_amplitude, h, decay }
+    }
+
+    /// The hysteresis term z and dz/dθ alone at `theta` on the loop of `scale`, moving in
+    /// `direction`, with the elementary functions of `E`: [`Phase`] and h·e^(−rφ) in the form
+    /// `scale` was made for. Not checked for finiteness (callers check their sums).
+    #[inline(always)]
+    pub fn hysteresis_with<E: Elementary<F>>(&self, scale: &Scale<F>, theta: F, direction: Direction) -> Evaluation<F> {
+        let phase = Phase::new::<E>(theta * scale.inv_amplitude, direction);
+        let h_decay = match scale.decay {
+            // h = 0 when α = 0, so no special case.
+            Decay::Direct => scale.h * E::exp_direct(-self.r * phase.angle),
+            // h·e^(−rφ) in the log domain, so that huge r with tiny α stays finite.
+            Decay::Log { ln_abs_h } => {
+                if self.sign_k == F::zero() {
+                    F::zero()
+                } else {
+                    self.sign_k * E::exp(ln_abs_h - self.r * phase.angle)
+                }
+            }
+        };
+        phase.hysteresis(self.r, scale.h, h_decay, scale.inv_amplitude)
     }
 
     /// Torque T(θ) in N·m at deflection `theta` (rad) moving in `direction` on a loop of
@@ -397,15 +469,37 @@ pub struct Evaluation<F> {
     pub stiffness: F,
 }
 
+/// What the amplitude A fixes of a loop: 1/A and h = A·k, with the form h·e^(−rφ) takes
+/// ([`Model::scale_with`]). A stateful evaluator keeps its current branch's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scale<F> {
+    inv_amplitude: F,
+    h: F,
+    decay: Decay<F>,
+}
+
+/// How h·e^(−rφ) is formed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Decay<F> {
+    /// h times e^(−rφ) (|r| ≤ [`MAX_DIRECT_DECAY_R`]).
+    Direct,
+    /// ±e^(ln|h| − rφ).
+    Log { ln_abs_h: F },
+}
+
+impl<F: Real> Scale<F> {
+    /// h = A·k, N·m.
+    pub fn h(&self) -> F {
+        self.h
+    }
+}
+
 /// The model on one loop amplitude A: what a controller evaluates every tick.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Loop<F> {
     model: Model<F>,
     amplitude: F,
-    inv_amplitude: F,
-    /// ln|h|, h = A·k: the exponential term is evaluated as exp(ln|h| − rφ).
-    ln_abs_h: F,
-    h: F,
+    scale: Scale<F>,
 }
 
 impl<F: Real> Loop<F> {
@@ -416,7 +510,7 @@ impl<F: Real> Loop<F> {
 
     /// h = A·α/(ω(1 + r²)), N·m.
     pub fn h(&self) -> F {
-        self.h
+        self.scale.h
     }
 
     /// Torque T(θ), N·m.
@@ -437,7 +531,13 @@ impl<F: Real> Loop<F> {
     /// Torque and stiffness together, sharing the transcendental functions.
     #[inline]
     pub fn evaluate(&self, theta: F, direction: Direction) -> Result<Evaluation<F>, Error> {
-        let (spring, hysteresis) = self.evaluate_parts(theta, direction)?;
+        self.evaluate_with::<Libm>(theta, direction)
+    }
+
+    /// [`Loop::evaluate`] with the elementary functions of `E`.
+    #[inline(always)]
+    pub fn evaluate_with<E: Elementary<F>>(&self, theta: F, direction: Direction) -> Result<Evaluation<F>, Error> {
+        let (spring, hysteresis) = self.evaluate_parts_with::<E>(theta, direction)?;
         let evaluation = spring.plus(hysteresis);
         if evaluation.torque.is_finite() && evaluation.stiffness.is_finite() {
             Ok(evaluation)
@@ -464,13 +564,8 @@ impl<F: Real> Loop<F> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);
         }
-        let m = &self.model;
-        let phase = Phase::new::<E>(theta * self.inv_amplitude, direction);
-        // h·e^(−rφ), in the log domain so that huge r with tiny α stays finite.
-        let h_decay =
-            if m.sign_k == F::zero() { F::zero() } else { m.sign_k * E::exp(self.ln_abs_h - m.r * phase.angle) };
-        let hysteresis = phase.hysteresis(m.r, self.h, h_decay, self.inv_amplitude);
-        let spring = m.polynomial.evaluate(theta);
+        let hysteresis = self.model.hysteresis_with::<E>(&self.scale, theta, direction);
+        let spring = self.model.polynomial.evaluate(theta);
         let finite = |e: &Evaluation<F>| e.torque.is_finite() && e.stiffness.is_finite();
         if finite(&spring) && finite(&hysteresis) {
             Ok((spring, hysteresis))
@@ -493,6 +588,17 @@ pub trait Elementary<F> {
     fn exp(y: F) -> F;
     /// ln v for a finite v > 0.
     fn ln(v: F) -> F;
+    /// Whether h·e^(−rφ) is formed as h times [`Elementary::exp`]`(−rφ)` where the model
+    /// allows it (|r| ≤ [`MAX_DIRECT_DECAY_R`]): no ln and exp of h when a loop's amplitude
+    /// changes. Otherwise (the default, and [`Libm`]'s choice) as ±exp(ln|h| − rφ), which stays
+    /// finite for any r.
+    const DIRECT_DECAY: bool = false;
+    /// e^y for the direct form's exponents, |y| ≤ [`MAX_DIRECT_DECAY_R`]·3π/2 (< 76): what
+    /// may skip the range handling that [`Elementary::exp`] needs for any y.
+    #[inline(always)]
+    fn exp_direct(y: F) -> F {
+        Self::exp(y)
+    }
 }
 
 /// The elementary functions of libm (through `num_traits::Float`).

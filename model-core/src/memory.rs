@@ -14,7 +14,7 @@
 //!
 //! Like the rest of the crate: `no_std`, no allocation, never panics, f32 and f64. A step that
 //! returns an error leaves the evaluator as it was (the sample is skipped).
-use crate::{Direction, Elementary, Error, Evaluation, Libm, Model, ParamName, Polynomial, Real};
+use crate::{Direction, Elementary, Error, Evaluation, Libm, Model, ParamName, Polynomial, Real, Scale};
 
 /// A hysteretic element fed the deflection θ sample by sample.
 pub trait Hysteretic<F> {
@@ -36,8 +36,13 @@ fn opposite(direction: Direction) -> Direction {
     }
 }
 
+/// `e`, or [`Error::Overflow`] where T or K is not finite.
+#[inline(always)]
+#[allow(clippy::eq_op)]
 fn finite<F: Real>(e: Evaluation<F>) -> Result<Evaluation<F>, Error> {
-    if e.torque.is_finite() && e.stiffness.is_finite() {
+    // x − x is 0 for every finite x and NaN for ±∞ and NaN: one comparison for both, where
+    // `is_finite` tests each one's bits (twice the M4F's instructions, every tick).
+    if (e.torque - e.torque) + (e.stiffness - e.stiffness) == F::zero() {
         Ok(e)
     } else {
         Err(Error::Overflow)
@@ -77,8 +82,8 @@ pub struct TurningPoint<F> {
 /// ```
 ///
 /// with z the paper's hysteresis term on a symmetric loop of amplitude w (h = w·k, through
-/// [`Model::at_amplitude`] and [`Loop::evaluate_parts`](crate::Loop::evaluate_parts), so the
-/// math is the crate's one copy). dH/dθ = (H_b − H_a)/(θ_b − θ_a) + dz/dθ.
+/// [`Model::scale_with`] and [`Model::hysteresis_with`], as [`Loop::evaluate_parts`](crate::Loop::evaluate_parts),
+/// so the math is the crate's one copy). dH/dθ = (H_b − H_a)/(θ_b − θ_a) + dz/dθ.
 ///
 /// Why this shape:
 /// - **Exact on symmetric loops.** With the ends (∓A, 0) it is z of [`Loop`](crate::Loop) at
@@ -111,59 +116,140 @@ pub fn branch_with<F: Real, E: Elementary<F>>(
     to: TurningPoint<F>,
     theta: F,
 ) -> Result<Evaluation<F>, Error> {
-    branch_unchecked::<F, E>(model, from, to, theta).and_then(finite)
-}
-
-/// [`branch_with`] without its last check that H and dH/dθ are finite: a step adds them to
-/// the spring's T and K and checks the sums, which are not finite when they are not.
-#[inline(always)]
-fn branch_unchecked<F: Real, E: Elementary<F>>(
-    model: &Model<F>,
-    from: TurningPoint<F>,
-    to: TurningPoint<F>,
-    theta: F,
-) -> Result<Evaluation<F>, Error> {
     if !theta.is_finite() {
         return Err(Error::NonFiniteDeflection);
     }
-    let half = two::<F>().recip();
-    // Halves first: (θ_b − θ_a)/2 cannot overflow, and halving is exact.
-    let (start, end) = (from.theta * half, to.theta * half);
-    let span = end - start;
-    let width = span.abs();
-    if !(width > F::zero() && width.recip().is_finite()) {
-        return Ok(Evaluation { torque: from.hysteresis, stiffness: F::zero() });
+    finite(Branch::new::<E>(model, from, to, false).evaluate::<E>(model, theta))
+}
+
+/// What [`branch`] computes from a branch's two ends before it looks at θ: the loop's centre,
+/// half-span, direction and [`Scale`], the straight part's ends and slope, and where θ leaves
+/// the branch. A [`GeneticMemory`] keeps its current branch's, made when the branch changes
+/// (a reversal, a wipe-out, the end of a retrace), so that a tick on the branch evaluates only
+/// what depends on θ.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Branch<F> {
+    /// H_a and H_b, the hysteretic part at the ends.
+    from: F,
+    to: F,
+    /// θ_a/2.
+    start: F,
+    /// (θ_b − θ_a)/2, signed.
+    span: F,
+    /// c = θ_a/2 + θ_b/2.
+    centre: F,
+    /// |θ − c| at and beyond the loop's ends, where z is evaluated clamped (and is 0 there).
+    beyond: F,
+    /// (H_b − H_a)/(θ_b − θ_a).
+    slope: F,
+    direction: Direction,
+    /// The loop's 1/w and h; `None` for a flat branch (zero width, or 1/w overflows).
+    scale: Option<Scale<F>>,
+    /// θ leaves the branch without a reversal where θ < `exits.0` or θ > `exits.1` ([`exits`]).
+    exits: (F, F),
+}
+
+/// Where θ leaves the branch from θ_a = `from` to θ_b = `to` without a reversal, (below,
+/// above): beyond θ_b (Madelung's wipe-out) and, when `retracing`, back past θ_a; ±∞ where it
+/// cannot (a branch of zero width).
+fn exits<F: Real>(from: F, to: F, retracing: bool) -> (F, F) {
+    let (below, above) = (F::neg_infinity(), F::infinity());
+    if to > from {
+        (if retracing { from } else { below }, to)
+    } else if to < from {
+        (to, if retracing { from } else { above })
+    } else {
+        (below, above)
     }
-    let direction = if span > F::zero() { Direction::Rising } else { Direction::Falling };
-    // s is exactly 0 at θ_a and exactly 1 at θ_b.
-    let s = (theta * half - start) / span;
-    // θ − c, or beyond the loop's end (clamped there) at and past the ends, where z = 0.
-    let beyond = {
-        let far = span + span * half;
-        if far.is_finite() {
-            far
-        } else {
-            span
+}
+
+impl<F: Real> Branch<F> {
+    /// At rest: H = 0 everywhere, and no θ leaves it.
+    fn rest() -> Self {
+        let zero = F::zero();
+        Branch {
+            from: zero,
+            to: zero,
+            start: zero,
+            span: zero,
+            centre: zero,
+            beyond: zero,
+            slope: zero,
+            direction: Direction::Rising,
+            scale: None,
+            exits: exits(zero, zero, false),
         }
-    };
-    let offset = if s >= F::one() {
-        beyond
-    } else if s <= F::zero() {
-        -beyond
-    } else {
-        theta - (start + end)
-    };
-    let (_, z) = model.at_amplitude_with::<E>(width)?.evaluate_parts_with::<E>(offset, direction)?;
-    let s = if s >= F::one() {
-        F::one()
-    } else if s <= F::zero() {
-        F::zero()
-    } else {
-        s
-    };
-    let line = from.hysteresis * (F::one() - s) + to.hysteresis * s;
-    let slope = (to.hysteresis * half - from.hysteresis * half) / span;
-    Ok(Evaluation { torque: line + z.torque, stiffness: slope + z.stiffness })
+    }
+
+    /// The constants of the branch from `from` to `to`, with the elementary functions of `E`
+    /// (h = w·k: see [`Model::scale_with`]), left where [`exits`] says. Not checked: where h
+    /// overflows, no evaluation on the branch is finite.
+    #[inline(always)]
+    fn new<E: Elementary<F>>(model: &Model<F>, from: TurningPoint<F>, to: TurningPoint<F>, retracing: bool) -> Self {
+        let half = two::<F>().recip();
+        // Halves first: (θ_b − θ_a)/2 cannot overflow, and halving is exact.
+        let (start, end) = (from.theta * half, to.theta * half);
+        let span = end - start;
+        let width = span.abs();
+        let inv_width = width.recip();
+        let (ends, zero) = ((from.hysteresis, to.hysteresis), F::zero());
+        // 1/w ≥ 0 is never NaN: +∞ for w = 0 and for widths whose reciprocal overflows.
+        if inv_width == F::infinity() {
+            // Zero width, or one so narrow that 1/w overflows: flat.
+            let direction = if span > zero { Direction::Rising } else { Direction::Falling };
+            let exits = exits(from.theta, to.theta, retracing);
+            let (from, to) = ends;
+            return Branch {
+                from,
+                to,
+                start,
+                span,
+                centre: zero,
+                beyond: zero,
+                slope: zero,
+                direction,
+                scale: None,
+                exits,
+            };
+        }
+        // The span is not 0, so its sign is that of θ_b − θ_a (halving keeps the order).
+        let (direction, exits) = if span > zero {
+            (Direction::Rising, (if retracing { from.theta } else { F::neg_infinity() }, to.theta))
+        } else {
+            (Direction::Falling, (to.theta, if retracing { from.theta } else { F::infinity() }))
+        };
+        // θ − c beyond the loop's end (clamped there) at and past the ends, where z = 0; ±∞
+        // where 1.5·span overflows clamps to the end all the same.
+        let beyond = span + span * half;
+        let slope = (to.hysteresis * half - from.hysteresis * half) / span;
+        let scale = Some(model.scale_of::<E>(width, inv_width));
+        let (from, to) = ends;
+        Branch { from, to, start, span, centre: start + end, beyond, slope, direction, scale, exits }
+    }
+
+    /// H and dH/dθ at `theta` (finite), with the elementary functions of `E`; not checked for
+    /// finiteness (a step adds them to the spring's T and K and checks the sums, which are
+    /// not finite when they are not).
+    #[inline(always)]
+    fn evaluate<E: Elementary<F>>(&self, model: &Model<F>, theta: F) -> Evaluation<F> {
+        let Some(scale) = &self.scale else {
+            return Evaluation { torque: self.from, stiffness: F::zero() };
+        };
+        let half = two::<F>().recip();
+        // s is exactly 0 at θ_a and exactly 1 at θ_b. At and past the ends s is clamped and
+        // θ − c is beyond the loop's end (clamped there), where z = 0.
+        let s = (theta * half - self.start) / self.span;
+        let (s, offset) = if s >= F::one() {
+            (F::one(), self.beyond)
+        } else if s <= F::zero() {
+            (F::zero(), -self.beyond)
+        } else {
+            (s, theta - self.centre)
+        };
+        let z = model.hysteresis_with::<E>(scale, offset, self.direction);
+        let line = self.from * (F::one() - s) + self.to * s;
+        Evaluation { torque: line + z.torque, stiffness: self.slope + z.stiffness }
+    }
 }
 
 /// The paper's genetic model for any motion, generalised by Madelung's rules; at most `N`
@@ -211,6 +297,11 @@ pub struct GeneticMemory<F, const N: usize> {
     extreme: TurningPoint<F>,
     /// A reversal found the stack full: θ moves against the current branch.
     retracing: bool,
+    /// The current branch's constants ([`Branch::rest`] at rest), made with the elementary
+    /// functions of the step that changed the branch: a step with other functions evaluates
+    /// them, so a caller that changes `E` mid-branch gets that branch's h in the form it was
+    /// made in.
+    branch: Branch<F>,
 }
 
 impl<F: Real, const N: usize> GeneticMemory<F, N> {
@@ -226,6 +317,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
             direction: None,
             extreme: rest,
             retracing: false,
+            branch: Branch::rest(),
         }
     }
 
@@ -245,6 +337,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
         };
         memory.push(TurningPoint { theta: bottom, hysteresis: F::zero() });
         memory.push(TurningPoint { theta: top, hysteresis: F::zero() });
+        memory.branch = memory.fresh_branch::<Libm>();
         let at_rest = memory.hysteresis(F::zero())?;
         memory.direction = Some(direction);
         memory.extreme = TurningPoint { theta: F::zero(), hysteresis: at_rest.torque };
@@ -299,31 +392,92 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     /// [`Hysteretic::step`] with the elementary functions of `E` (the firmware's fast path):
     /// the same state, the same turning-point logic, so a caller may change `E` from one
     /// sample to the next.
+    ///
+    /// Most samples neither reverse nor leave the current branch: they are evaluated on the
+    /// branch's kept constants. The others change the stack by Madelung's rules
+    /// (`GeneticMemory::restack`) and make the new branch's constants. Either way the state
+    /// is written only once the evaluation has succeeded, so a failed step changes nothing.
     #[inline]
     pub fn step_with<E: Elementary<F>>(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);
         }
-        let mut undo = Undo::of(self);
-        let result = self.advance::<E>(theta, &mut undo);
-        if result.is_err() {
-            undo.restore(self);
+        let (direction, new_extreme, turned) = self.motion(theta);
+        let (below, above) = self.branch.exits;
+        let (evaluation, h) = if !(turned || theta < below || theta > above) {
+            let (evaluation, h) = Self::evaluate_on::<E>(&self.model, &self.branch, theta);
+            (evaluation?, h)
+        } else {
+            let plan = self.restack(theta, turned);
+            let branch = match plan.current {
+                Some((from, to, _)) if plan.changed => Branch::new::<E>(&self.model, from, to, plan.retracing),
+                // A retrace that starts or ends: the same branch, left elsewhere.
+                Some((from, to, _)) => Branch { exits: exits(from.theta, to.theta, plan.retracing), ..self.branch },
+                None => Branch::rest(),
+            };
+            let (evaluation, h) = Self::evaluate_on::<E>(&self.model, &branch, theta);
+            let evaluation = evaluation?;
+            self.branch = branch;
+            if let Some(point) = plan.pushed {
+                if let Some(slot) = self.stack.get_mut(plan.depth) {
+                    *slot = point;
+                }
+            }
+            self.depth = plan.depth + usize::from(plan.pushed.is_some());
+            self.retracing = plan.retracing;
+            (evaluation, h)
+        };
+        self.direction = direction;
+        if new_extreme {
+            self.extreme = TurningPoint { theta, hysteresis: h };
         }
-        result
+        Ok(evaluation)
     }
 
-    fn top(&self) -> Option<TurningPoint<F>> {
-        self.depth.checked_sub(1).and_then(|i| self.stack.get(i)).copied()
+    /// Where `theta` moves the direction tracker: the direction then, whether θ is the new
+    /// extreme, and whether it reversed (more than the band back from the extreme).
+    #[inline(always)]
+    fn motion(&self, theta: F) -> (Option<Direction>, bool, bool) {
+        match self.direction {
+            None => {
+                if theta > self.band {
+                    (Some(Direction::Rising), true, false)
+                } else if theta < -self.band {
+                    (Some(Direction::Falling), true, false)
+                } else {
+                    (None, false, false)
+                }
+            }
+            Some(direction) => {
+                let extreme = self.extreme.theta;
+                let (onward, turned) = match direction {
+                    Direction::Rising => (theta > extreme, theta < extreme - self.band),
+                    Direction::Falling => (theta < extreme, theta > extreme + self.band),
+                };
+                if turned {
+                    (Some(opposite(direction)), true, true)
+                } else {
+                    (Some(direction), onward, false)
+                }
+            }
+        }
+    }
+
+    /// The current branch's constants made afresh from the stack with the elementary
+    /// functions of `E` ([`Branch::rest`] at rest).
+    #[inline(always)]
+    fn fresh_branch<E: Elementary<F>>(&self) -> Branch<F> {
+        match self.current() {
+            None => Branch::rest(),
+            Some((from, to, _)) => Branch::new::<E>(&self.model, from, to, self.retracing),
+        }
     }
 
     /// The current branch: its start, its target, and whether the target is stored (not the
     /// mirror of a single point).
+    #[inline(always)]
     fn current(&self) -> Option<(TurningPoint<F>, TurningPoint<F>, bool)> {
-        let from = self.top()?;
-        match self.depth.checked_sub(2).and_then(|i| self.stack.get(i)) {
-            Some(to) => Some((from, *to, true)),
-            None => Some((from, TurningPoint { theta: -from.theta, hysteresis: -from.hysteresis }, false)),
-        }
+        self.branch_at(self.depth, None)
     }
 
     fn push(&mut self, point: TurningPoint<F>) -> bool {
@@ -337,141 +491,123 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
         }
     }
 
-    fn pop(&mut self) {
-        self.depth = self.depth.saturating_sub(1);
-    }
-
-    /// Pops the current branch's start and, if stored, its target.
-    fn pop_branch(&mut self, target_stored: bool) {
-        self.pop();
-        if target_stored {
-            self.pop();
+    /// The branch on the stack `stack[..depth]` topped by `pushed`: its start, its target, and
+    /// whether the target is stored (not the mirror of a single point); `None` when empty.
+    #[inline(always)]
+    fn branch_at(
+        &self,
+        depth: usize,
+        pushed: Option<TurningPoint<F>>,
+    ) -> Option<(TurningPoint<F>, TurningPoint<F>, bool)> {
+        let mirror = |p: TurningPoint<F>| TurningPoint { theta: -p.theta, hysteresis: -p.hysteresis };
+        match (pushed, self.stack.get(..depth)?) {
+            (Some(from), [.., to]) => Some((from, *to, true)),
+            (Some(from), []) => Some((from, mirror(from), false)),
+            (None, [.., to, from]) => Some((*from, *to, true)),
+            (None, [from]) => Some((*from, mirror(*from), false)),
+            (None, []) => None,
         }
     }
 
-    /// θ reversed at the extreme: record it (Madelung's rule 1), unless it ends a retrace.
-    fn reverse(&mut self, undo: &mut Undo<F>) {
-        if self.retracing {
-            // Back onto the branch being retraced: nothing was recorded, nothing to undo.
-            self.retracing = false;
-            return;
-        }
-        let point = self.extreme;
-        if let Some((_, to, stored)) = self.current() {
-            if point.theta == to.theta {
-                // Reached the target exactly and turned there: the inner loop is closed.
-                self.pop_branch(stored);
-            }
-        }
-        undo.overwritten = self.stack.get(self.depth).map(|slot| (self.depth, *slot));
-        if !self.push(point) {
-            self.retracing = true;
+    /// θ at the start and the target of the branch on `stack[..depth]` topped by `pushed`, and
+    /// whether the target is stored ([`GeneticMemory::branch_at`] without the H).
+    #[inline(always)]
+    fn ends_at(&self, depth: usize, pushed: Option<TurningPoint<F>>) -> Option<(F, F, bool)> {
+        match (pushed, self.stack.get(..depth)?) {
+            (Some(from), [.., to]) => Some((from.theta, to.theta, true)),
+            (Some(from), []) => Some((from.theta, -from.theta, false)),
+            (None, [.., to, from]) => Some((from.theta, to.theta, true)),
+            (None, [from]) => Some((from.theta, -from.theta, false)),
+            (None, []) => None,
         }
     }
 
-    /// Madelung's rules 2 and 3: pops the branches that θ has passed; returns the branch θ is
-    /// on then ([`GeneticMemory::current`]).
-    fn wipe_out(&mut self, theta: F) -> Option<(TurningPoint<F>, TurningPoint<F>, bool)> {
-        // Each pass pops at least one point, so this ends within N + 1 passes. (A half-open
-        // range: `0..=N` keeps a flag that cost instructions on every pass.)
-        for _ in 0..N + 1 {
-            let (from, to, stored) = self.current()?;
-            let rising = to.theta > from.theta;
-            let falling = to.theta < from.theta;
-            if (rising && theta > to.theta) || (falling && theta < to.theta) {
-                self.pop_branch(stored);
-            } else if self.retracing && ((rising && theta < from.theta) || (falling && theta > from.theta)) {
-                // Retraced past the branch's start: continue on the branch it lay on.
-                self.pop();
-                self.retracing = false;
+    /// The stack after a sample that reversed (`turned`) or left the current branch, by
+    /// Madelung's rules, worked out without writing anything:
+    ///
+    /// - a reversal records the extreme (rule 1), unless it ends a retrace; reaching the
+    ///   target exactly and turning there closes the inner loop first (its start and target
+    ///   are popped, then the target pushed again), so a steady loop does not grow the stack;
+    ///   a full stack records nothing and θ retraces the current branch;
+    /// - θ past the current branch's target pops its start and target (rules 2 and 3), and
+    ///   retracing back past its start pops the start, as often as θ is past the next one.
+    ///
+    /// A sample that did not turn left the branch through its exits: if not retracing, past
+    /// its target, which the first pass of the wipe-out would only find again.
+    #[inline(always)]
+    fn restack(&self, theta: F, turned: bool) -> Restack<F> {
+        let (mut depth, mut pushed, mut retracing, mut changed) = (self.depth, None, self.retracing, false);
+        if turned {
+            if retracing {
+                // Back onto the branch being retraced: nothing to record.
+                retracing = false;
             } else {
-                return Some((from, to, stored));
-            }
-        }
-        self.current()
-    }
-
-    /// The state change of one sample; returns whether θ is the new extreme.
-    #[inline(always)]
-    fn track(&mut self, theta: F, undo: &mut Undo<F>) -> bool {
-        match self.direction {
-            None => {
-                let direction = if theta > self.band {
-                    Direction::Rising
-                } else if theta < -self.band {
-                    Direction::Falling
-                } else {
-                    return false;
-                };
-                self.direction = Some(direction);
-                true
-            }
-            Some(direction) => {
-                let extreme = self.extreme.theta;
-                let (onward, turned) = match direction {
-                    Direction::Rising => (theta > extreme, theta < extreme - self.band),
-                    Direction::Falling => (theta < extreme, theta > extreme + self.band),
-                };
-                if turned {
-                    self.reverse(undo);
-                    self.direction = Some(opposite(direction));
+                let point = self.extreme;
+                if let Some((_, to, stored)) = self.ends_at(depth, None) {
+                    if point.theta == to {
+                        depth -= if stored { 2 } else { 1 };
+                    }
                 }
-                onward || turned
+                if depth < N {
+                    pushed = Some(point);
+                    changed = true;
+                } else {
+                    // The stack is full (so nothing was popped above).
+                    retracing = true;
+                }
             }
+        } else if !retracing {
+            // Past the target: the branch's start and, unless it is the mirror, its target go
+            // (a branch at depth 1 heads for the start's mirror).
+            depth = depth.saturating_sub(2);
+            changed = true;
         }
+        // Each pass pops at least one point, so this ends.
+        while let Some((from, to, stored)) = self.ends_at(depth, pushed) {
+            let rising = to > from;
+            let falling = to < from;
+            let past_target = (rising && theta > to) || (falling && theta < to);
+            // Retraced back past the branch's start: θ continues on the branch it lay on.
+            let back_past_start = retracing && ((rising && theta < from) || (falling && theta > from));
+            if !(past_target || back_past_start) {
+                break;
+            }
+            // The start goes (the pushed point if there is one, else the top), and past the
+            // target the target too.
+            if pushed.take().is_none() {
+                depth -= 1;
+            }
+            if !past_target {
+                retracing = false;
+            } else if stored {
+                depth -= 1;
+            }
+            changed = true;
+        }
+        Restack { depth, pushed, retracing, current: self.branch_at(depth, pushed), changed }
     }
 
+    /// T and K at `theta` on `branch` (an error where they are not finite), and H there.
     #[inline(always)]
-    fn advance<E: Elementary<F>>(&mut self, theta: F, undo: &mut Undo<F>) -> Result<Evaluation<F>, Error> {
-        let new_extreme = self.track(theta, undo);
-        // As `hysteresis_with` on the branch left (θ is finite), with one finiteness check.
-        let h = match self.wipe_out(theta) {
-            None => Evaluation { torque: F::zero(), stiffness: F::zero() },
-            Some((from, to, _)) => branch_unchecked::<F, E>(&self.model, from, to, theta)?,
-        };
-        if new_extreme {
-            self.extreme = TurningPoint { theta, hysteresis: h.torque };
-        }
-        finite(self.model.polynomial.evaluate(theta).plus(h))
+    fn evaluate_on<E: Elementary<F>>(
+        model: &Model<F>,
+        branch: &Branch<F>,
+        theta: F,
+    ) -> (Result<Evaluation<F>, Error>, F) {
+        let h = branch.evaluate::<E>(model, theta);
+        (finite(model.polynomial.evaluate(theta).plus(h)), h.torque)
     }
 }
 
-/// What one step of a [`GeneticMemory`] changes, saved to undo a step that fails: copying the
-/// whole memory in and out instead took about 340 of a tick's 922 instructions on the M4F. A step
-/// writes at most one slot of the stack (a reversal's push; wipe-out only pops).
-struct Undo<F> {
+/// The stack after a step that changes it ([`GeneticMemory::restack`]): the points
+/// `stack[..depth]` kept, `pushed` on top of them, the current branch there and whether it
+/// differs from the one before.
+struct Restack<F> {
     depth: usize,
-    direction: Option<Direction>,
-    extreme: TurningPoint<F>,
+    pushed: Option<TurningPoint<F>>,
     retracing: bool,
-    /// The slot the step's push overwrote: its index and what it held.
-    overwritten: Option<(usize, TurningPoint<F>)>,
-}
-
-impl<F: Real> Undo<F> {
-    #[inline(always)]
-    fn of<const N: usize>(memory: &GeneticMemory<F, N>) -> Self {
-        Undo {
-            depth: memory.depth,
-            direction: memory.direction,
-            extreme: memory.extreme,
-            retracing: memory.retracing,
-            overwritten: None,
-        }
-    }
-
-    #[inline(always)]
-    fn restore<const N: usize>(&self, memory: &mut GeneticMemory<F, N>) {
-        memory.depth = self.depth;
-        memory.direction = self.direction;
-        memory.extreme = self.extreme;
-        memory.retracing = self.retracing;
-        if let Some((index, point)) = self.overwritten {
-            if let Some(slot) = memory.stack.get_mut(index) {
-                *slot = point;
-            }
-        }
-    }
+    current: Option<(TurningPoint<F>, TurningPoint<F>, bool)>,
+    changed: bool,
 }
 
 impl<F: Real, const N: usize> Hysteretic<F> for GeneticMemory<F, N> {
@@ -723,8 +859,8 @@ impl<F: Real, const M: usize> Hysteretic<F> for MicroSlip<F, M> {
 
     /// One pass over the elements moves each, sums T and K and counts the slipping ones; the
     /// new deflections are committed only if T and K are finite. (Stepping a copy of the
-    /// elements, evaluating it in a second pass and counting in a third cost about 200 more
-    /// of the M4F's instructions per tick with 16 elements.)
+    /// elements, evaluating it in a second pass and counting in a third cost the M4F far more
+    /// instructions per tick.)
     fn step(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);

@@ -1,5 +1,5 @@
-use crate::fast::{FastMath, FastModel};
-use model_core::{Evaluation, Evaluator, GearModel};
+use crate::fast::FastMath;
+use model_core::{Evaluation, Evaluator, Libm, Memory};
 use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams};
 
 /// Largest plausible torsional deflection, rad (≈ 5.7°; strain wave gears deflect a few mrad).
@@ -8,36 +8,25 @@ use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams}
 /// set evaluates in f32 ([`JointParams::validate`] checks that, on the host too).
 pub const MAX_DEFLECTION: f32 = swg_protocol::MAX_DEFLECTION;
 
-/// Whether a model's evaluator may run with the fast path's elementary functions
-/// ([`FastMath`]) on [`EvalPath::Fast`]: the one place the firmware looks at the kind, because
-/// each kind's per-tick cost is budgeted here (bench/firmware.sh).
-fn has_fast_path(model: &GearModel<f32>) -> bool {
-    match model {
-        // Inside the fast path's range of r = β/ω and k ([`FastModel::new`]).
-        GearModel::Genetic(params) => FastModel::new(params).is_ok(),
-        // No transcendental functions: both paths are the same code.
-        GearModel::MicroSlip(_) => true,
-    }
-}
-
 /// A validated parameter set with its evaluator, prepared at rest.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Installed {
     params: JointParams,
     evaluator: Evaluator<f32>,
-    /// [`EvalPath::Fast`] runs the evaluator with [`FastMath`] ([`has_fast_path`]).
+    /// [`EvalPath::Fast`] runs the evaluator with [`FastMath`] (model-core's `has_fast_path`).
     fast: bool,
 }
 
 impl Installed {
-    /// One sample: the same state whichever `path` runs it.
+    /// One sample (the same state whichever `path` runs it) and the memory then.
     #[inline(always)]
-    fn step(&mut self, theta: f32, path: EvalPath) -> Option<Evaluation<f32>> {
-        if self.fast && path == EvalPath::Fast {
-            self.evaluator.step_with::<FastMath>(theta).ok()
+    fn step(&mut self, theta: f32, path: EvalPath) -> (Option<Evaluation<f32>>, Memory) {
+        let (evaluation, memory) = if self.fast && path == EvalPath::Fast {
+            self.evaluator.step_reporting::<FastMath>(theta)
         } else {
-            self.evaluator.step_with::<model_core::Libm>(theta).ok()
-        }
+            self.evaluator.step_reporting::<Libm>(theta)
+        };
+        (evaluation.ok(), memory)
     }
 }
 
@@ -57,44 +46,67 @@ impl Installed {
 /// resets too. A history recorded under other parameters has no meaning for the new ones
 /// (turning points hold torques of the old model), so none is carried over. Between two ticks
 /// nothing else touches the memory: refused sets, reads and commits leave it as it is.
+///
+/// The set in use and a staged one live in two slots; activation flips which slot is in use,
+/// so the tick that activates a set copies nothing (a copy made that tick the slowest of all).
 #[derive(Clone, Debug, Default)]
 pub struct Compensator {
-    active: Option<Installed>,
-    staged: Option<Installed>,
+    slots: (Option<Installed>, Option<Installed>),
+    /// Whether `slots.1` holds the set in use (else `slots.0`).
+    second_active: bool,
+    /// Whether the slot not in use holds a staged set, to be used from the next tick.
+    staged: bool,
 }
 
 impl Compensator {
     pub const fn new() -> Self {
-        Compensator { active: None, staged: None }
+        Compensator { slots: (None, None), second_active: false, staged: false }
+    }
+
+    /// The slot of the set in use.
+    fn active(&self) -> &Option<Installed> {
+        if self.second_active {
+            &self.slots.1
+        } else {
+            &self.slots.0
+        }
     }
 
     /// Validates `params` and prepares them, at rest, for the next tick.
     pub fn stage(&mut self, params: JointParams) -> Result<(), ErrorReply> {
         params.validate()?;
         let evaluator = params.model.evaluator(params.direction_band).map_err(|_| ErrorReply::ModelOverflow)?;
-        self.staged = Some(Installed { params, evaluator, fast: has_fast_path(&params.model) });
+        let idle = if self.second_active { &mut self.slots.0 } else { &mut self.slots.1 };
+        *idle = Some(Installed { params, evaluator, fast: params.model.has_fast_path() });
+        self.staged = true;
         Ok(())
     }
 
     /// The set the next tick will use.
     pub fn params(&self) -> Option<JointParams> {
-        self.staged.as_ref().or(self.active.as_ref()).map(|installed| installed.params)
+        let next = if self.staged != self.second_active { &self.slots.1 } else { &self.slots.0 };
+        next.as_ref().map(|installed| installed.params)
     }
 
     /// The gear ratio of the set the last tick used: the controller's, each tick, without
     /// copying the whole set as [`Compensator::params`] does.
     pub fn active_gear_ratio(&self) -> Option<f32> {
-        self.active.as_ref().map(|installed| installed.params.gear_ratio)
+        self.active().as_ref().map(|installed| installed.params.gear_ratio)
     }
 
     /// One control tick on the two encoder angles (rad; the input side multi-turn).
     /// Never NaN: without valid parameters, with a deflection that is not finite or beyond
     /// [`MAX_DEFLECTION`], or when the model cannot be evaluated, the compensation is off,
     /// T_ff = K = 0, and the model's memory is left as it was.
+    ///
+    /// Never inlined: the boards, the controller and `bench/firmware.sh` run one and the same
+    /// code, whose instructions per tick the benchmark holds to `crate::budget`.
+    #[inline(never)]
     pub fn tick(&mut self, input_angle: f32, output_angle: f32, path: EvalPath) -> Feedforward {
         // Activation of a staged set, at rest: the one moment the memory is reset.
-        if self.staged.is_some() {
-            self.active = self.staged.take();
+        if self.staged {
+            self.staged = false;
+            self.second_active = !self.second_active;
         }
         // Built where it is returned: a value made up front was stored to the result on
         // every tick, then overwritten.
@@ -106,13 +118,15 @@ impl Compensator {
             direction: None,
             memory: 0,
         };
-        let Some(installed) = self.active.as_mut() else { return OFF };
+        let active = if self.second_active { &mut self.slots.1 } else { &mut self.slots.0 };
+        let Some(installed) = active.as_mut() else { return OFF };
         let deflection = input_angle / installed.params.gear_ratio - output_angle;
-        if deflection.is_nan() || deflection.abs() > MAX_DEFLECTION {
+        // One comparison refuses NaN too.
+        let plausible = deflection.abs() <= MAX_DEFLECTION;
+        if !plausible {
             return OFF;
         }
-        let evaluation = installed.step(deflection, path);
-        let memory = installed.evaluator.memory();
+        let (evaluation, memory) = installed.step(deflection, path);
         // At most TURNING_POINTS or SLIP_ELEMENTS, both 16.
         let (direction, memory) = (memory.direction, memory.depth as u8);
         let Some(evaluation) = evaluation else {
@@ -141,7 +155,7 @@ impl Compensator {
 mod tests {
     extern crate std;
     use super::*;
-    use model_core::{checks::PAPER_TABLE_2, Hysteretic, ParamName, Params, SlipParams, MODEL_VERSION};
+    use model_core::{checks::PAPER_TABLE_2, GearModel, Hysteretic, ParamName, Params, SlipParams, MODEL_VERSION};
     use std::vec::Vec;
     use swg_protocol::{ParamFault, ParamField, SLIP_ELEMENTS};
 

@@ -1,19 +1,19 @@
-//! The per-tick evaluation of T(θ) and dT/dθ in a few dozen FPU instructions.
+//! The per-tick evaluation of T(θ) and dT/dθ with polynomial elementary functions.
 //!
 //! model-core's f32 path calls libm's `asinf`/`expf`, which on the Cortex-M4F go through
-//! software double-precision helpers (716.5 instructions per T_ff + K evaluation, measured by
-//! `bench/firmware.sh`). This path runs model-core's own formula ([`Phase`], [`Polynomial`])
-//! with a polynomial arcsine (Abramowitz–Stegun 4.4.46), a range-reduced polynomial
-//! exponential and the FPU's `vsqrt` (191 instructions); the constants that depend only on
-//! the parameters (k = α/(ω(1 + r²)), r = β/ω) are prepared once when a set is installed.
-//! Error against the f64 model: see the tests (`fast_path_error_bound`).
-use crate::limit;
+//! software double-precision helpers (`bench/firmware.sh` measures both paths). This path runs
+//! model-core's own formula with [`FastMath`]: a polynomial arcsine (Abramowitz–Stegun
+//! 4.4.46), a range-reduced polynomial exponential and the FPU's `vsqrt`, and h·e^(−rφ) formed
+//! directly ([`Elementary::DIRECT_DECAY`]), which needs |r| ≤ [`MAX_ABS_R`]. The constants that
+//! depend only on the parameters (k = α/(ω(1 + r²)), r = β/ω) are prepared once when a set is
+//! installed. Error against the f64 model: see the tests (`fast_path_error_bound`).
 use core::f32::consts::{FRAC_PI_2, LN_2, LOG2_E};
-use model_core::{Direction, Elementary, Evaluation, Params, Phase, Polynomial};
+use model_core::{Direction, Elementary, Evaluation, Model, Params};
 
-/// Largest |r| = |β/ω| for which e^(−rφ), φ ∈ [−π/2, 3π/2], stays well inside f32;
-/// real gears have |r| ≈ 2 (paper: 1.87, seed fit: 2.30).
-pub const MAX_ABS_R: f32 = 16.0;
+/// Largest |r| = |β/ω| of the fast path: model-core's bound for the direct form of
+/// h·e^(−rφ), where e^(−rφ), φ ∈ [−π/2, 3π/2], stays well inside f32; real gears have |r| ≈ 2
+/// (paper: 1.87, seed fit: 2.30).
+pub const MAX_ABS_R: f32 = model_core::MAX_DIRECT_DECAY_R;
 
 /// Why a parameter set has no fast path (the direct path still works).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -24,7 +24,7 @@ pub enum FastPathError {
     Invalid,
     /// |β/ω| > [`MAX_ABS_R`].
     DecayOutOfRange,
-    /// k = α/(ω(1 + r²)) does not fit in f32.
+    /// k = α/(ω(1 + r²)), or the spring's slope factors, do not fit in f32.
     Overflow,
 }
 
@@ -38,55 +38,42 @@ impl core::fmt::Display for FastPathError {
     }
 }
 
-/// The constants of one parameter set, ready for [`FastModel::evaluate`].
+/// A parameter set that the fast path evaluates: model-core's [`Model`] with h·e^(−rφ) in the
+/// direct form ([`Model::has_direct_decay`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FastModel {
-    polynomial: Polynomial<f32>,
-    r: f32,
-    /// k = α/(ω(1 + r²)), so that h = A·k.
-    k: f32,
+    model: Model<f32>,
 }
 
 impl FastModel {
     pub fn new(params: &Params<f32>) -> Result<Self, FastPathError> {
         params.validate().map_err(|_| FastPathError::Invalid)?;
-        // Prepared in f64: runs once per push, and keeps k exact to f32 rounding.
-        let r = f64::from(params.beta) / f64::from(params.omega);
-        // Finite operands and ω ≠ 0 leave r finite or ±∞, never NaN.
-        if r.abs() > f64::from(MAX_ABS_R) {
+        let model = Model::new(*params).map_err(|_| FastPathError::Overflow)?;
+        if model.r().abs() > MAX_ABS_R {
             return Err(FastPathError::DecayOutOfRange);
         }
-        let k = f64::from(params.alpha) / (f64::from(params.omega) * (1.0 + r * r));
-        let k = k as f32;
-        let polynomial = Polynomial::new(params.c1, params.c2, params.c3).map_err(|_| FastPathError::Overflow)?;
-        if !k.is_finite() {
+        if !model.has_direct_decay() {
             return Err(FastPathError::Overflow);
         }
-        Ok(FastModel { polynomial, r: r as f32, k })
+        Ok(FastModel { model })
     }
 
-    /// T(θ) and dT/dθ on a loop of amplitude `amplitude`: model-core's own formula
-    /// ([`Phase`], [`Polynomial`], as in [`model_core::Loop::evaluate`]) with the elementary
-    /// functions below and h·e^(−rφ) formed directly (|r| ≤ [`MAX_ABS_R`] keeps it in range).
-    /// Returns `None` when the inputs are not finite, A ≤ 0 or the result overflows.
+    /// T(θ) and dT/dθ on a loop of amplitude `amplitude`: [`model_core::Loop::evaluate`] with
+    /// [`FastMath`]. Returns `None` when the inputs are not finite, A ≤ 0 or the result
+    /// overflows.
     #[inline]
     pub fn evaluate(&self, theta: f32, direction: Direction, amplitude: f32) -> Option<Evaluation<f32>> {
-        if !(amplitude > 0.0 && theta.is_finite() && amplitude.is_finite()) {
-            return None;
-        }
-        let inv_amplitude = 1.0 / amplitude;
-        let phase = Phase::new::<FastMath>(theta * inv_amplitude, direction);
-        let h = amplitude * self.k;
-        let z = phase.hysteresis(self.r, h, h * exp(-self.r * phase.angle), inv_amplitude);
-        let evaluation = self.polynomial.evaluate(theta).plus(z);
-        (evaluation.torque.is_finite() && evaluation.stiffness.is_finite()).then_some(evaluation)
+        self.model
+            .at_amplitude_with::<FastMath>(amplitude)
+            .and_then(|lp| lp.evaluate_with::<FastMath>(theta, direction))
+            .ok()
     }
 }
 
-/// The fast path's elementary functions: the FPU's square root and polynomial arcsine,
-/// exponential and logarithm. model-core's formulas run with them: [`FastModel::evaluate`]
-/// (one symmetric loop) and the stateful genetic model on the joint
-/// (`GeneticMemory::step_with::<FastMath>`, each branch through `memory::branch_with`).
+/// The fast path's elementary functions: the FPU's square root, a polynomial arcsine and
+/// exponential, and h·e^(−rφ) formed directly. model-core's formulas run with them:
+/// [`FastModel::evaluate`] (one symmetric loop) and the stateful genetic model on the joint
+/// (`GeneticMemory::step_with::<FastMath>`).
 #[derive(Clone, Copy, Debug)]
 pub struct FastMath;
 
@@ -99,13 +86,21 @@ impl Elementary<f32> for FastMath {
     fn asin(x: f32) -> f32 {
         asin(x)
     }
-    #[inline(always)]
+    /// libm's, as [`FastMath::ln`]: only the log form of h·e^(−rφ) takes e^y of any y, and
+    /// the fast path forms it directly ([`FastMath::exp_direct`]).
     fn exp(y: f32) -> f32 {
-        exp(y)
+        libm::expf(y)
     }
-    #[inline(always)]
+    /// libm's: the direct form takes no logarithm (only the log form would, for parameter sets
+    /// the fast path refuses).
     fn ln(v: f32) -> f32 {
-        ln(v)
+        libm::logf(v)
+    }
+    // h·e^(−rφ) as h times exp(−rφ): no ln and exp of h when a branch begins.
+    const DIRECT_DECAY: bool = true;
+    #[inline(always)]
+    fn exp_direct(y: f32) -> f32 {
+        exp(y)
     }
 }
 
@@ -170,51 +165,24 @@ pub fn asin(x: f32) -> f32 {
     }
 }
 
-/// e^y for |y| ≤ 87: y = n·ln 2 + f with |f| ≤ ln 2 / 2, e^f by its Taylor polynomial of
+/// e^y for |y| ≤ 87 (beyond, 2^n does not fit the exponent bits; the direct form's exponents
+/// stay within ±76): y = n·ln 2 + f with |f| ≤ ln 2 / 2, e^f by its Taylor polynomial of
 /// degree 6 (relative error ≤ 1.3·10⁻⁷), 2^n put into the exponent bits.
 #[inline(always)]
 pub fn exp(y: f32) -> f32 {
-    // The usual |y| ≤ 87 in one comparison, where the clamp takes two; beyond it (and NaN)
-    // the clamp as before.
-    let y = if y.abs() <= 87.0 { y } else { limit(y, -87.0, 87.0) };
-    // ±0.5 by the sign bit, fewer instructions than a comparison; n is the same (−0 and NaN
-    // give n = 0 with either sign).
-    let half = 0.5f32.copysign(y);
-    let n = (y * LOG2_E + half) as i32;
+    // n = y·log2(e) rounded to the nearest integer by adding and taking away 1.5·2²³, which
+    // leaves no fraction bits (|y·log2(e)| < 2²²): fewer instructions than adding ±0.5 by the
+    // sign bit and truncating.
+    const ROUND: f32 = 12_582_912.0;
+    let whole = (y * LOG2_E + ROUND) - ROUND;
+    let n = whole as i32;
     // ln 2 split in a part exact in f32 times n and a correction (Cody–Waite).
     const LN_2_HIGH: f32 = 0.693_359_4;
     const LN_2_LOW: f32 = LN_2 - LN_2_HIGH;
-    let f = (y - n as f32 * LN_2_HIGH) - n as f32 * LN_2_LOW;
+    let f = (y - whole * LN_2_HIGH) - whole * LN_2_LOW;
     let poly = 1.0 + f * (1.0 + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0))))));
     let scale = f32::from_bits(((n + 127) as u32) << 23);
     poly * scale
-}
-
-/// ln v for a finite v > 0: v = 2^e·m with m ∈ [√½, √2), ln m = 2·atanh s with
-/// s = (m − 1)/(m + 1), |s| ≤ 0.172, by its odd Taylor polynomial to s⁹ (|error| ≤ 2·s¹¹/11
-/// ≈ 7·10⁻¹⁰), e·ln 2 split as in [`exp`]. Zero, subnormal, negative and non-finite v go to
-/// libm (not on the fast path's inputs: the genetic model takes ln of a branch's half-width,
-/// whose reciprocal must be finite).
-#[inline(always)]
-pub fn ln(v: f32) -> f32 {
-    let bits = v.to_bits();
-    // v ∈ [MIN_POSITIVE, MAX] (positive, normal, finite) as one unsigned comparison of its bits.
-    if bits.wrapping_sub(f32::MIN_POSITIVE.to_bits()) > f32::MAX.to_bits() - f32::MIN_POSITIVE.to_bits() {
-        return libm::logf(v);
-    }
-    let mut e = ((bits >> 23) & 0xFF) as i32 - 127;
-    let mut m = f32::from_bits((bits & 0x007F_FFFF) | 0x3F80_0000);
-    if m > core::f32::consts::SQRT_2 {
-        m *= 0.5;
-        e += 1;
-    }
-    let s = (m - 1.0) / (m + 1.0);
-    let s2 = s * s;
-    let atanh = s + s * s2 * (1.0 / 3.0 + s2 * (0.2 + s2 * (1.0 / 7.0 + s2 * (1.0 / 9.0))));
-    const LN_2_HIGH: f32 = 0.693_359_4;
-    const LN_2_LOW: f32 = LN_2 - LN_2_HIGH;
-    let e = e as f32;
-    e * LN_2_HIGH + (e * LN_2_LOW + 2.0 * atanh)
 }
 
 pub mod verify;

@@ -13,6 +13,7 @@
 #![no_std]
 
 pub mod as5047p;
+pub mod budget;
 mod compensator;
 pub mod controller;
 pub mod fast;

@@ -533,6 +533,52 @@ fn micro_slip_runs_in_f32() {
     }
 }
 
+/// libm's functions with h·e^(−rφ) formed directly, as the firmware's fast path forms it: the
+/// direct form, tested here in f64.
+struct DirectLibm;
+
+impl Elementary<f64> for DirectLibm {
+    fn sqrt(v: f64) -> f64 {
+        v.sqrt()
+    }
+    fn asin(x: f64) -> f64 {
+        x.asin()
+    }
+    fn exp(y: f64) -> f64 {
+        y.exp()
+    }
+    fn ln(v: f64) -> f64 {
+        v.ln()
+    }
+    const DIRECT_DECAY: bool = true;
+}
+
+/// The kept branch constants, made when the branch changed, equal those made afresh from the
+/// stack (and the retrace flag) with the same elementary functions, bit for bit; the step's
+/// results in the direct form equal the log form's to rounding.
+fn kept_branch_is_fresh<const N: usize>(thetas: &[f64], band: f64) -> Result<(), TestCaseError> {
+    let m = model(PAPER_TABLE_2);
+    let (mut log, mut direct) = (GeneticMemory::<f64, N>::new(m, band), GeneticMemory::<f64, N>::new(m, band));
+    for (i, &theta) in thetas.iter().enumerate() {
+        let (by_log, by_direct) = (log.step(theta).unwrap(), direct.step_with::<DirectLibm>(theta).unwrap());
+        prop_assert_eq!(log.branch, log.fresh_branch::<Libm>(), "N={} sample {}", N, i);
+        prop_assert_eq!(direct.branch, direct.fresh_branch::<DirectLibm>(), "N={} sample {}", N, i);
+        let thetas =
+            |memory: &GeneticMemory<f64, N>| memory.turning_points().iter().map(|p| p.theta).collect::<Vec<_>>();
+        prop_assert_eq!(thetas(&log), thetas(&direct));
+        let scale = 1.0 + by_log.torque.abs();
+        prop_assert!((by_log.torque - by_direct.torque).abs() <= 1e-12 * scale, "{:?} vs {:?}", by_log, by_direct);
+        let k_scale = 1e3 + by_log.stiffness.abs();
+        prop_assert!(
+            (by_log.stiffness - by_direct.stiffness).abs() <= 1e-12 * k_scale,
+            "{:?} vs {:?}",
+            by_log,
+            by_direct
+        );
+    }
+    Ok(())
+}
+
 // ---------------------------------------------------------------------------------------------
 // Property tests for both kinds
 // ---------------------------------------------------------------------------------------------
@@ -586,6 +632,17 @@ fn every_kind_is_continuous(thetas: &[f64]) {
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
+
+    #[test]
+    fn kept_branch_constants_are_fresh_after_any_motion(
+        points in prop_oneof![reversal_points(12), nested_points()],
+        band in prop_oneof![Just(0.0), 0.0..2e-5],
+    ) {
+        let thetas = grid_path(&points, A / 1000.0);
+        kept_branch_is_fresh::<3>(&thetas, band)?;
+        kept_branch_is_fresh::<4>(&thetas, band)?;
+        kept_branch_is_fresh::<16>(&thetas, band)?;
+    }
 
     #[test]
     fn torque_is_continuous_on_any_motion(points in reversal_points(10)) {

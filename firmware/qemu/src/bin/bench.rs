@@ -1,7 +1,9 @@
 //! Instructions per T_ff + K evaluation, per compensator tick, and per tick of the torque
-//! controller with its evaluator (`Controller::tick` in model mode) on the emulated Cortex-M4F. Run
-//! under `qemu-system-arm -icount shift=0`: one instruction per ns of virtual time, SysTick at
-//! 25 MHz, so one SysTick tick is 40 instructions, exactly repeatable (bench/firmware.sh).
+//! controller with its evaluator (`Controller::tick` in model mode) on the emulated Cortex-M4F,
+//! against the budgets of `swg_joint::budget`: exits with status 1 when a figure exceeds its
+//! budget. Run under `qemu-system-arm -icount shift=0`: one instruction per ns of virtual time,
+//! SysTick at 25 MHz, so one SysTick tick is 40 instructions, exactly repeatable
+//! (bench/firmware.sh).
 #![no_std]
 #![no_main]
 
@@ -11,6 +13,7 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use model_core::checks::{MICRO_SLIP_SET, SEED_TABLE_FIT};
 use model_core::{Direction, Model};
+use swg_joint::budget::{self, CONTROL_TICK_INSTRUCTIONS};
 use swg_joint::{Compensator, Controller, FastModel};
 use swg_protocol::{
     ControlMode, ControllerConfig, EvalPath, GearModel, JointParams, MODEL_VERSION, SLIP_ELEMENTS, TURNING_POINTS,
@@ -18,6 +21,11 @@ use swg_protocol::{
 
 const INSTRUCTIONS_PER_TICK: u32 = 40;
 const RUNS: u32 = 2000;
+/// Runs of each tick along a motion: a SysTick tick is 40 instructions, so one tick's figure
+/// is exact to ±2·40/REPEATS (two measurements, each to one SysTick tick).
+const REPEATS: u32 = 200;
+/// Ticks of the nested motion: two cycles, as the compensator's tests run it.
+const NESTED_TICKS: u32 = 4000;
 const AMPLITUDE: f32 = 1.168e-3;
 const RATIO: f32 = 100.0;
 
@@ -36,88 +44,129 @@ fn point(i: u32) -> (f32, Direction) {
     (x * AMPLITUDE * 0.999, direction)
 }
 
-fn per_run(total_ticks: u32, baseline_ticks: u32) -> f32 {
-    (total_ticks.saturating_sub(baseline_ticks) * INSTRUCTIONS_PER_TICK) as f32 / RUNS as f32
+fn per_run(total_ticks: u32, baseline_ticks: u32, runs: u32) -> f32 {
+    (total_ticks.saturating_sub(baseline_ticks) * INSTRUCTIONS_PER_TICK) as f32 / runs as f32
 }
 
-/// Instructions of one tick at θ from the compensator state `state` (copied afresh for every
-/// run; the copy is measured alone, written exactly as in the timed loop, and subtracted: a
-/// copy passed by value to `black_box` is a second copy the timed loop does not make, and
+/// Instructions of one `step` of `state` at θ: the step run [`REPEATS`] times, each on a copy
+/// of `state` made afresh, less the copies alone (written exactly as in the timed loop: a copy
+/// passed by value to `black_box` is a second copy the timed loop does not make, and
 /// subtracting it undercounted the tick by about one state copy).
-fn tick_from(state: &Compensator, theta: f32, path: EvalPath) -> f32 {
+fn one_step<S: Clone>(state: &S, theta: f32, step: &impl Fn(&mut S, f32)) -> f32 {
     let copies = ticks(|| {
-        for _ in 0..RUNS {
-            let compensator = black_box(state).clone();
-            black_box(&compensator);
+        for _ in 0..REPEATS {
+            let copy = black_box(state).clone();
+            black_box(&copy);
         }
     });
-    let ticked = ticks(|| {
-        for _ in 0..RUNS {
-            let mut compensator = black_box(state).clone();
-            black_box(compensator.tick(black_box(theta) * RATIO, 0.0, path));
-            black_box(&compensator);
+    let stepped = ticks(|| {
+        for _ in 0..REPEATS {
+            let mut copy = black_box(state).clone();
+            step(&mut copy, black_box(theta));
+            black_box(&copy);
         }
     });
-    per_run(ticked, copies)
+    per_run(stepped, copies, REPEATS)
 }
 
-/// Instructions of one controller tick (model mode: the evaluator's step, the gain schedule,
-/// the loop, the clamp) at θ from `state`, copied afresh for every run as in [`tick_from`].
-fn control_from(state: &(Controller, Compensator), theta: f32) -> f32 {
-    let copies = ticks(|| {
-        for _ in 0..RUNS {
-            let (controller, compensator) = black_box(state).clone();
-            black_box((&controller, &compensator));
+/// Per-tick instructions along a motion: the largest and the mean.
+#[derive(Clone, Copy, Debug)]
+struct Figures {
+    max: f32,
+    mean: f32,
+    /// The tick (0-based) of the largest.
+    worst: usize,
+}
+
+/// Every tick of `motion` from `state`, each measured on its own ([`one_step`]) from the state
+/// the ticks before it left.
+fn every_tick<S: Clone>(mut state: S, motion: impl Iterator<Item = f32>, step: impl Fn(&mut S, f32)) -> Figures {
+    let (mut max, mut sum, mut worst, mut count) = (0.0f32, 0.0f32, 0, 0);
+    for (i, theta) in motion.enumerate() {
+        let instructions = one_step(&state, theta, &step);
+        if instructions > max {
+            (max, worst) = (instructions, i);
         }
-    });
-    let ticked = ticks(|| {
-        for _ in 0..RUNS {
-            let (mut controller, mut compensator) = black_box(state).clone();
-            black_box(controller.tick(&mut compensator, black_box(theta) * RATIO, 0.0, black_box(12.5)));
-            black_box((&controller, &compensator));
-        }
-    });
-    per_run(ticked, copies)
+        sum += instructions;
+        count += 1;
+        step(&mut state, theta);
+    }
+    Figures { max, mean: sum / count.max(1) as f32, worst }
 }
 
 /// θ along a nested motion from rest, A·(0.75·sin φ + 0.25·sin 9φ) over two cycles in
-/// [`RUNS`] ticks: a reversal every ~55 ticks, minor loops at many levels.
-fn nested_motion() -> [f32; RUNS as usize] {
-    let mut motion = [0.0f32; RUNS as usize];
-    for (i, theta) in motion.iter_mut().enumerate() {
-        let phase = core::f32::consts::TAU * 2.0 * i as f32 / RUNS as f32;
-        *theta = AMPLITUDE * (0.75 * libm::sinf(phase) + 0.25 * libm::sinf(9.0 * phase));
-    }
-    motion
+/// `ticks` ticks: minor loops at many levels inside the big swing (the compensator's tests'
+/// motion).
+fn nested_motion(ticks: u32) -> impl Iterator<Item = f32> + Clone {
+    (0..ticks).map(move |i| {
+        let phase = core::f32::consts::TAU * 2.0 * i as f32 / ticks as f32;
+        AMPLITUDE * (0.75 * libm::sinf(phase) + 0.25 * libm::sinf(9.0 * phase))
+    })
 }
 
-/// Instructions per tick along `motion`, consecutive ticks from rest with no copies: the
-/// compensator alone, and the controller (model mode) with it.
-fn along(params: JointParams, motion: &[f32; RUNS as usize]) -> (f32, f32) {
+/// A motion from rest that fills the genetic model's stack: a zigzag of shrinking excursions
+/// about 0.2·A, each reversing inside the last, ten ticks to each of its
+/// [`TURNING_POINTS`]` + 2` turning points (the last two find the stack full and retrace);
+/// then ten ticks out to 1.05·A, which wipe every stored point out.
+fn deep_motion() -> impl Iterator<Item = f32> + Clone {
+    let target = |k: u32| {
+        let size = AMPLITUDE * (1.0 - 0.05 * k as f32);
+        if k % 2 == 0 {
+            size
+        } else {
+            -0.6 * size
+        }
+    };
+    let legs = TURNING_POINTS as u32 + 2;
+    (0..=legs).flat_map(move |k| {
+        let from = if k == 0 { 0.0 } else { target(k - 1) };
+        let to = if k == legs { 1.05 * AMPLITUDE } else { target(k) };
+        (1..=10).map(move |s| from + (to - from) * s as f32 / 10.0)
+    })
+}
+
+fn compensator_step(compensator: &mut Compensator, theta: f32) {
+    black_box(compensator.tick(theta * RATIO, 0.0, EvalPath::Fast));
+}
+
+fn controller_step(state: &mut (Controller, Compensator), theta: f32) {
+    let (controller, compensator) = state;
+    black_box(controller.tick(compensator, theta * RATIO, 0.0, black_box(12.5)));
+}
+
+/// Mean instructions per tick along `motion`, consecutive ticks from rest with no copies (a
+/// check on [`every_tick`]'s mean): the compensator alone, and the controller with it.
+fn consecutive(params: JointParams, motion: impl Iterator<Item = f32> + Clone) -> (f32, f32) {
+    let count = motion.clone().count() as u32;
     let baseline = ticks(|| {
-        for &theta in motion {
+        for theta in motion.clone() {
             black_box(black_box(theta) * RATIO);
         }
     });
-    let mut compensator = Compensator::new();
-    let _ = compensator.stage(params);
+    let mut compensator = installed(params);
     let alone = ticks(|| {
-        for &theta in motion {
-            black_box(compensator.tick(black_box(theta) * RATIO, 0.0, EvalPath::Fast));
+        for theta in motion.clone() {
+            compensator_step(&mut compensator, black_box(theta));
         }
     });
-    let mut compensator = Compensator::new();
-    let _ = compensator.stage(params);
-    let (mut controller, mut compensator) = controlling(compensator, 0.0);
+    let mut state = controlling(installed(params), 0.0);
     let controlled = ticks(|| {
-        for &theta in motion {
-            black_box(controller.tick(&mut compensator, black_box(theta) * RATIO, 0.0, black_box(12.5)));
+        for theta in motion.clone() {
+            controller_step(&mut state, black_box(theta));
         }
     });
-    (per_run(alone, baseline), per_run(controlled, baseline))
+    (per_run(alone, baseline, count), per_run(controlled, baseline, count))
 }
 
-/// The controller in model mode after a first tick, with `compensator`.
+fn installed(params: JointParams) -> Compensator {
+    let mut compensator = Compensator::new();
+    if compensator.stage(params).is_err() {
+        swg_firmware_qemu::exit(false)
+    }
+    compensator
+}
+
+/// The controller in model mode after a first tick at θ = `last`, with `compensator`.
 fn controlling(compensator: Compensator, last: f32) -> (Controller, Compensator) {
     let mut controller = Controller::new();
     let config = ControllerConfig {
@@ -131,30 +180,42 @@ fn controlling(compensator: Compensator, last: f32) -> (Controller, Compensator)
         command_limit: 1.0,
         period: 1.0e-3,
     };
-    let _ = controller.configure(config);
-    let mut compensator = compensator;
-    controller.tick(&mut compensator, last * RATIO, 0.0, 12.5);
-    (controller, compensator)
+    if controller.configure(config).is_err() {
+        swg_firmware_qemu::exit(false)
+    }
+    let mut state = (controller, compensator);
+    controller_step(&mut state, last);
+    state
 }
 
-/// A motion from rest that leaves the genetic model's stack full: a zigzag of shrinking
-/// excursions about 0.2·A, each reversing inside the last ([`TURNING_POINTS`] of them).
-/// Returns the compensator after it and the last θ.
-fn full_stack(params: JointParams) -> Option<(Compensator, f32)> {
-    let mut compensator = Compensator::new();
-    compensator.stage(params).ok()?;
+/// The compensator after [`deep_motion`] up to its last turning point (the stack full), and
+/// that θ.
+fn full_stack(params: JointParams) -> (Compensator, f32) {
+    let mut compensator = installed(params);
+    let legs = TURNING_POINTS + 2;
     let mut theta = 0.0;
-    for k in 0..TURNING_POINTS as u32 + 2 {
-        let size = AMPLITUDE * (1.0 - 0.05 * k as f32);
-        let target = if k % 2 == 0 { size } else { -0.6 * size };
-        // Ten steps to each turning point.
-        for s in 1..=10 {
-            let t = theta + (target - theta) * s as f32 / 10.0;
-            compensator.tick(t * RATIO, 0.0, EvalPath::Direct);
-        }
-        theta = target;
+    for t in deep_motion().take(10 * legs) {
+        compensator_step(&mut compensator, t);
+        theta = t;
     }
-    Some((compensator, theta))
+    (compensator, theta)
+}
+
+/// The instruction figures checked against their budgets: each one over is printed.
+struct Budgets {
+    checked: u32,
+    over: u32,
+}
+
+impl Budgets {
+    /// `figure` (instructions per tick) of `what` against `budget`.
+    fn check(&mut self, what: core::fmt::Arguments, figure: f32, budget: u32) {
+        self.checked += 1;
+        if figure > budget as f32 {
+            self.over += 1;
+            hprintln!("OVER BUDGET: {}: {:.1} instructions per tick, budget {}", what, figure, budget);
+        }
+    }
 }
 
 #[entry]
@@ -164,6 +225,8 @@ fn main() -> ! {
     core.SYST.set_reload(0x00FF_FFFF);
     core.SYST.clear_current();
     core.SYST.enable_counter();
+    // For bench/firmware.sh, which checks the build's size against them.
+    hprintln!("budgets of the QEMU build: flash {} B, RAM {} B", budget::FLASH_BYTES, budget::RAM_BYTES);
 
     let params = SEED_TABLE_FIT.to_f32();
     let (Ok(model), Ok(fast)) = (Model::new(params), FastModel::new(&params)) else { swg_firmware_qemu::exit(false) };
@@ -197,77 +260,139 @@ fn main() -> ! {
     });
     hprintln!(
         "symmetric loop, one T_ff + K evaluation: direct (model-core f32, libm) {}, fast path {}",
-        per_run(direct, baseline),
-        per_run(fast_path, baseline)
+        per_run(direct, baseline, RUNS),
+        per_run(fast_path, baseline, RUNS)
     );
 
-    // Genetic kind, stack full (16 turning points): the worst of a tick on the innermost
-    // branch, a tick that reverses (the stack being full, it retraces), and a tick that wipes
-    // out every stored turning point (θ beyond the outermost).
-    let Some((full, last)) = full_stack(genetic) else { swg_firmware_qemu::exit(false) };
-    let depth = full.clone().tick(last * 1.001 * RATIO, 0.0, EvalPath::Fast).memory;
-    hprintln!("(genetic stack: {} turning points stored)", depth);
-    for path in [EvalPath::Fast, EvalPath::Direct] {
-        // The last excursion ended at `last`: onward is further, a reversal back by 5 % of A.
-        let onward = tick_from(&full, last * 1.001, path);
-        let reversal = tick_from(&full, last - 0.05 * AMPLITUDE * last.signum(), path);
-        let wipe_out = tick_from(&full, 1.05 * AMPLITUDE, path);
-        let worst = onward.max(reversal).max(wipe_out);
-        hprintln!(
-            "genetic, {} turning points, {:?} path, per tick: on the branch {}, reversal {}, wipe-out of all {}; worst {}",
-            TURNING_POINTS, path, onward, reversal, wipe_out, worst
-        );
-    }
-    // Micro-slip kind, 16 elements: a tick in the middle of a branch, and a reversal.
-    let Some((slipping, last)) = full_stack(slip) else { swg_firmware_qemu::exit(false) };
-    let onward = tick_from(&slipping, last * 1.001, EvalPath::Fast);
-    let reversal = tick_from(&slipping, last - 0.05 * AMPLITUDE * last.signum(), EvalPath::Fast);
-    let big = tick_from(&slipping, 1.05 * AMPLITUDE, EvalPath::Fast);
+    let mut budgets = Budgets { checked: 0, over: 0 };
     hprintln!(
-        "micro-slip, {} elements, per tick: on the branch {}, reversal {}, large step {}; worst {}",
-        SLIP_ELEMENTS,
-        onward,
-        reversal,
-        big,
-        onward.max(reversal).max(big)
+        "== instructions per tick on every tick of a motion from rest, each measured alone ({} runs from a copy of the state before it; fast path)",
+        REPEATS
     );
-    // The controller with its evaluator, model mode, from the same states: the worst of the
-    // same three ticks for each kind (fast path).
-    let Some((genetic_full, genetic_last)) = full_stack(genetic) else { swg_firmware_qemu::exit(false) };
-    let state = controlling(genetic_full, genetic_last);
-    let genetic_ticks = [
-        control_from(&state, genetic_last * 1.001),
-        control_from(&state, genetic_last - 0.05 * AMPLITUDE * genetic_last.signum()),
-        control_from(&state, 1.05 * AMPLITUDE),
-    ];
-    let Some((slip_full, slip_last)) = full_stack(slip) else { swg_firmware_qemu::exit(false) };
-    let state = controlling(slip_full, slip_last);
-    let slip_ticks = [
-        control_from(&state, slip_last * 1.001),
-        control_from(&state, slip_last - 0.05 * AMPLITUDE * slip_last.signum()),
-        control_from(&state, 1.05 * AMPLITUDE),
-    ];
-    for (kind, [onward, reversal, big]) in
-        [("genetic, 16 turning points", genetic_ticks), ("micro-slip, 16 elements", slip_ticks)]
-    {
-        hprintln!(
-            "controller + evaluator (model mode), {}, per tick: on the branch {}, reversal {}, large step {}; worst {}",
-            kind,
-            onward,
-            reversal,
-            big,
-            onward.max(reversal).max(big)
-        );
-    }
-    let motion = nested_motion();
+    hprintln!(
+        "   nested: A·(0.75·sin φ + 0.25·sin 9φ), two cycles in {} ticks (the compensator tests' motion)",
+        NESTED_TICKS
+    );
+    hprintln!(
+        "   deep: a zigzag of shrinking excursions that fills the {} turning points, then out to 1.05·A ({} ticks)",
+        TURNING_POINTS,
+        deep_motion().count()
+    );
+    hprintln!("kind        motion   evaluator max (tick)   mean    controller + evaluator max (tick)   mean");
     for (kind, params) in [("genetic", genetic), ("micro-slip", slip)] {
-        let (alone, controlled) = along(params, &motion);
+        let evaluator_budget = budget::evaluator_tick_instructions(&params.model);
+        for motion in ["nested", "deep"] {
+            let (evaluator, controlled) = if motion == "nested" {
+                (
+                    every_tick(installed(params), nested_motion(NESTED_TICKS), compensator_step),
+                    every_tick(controlling(installed(params), 0.0), nested_motion(NESTED_TICKS), controller_step),
+                )
+            } else {
+                (
+                    every_tick(installed(params), deep_motion(), compensator_step),
+                    every_tick(controlling(installed(params), 0.0), deep_motion(), controller_step),
+                )
+            };
+            hprintln!(
+                "{:<11} {:<8} {:>6.1} ({:>4})          {:>6.1}  {:>6.1} ({:>4})                       {:>6.1}",
+                kind,
+                motion,
+                evaluator.max,
+                evaluator.worst,
+                evaluator.mean,
+                controlled.max,
+                controlled.worst,
+                controlled.mean
+            );
+            budgets.check(format_args!("{} evaluator, {} motion, max", kind, motion), evaluator.max, evaluator_budget);
+            budgets.check(
+                format_args!("{} evaluator, {} motion, mean", kind, motion),
+                evaluator.mean,
+                evaluator_budget,
+            );
+            let control = CONTROL_TICK_INSTRUCTIONS;
+            budgets.check(
+                format_args!("{} controller + evaluator, {} motion, max", kind, motion),
+                controlled.max,
+                control,
+            );
+            budgets.check(
+                format_args!("{} controller + evaluator, {} motion, mean", kind, motion),
+                controlled.mean,
+                control,
+            );
+        }
+    }
+    for (kind, params) in [("genetic", genetic), ("micro-slip", slip)] {
+        let (alone, controlled) = consecutive(params, nested_motion(NESTED_TICKS));
         hprintln!(
-            "{} along a nested motion from rest, mean per tick: compensator {}, controller + evaluator (model mode) {}",
+            "{} along the nested motion from consecutive ticks (no copies), mean: evaluator {:.1}, controller + evaluator {:.1}",
             kind,
             alone,
             controlled
         );
     }
-    swg_firmware_qemu::exit(true)
+
+    // Chosen ticks from a full stack (16 turning points) for each kind: a tick onward on the
+    // innermost branch, a tick that reverses (the stack being full, it retraces), and a tick
+    // that wipes out every stored turning point (θ beyond the outermost); the genetic kind on
+    // both paths (the direct path, for replays, has no budget).
+    hprintln!("== chosen ticks from a full stack: on the branch, reversal, beyond every stored point");
+    let (full, last) = full_stack(genetic);
+    let depth = full.clone().tick(last * 1.001 * RATIO, 0.0, EvalPath::Fast).memory;
+    let chosen = [last * 1.001, last - 0.05 * AMPLITUDE * last.signum(), 1.05 * AMPLITUDE];
+    let genetic_budget = budget::evaluator_tick_instructions(&genetic.model);
+    for path in [EvalPath::Fast, EvalPath::Direct] {
+        let ticks = chosen.map(|theta| {
+            one_step(&full, theta, &|c: &mut Compensator, t| {
+                black_box(c.tick(t * RATIO, 0.0, path));
+            })
+        });
+        hprintln!(
+            "genetic ({} turning points stored), {:?} path: {:.1} / {:.1} / {:.1}",
+            depth,
+            path,
+            ticks[0],
+            ticks[1],
+            ticks[2]
+        );
+        if path == EvalPath::Fast {
+            for (tick, figure) in ticks.into_iter().enumerate() {
+                budgets.check(format_args!("genetic evaluator, chosen tick {}", tick), figure, genetic_budget);
+            }
+        }
+    }
+    let (slipping, slip_last) = full_stack(slip);
+    let slip_chosen = [slip_last * 1.001, slip_last - 0.05 * AMPLITUDE * slip_last.signum(), 1.05 * AMPLITUDE];
+    let ticks = slip_chosen.map(|theta| one_step(&slipping, theta, &compensator_step));
+    hprintln!("micro-slip ({} elements): {:.1} / {:.1} / {:.1}", SLIP_ELEMENTS, ticks[0], ticks[1], ticks[2]);
+    for (tick, figure) in ticks.into_iter().enumerate() {
+        budgets.check(
+            format_args!("micro-slip evaluator, chosen tick {}", tick),
+            figure,
+            budget::evaluator_tick_instructions(&slip.model),
+        );
+    }
+    for (kind, state, chosen) in
+        [("genetic", controlling(full, last), chosen), ("micro-slip", controlling(slipping, slip_last), slip_chosen)]
+    {
+        let ticks = chosen.map(|theta| one_step(&state, theta, &controller_step));
+        hprintln!("controller + evaluator (model mode), {}: {:.1} / {:.1} / {:.1}", kind, ticks[0], ticks[1], ticks[2]);
+        for (tick, figure) in ticks.into_iter().enumerate() {
+            budgets.check(
+                format_args!("{} controller + evaluator, chosen tick {}", kind, tick),
+                figure,
+                CONTROL_TICK_INSTRUCTIONS,
+            );
+        }
+    }
+    hprintln!(
+        "budgets (firmware/joint/src/budget.rs): evaluator {} (genetic) / {} (micro-slip), controller + evaluator {}: {} of {} instruction figures over",
+        genetic_budget,
+        budget::evaluator_tick_instructions(&slip.model),
+        CONTROL_TICK_INSTRUCTIONS,
+        budgets.over,
+        budgets.checked
+    );
+    swg_firmware_qemu::exit(budgets.over == 0)
 }
