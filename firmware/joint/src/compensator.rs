@@ -58,6 +58,18 @@ struct Installed {
     evaluator: Evaluator,
 }
 
+/// A validated set with its evaluator at rest ([`Compensator::prepare`]), ready to be
+/// installed by the control tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Prepared(Installed);
+
+impl Prepared {
+    /// The set.
+    pub fn params(&self) -> JointParams {
+        self.0.params
+    }
+}
+
 /// The feed-forward of one joint: parameters, the model's memory, evaluation, clamping.
 ///
 /// A new set is validated and prepared completely by [`Compensator::stage`] and takes effect
@@ -85,8 +97,10 @@ impl Compensator {
         Compensator { active: None, staged: None }
     }
 
-    /// Validates `params` and prepares them, at rest, for the next tick.
-    pub fn stage(&mut self, params: JointParams) -> Result<(), ErrorReply> {
+    /// Validates `params` and prepares them, at rest, for [`Compensator::install`]: the slow
+    /// part of staging a set (the range checks, the fast path's constants), done where time
+    /// does not matter (the link's side on a board).
+    pub fn prepare(params: JointParams) -> Result<Prepared, ErrorReply> {
         params.validate()?;
         let evaluator = match params.model {
             JointModel::Genetic(genetic) => {
@@ -100,8 +114,18 @@ impl Compensator {
                 Evaluator::MicroSlip(MicroSlip::new(slip.params()).map_err(|_| ErrorReply::ModelOverflow)?)
             }
         };
-        self.staged = Some(Installed { params, evaluator });
+        Ok(Prepared(Installed { params, evaluator }))
+    }
+
+    /// Validates `params` and prepares them, at rest, for the next tick.
+    pub fn stage(&mut self, params: JointParams) -> Result<(), ErrorReply> {
+        self.install(Self::prepare(params)?);
         Ok(())
+    }
+
+    /// Stages a prepared set for the next tick (a few hundred bytes moved: fit for a tick).
+    pub fn install(&mut self, prepared: Prepared) {
+        self.staged = Some(prepared.0);
     }
 
     /// The set the next tick will use.
