@@ -11,7 +11,7 @@
 # Writes bench/out/hil.md (the table), bench/out/hil-*.json and the pictures in bench/out/hil/,
 # and copies the contact picture on the micro-slip gear to docs/hil-contact.svg.
 # RMS, max and limit cycle are deterministic (lockstep, seeded recordings); the wall time per
-# simulated second is the median over the 48 runs.
+# simulated second is the median over the 48 runs (it depends on the machine's load).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,7 +28,10 @@ out=bench/out
 mkdir -p "$out/hil"
 work=$(mktemp -d)
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -display none -monitor none \
+# -icount shift=0: virtual time is the instruction count, as in the tests (host/tests/qemu/):
+# each lockstep sample runs in the firmware's 20 kHz SysTick tick, and without -icount that
+# timer waits for QEMU's I/O thread, which a loaded machine schedules late.
+qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -display none -monitor none -icount shift=0 \
     -semihosting-config enable=on,target=native \
     -serial "tcp:127.0.0.1:$port,server=on,wait=off,nodelay=on" \
     -kernel "$elf_dir/joint-qemu" >/dev/null &

@@ -10,6 +10,8 @@
 #   5. end to end under QEMU: push, read back, replay, bad traffic (host/tests/firmware_e2e.rs)
 #   6. the closed loop in lockstep under QEMU: the firmware's torque controller on the host's
 #      simulated joint, library and `swg-host hil` (host/tests/hil_e2e.rs)
+#   7. the control tick under a burst of link traffic during a lockstep run: no overrun, no late
+#      tick, no missed period (host/tests/tick_e2e.rs; QEMU with -icount, see host/tests/qemu/)
 # Exits non-zero on the first failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -68,5 +70,8 @@ SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host
 
 echo "== closed loop in lockstep under QEMU (swg-host hil)"
 SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host --test hil_e2e -- --ignored --nocapture
+
+echo "== the control tick under link traffic (QEMU -icount shift=0)"
+SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host --test tick_e2e -- --ignored --nocapture
 
 echo "== firmware tests passed"

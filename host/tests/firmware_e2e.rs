@@ -16,8 +16,8 @@ use swg_host::link::replay::{device_model, replay, samples};
 use swg_host::link::LinkError;
 use swg_host::simulate::{simulate, Simulation};
 use swg_protocol::{
-    encode_to_vec, encode_with_version, ErrorReply, EvalPath, JointParams, ParamFault, ParamField, Request, Response,
-    MAX_FRAME_LEN, PROTOCOL_VERSION,
+    encode_to_vec, encode_with_version, endpoint, Envelope, ErrorReply, EvalPath, JointParams, ParamFault, ParamField,
+    Request, RequestId, Response, MAX_FRAME_LEN, PROTOCOL_VERSION,
 };
 
 /// The seed table's fit (canonical form, ω = 1).
@@ -77,7 +77,7 @@ fn push_read_back_and_replay_match_the_host_model() {
     // Read back what the device holds: exactly the f32 set the host computed.
     let mut link = firmware.ready_link();
     let expected = joint_params(&GearModel::Genetic(SEED), &SETTINGS).unwrap();
-    assert_eq!(link.read_params().unwrap(), Some(expected));
+    assert_eq!(link.call::<endpoint::ReadParams>(&()).unwrap(), Some(expected));
     drop(link);
 
     for path in ["fast", "direct"] {
@@ -92,13 +92,13 @@ fn push_read_back_and_replay_match_the_host_model() {
     let mut link = firmware.ready_link();
     let samples = samples(&recording(), expected.gear_ratio).unwrap();
     for path in [EvalPath::Fast, EvalPath::Direct] {
-        link.write_params(&expected).unwrap(); // from rest
+        link.call::<endpoint::WriteParams>(&expected).unwrap(); // from rest
         let report = replay(&mut link, &expected, &device_model(&expected), &samples, path).unwrap();
         assert!(report.passed(), "{path:?}: {report}");
         assert_eq!(report.active, samples.len(), "{report}");
         assert!(report.reversals >= 3, "{report}");
         // Against the f64 model of the file (not rounded to f32): still within tolerance.
-        link.write_params(&expected).unwrap();
+        link.call::<endpoint::WriteParams>(&expected).unwrap();
         let report = replay(&mut link, &expected, &GearModel::Genetic(SEED), &samples, path).unwrap();
         assert!(report.passed(), "{path:?} against the file's f64 parameters: {report}");
     }
@@ -155,7 +155,7 @@ fn both_kinds_follow_arbitrary_motion_as_the_host_model_does() {
 
     let mut link = firmware.ready_link();
     let expected = joint_params(&slip_model(), &SETTINGS).unwrap();
-    assert_eq!(link.read_params().unwrap(), Some(expected));
+    assert_eq!(link.call::<endpoint::ReadParams>(&()).unwrap(), Some(expected));
     assert!(matches!(expected.model, GearModel::MicroSlip(_)));
     for model in [slip_model(), GearModel::Genetic(SEED)] {
         let joint = joint_params(&model, &SETTINGS).unwrap();
@@ -163,13 +163,13 @@ fn both_kinds_follow_arbitrary_motion_as_the_host_model_does() {
         for (name, samples) in arbitrary_motions() {
             for path in [EvalPath::Fast, EvalPath::Direct] {
                 // Each run from rest: writing the set resets the device's memory.
-                link.write_params(&joint).unwrap();
+                link.call::<endpoint::WriteParams>(&joint).unwrap();
                 let report = replay(&mut link, &joint, &device_model(&joint), &samples, path).unwrap();
                 println!("{:?} {name} {path:?}: {report}", model.kind());
                 assert!(report.passed(), "{:?} {name} {path:?}: {report}", model.kind());
                 assert_eq!(report.active, samples.len(), "{report}");
                 assert!(report.reversals >= 8 && report.deepest_memory >= 2, "{report}");
-                link.write_params(&joint).unwrap();
+                link.call::<endpoint::WriteParams>(&joint).unwrap();
                 let report = replay(&mut link, &joint, &model, &samples, path).unwrap();
                 assert!(report.passed(), "{:?} {name} {path:?} against the f64 parameters: {report}", model.kind());
             }
@@ -177,9 +177,10 @@ fn both_kinds_follow_arbitrary_motion_as_the_host_model_does() {
     }
 }
 
-fn refused(response: Result<Response, LinkError>) -> ErrorReply {
-    match response.unwrap() {
-        Response::Error(reason) => reason,
+/// The reason of an error reply, and the id it carries.
+fn refused(reply: Result<Envelope<Response>, LinkError>) -> (RequestId, ErrorReply) {
+    match reply.unwrap() {
+        Envelope { id, message: Response::Error(reason) } => (id, reason),
         other => panic!("expected an error reply, got {other:?}"),
     }
 }
@@ -193,12 +194,13 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
     let GearModel::Genetic(good_model) = good.model else { unreachable!() };
     push(&mut link, &good).unwrap();
 
-    let frame = encode_to_vec(&Request::WriteParams(JointParams { torque_limit: 5.0, ..good })).unwrap();
+    let frame = encode_to_vec(RequestId(1), &Request::WriteParams(JointParams { torque_limit: 5.0, ..good })).unwrap();
     let mut corrupted = frame.clone();
     corrupted[12] ^= 0x10;
     let truncated = [&frame[..frame.len() / 2], &[0u8]].concat();
     let mut other_version = [0u8; MAX_FRAME_LEN];
-    let len = encode_with_version(PROTOCOL_VERSION + 1, &Request::ReadParams, &mut other_version).unwrap();
+    let len =
+        encode_with_version(PROTOCOL_VERSION + 1, RequestId(2), &Request::ReadParams, &mut other_version).unwrap();
     let nan = JointParams { model: GearModel::Genetic(Params { beta: f32::NAN, ..good_model }), ..good };
     let out_of_range = JointParams { gear_ratio: 0.0, ..good };
     let infinite = JointParams { model: GearModel::Genetic(Params { c1: f32::INFINITY, ..good_model }), ..good };
@@ -216,6 +218,8 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
     let stiff = JointParams { model: GearModel::MicroSlip(stiff), ..good };
     let garbage = [0x13u8; 400];
 
+    // The replies to frames the device cannot read carry the unknown id; the others, the
+    // request's own (the frames' ids are 11 onwards, in order).
     let cases: Vec<(&str, Vec<u8>, ErrorReply)> = vec![
         ("corrupted byte", corrupted, ErrorReply::BadCrc),
         ("truncated frame", truncated, ErrorReply::BadFrame),
@@ -226,22 +230,22 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
         ),
         (
             "NaN parameter",
-            encode_to_vec(&Request::WriteParams(nan)).unwrap(),
+            encode_to_vec(RequestId(11), &Request::WriteParams(nan)).unwrap(),
             ErrorReply::InvalidParam { field: ParamField::Model(ParamName::Beta), fault: ParamFault::NotFinite },
         ),
         (
             "infinite parameter",
-            encode_to_vec(&Request::WriteParams(infinite)).unwrap(),
+            encode_to_vec(RequestId(12), &Request::WriteParams(infinite)).unwrap(),
             ErrorReply::InvalidParam { field: ParamField::Model(ParamName::C1), fault: ParamFault::NotFinite },
         ),
         (
             "out-of-range parameter",
-            encode_to_vec(&Request::WriteParams(out_of_range)).unwrap(),
+            encode_to_vec(RequestId(13), &Request::WriteParams(out_of_range)).unwrap(),
             ErrorReply::InvalidParam { field: ParamField::GearRatio, fault: ParamFault::OutOfRange },
         ),
         (
             "negative element stiffness",
-            encode_to_vec(&Request::WriteParams(negative)).unwrap(),
+            encode_to_vec(RequestId(14), &Request::WriteParams(negative)).unwrap(),
             ErrorReply::InvalidParam {
                 field: ParamField::Model(ParamName::SlipStiffness(11)),
                 fault: ParamFault::OutOfRange,
@@ -249,17 +253,17 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
         ),
         (
             "slip range upside down",
-            encode_to_vec(&Request::WriteParams(inverted)).unwrap(),
+            encode_to_vec(RequestId(15), &Request::WriteParams(inverted)).unwrap(),
             ErrorReply::InvalidParam { field: ParamField::Model(ParamName::SlipMax), fault: ParamFault::OutOfRange },
         ),
         (
             "c3 that overflows f32 in range",
-            encode_to_vec(&Request::WriteParams(overflowing)).unwrap(),
+            encode_to_vec(RequestId(16), &Request::WriteParams(overflowing)).unwrap(),
             ErrorReply::InvalidParam { field: ParamField::Model(ParamName::C3), fault: ParamFault::OutOfRange },
         ),
         (
             "element stiffness that overflows f32 in range",
-            encode_to_vec(&Request::WriteParams(stiff)).unwrap(),
+            encode_to_vec(RequestId(17), &Request::WriteParams(stiff)).unwrap(),
             ErrorReply::InvalidParam {
                 field: ParamField::Model(ParamName::SlipStiffness(3)),
                 fault: ParamFault::OutOfRange,
@@ -268,17 +272,30 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
         ("line noise", [&garbage[..], &[0u8]].concat(), ErrorReply::FrameTooLong),
     ];
     for (what, bytes, expected) in cases {
-        assert_eq!(refused(link.exchange(&bytes)), expected, "{what}");
+        let (id, reason) = refused(link.exchange(&bytes));
+        assert_eq!(reason, expected, "{what}");
+        let readable = !matches!(
+            reason,
+            ErrorReply::BadCrc
+                | ErrorReply::BadFrame
+                | ErrorReply::FrameTooLong
+                | ErrorReply::UnsupportedProtocol { .. }
+        );
+        let sent = bytes.iter().position(|&b| b == 0).and_then(|end| {
+            let mut frame = bytes[..end].to_vec();
+            swg_protocol::decode::<Request>(&mut frame).ok().map(|envelope| envelope.id)
+        });
+        assert_eq!(id, if readable { sent.unwrap() } else { RequestId::UNKNOWN }, "{what}");
         // Still answering, with the old parameters active.
-        assert_eq!(link.device_info().unwrap().protocol_version, PROTOCOL_VERSION, "{what}");
-        assert_eq!(link.read_params().unwrap(), Some(good), "{what}");
+        assert_eq!(link.call::<endpoint::GetDeviceInfo>(&()).unwrap().protocol_version, PROTOCOL_VERSION, "{what}");
+        assert_eq!(link.call::<endpoint::ReadParams>(&()).unwrap(), Some(good), "{what}");
     }
     // The reply names the reason in words, as the CLI prints it.
-    let error = link.write_params(&nan).unwrap_err();
+    let error = link.call::<endpoint::WriteParams>(&nan).unwrap_err();
     assert_eq!(error.to_string(), "device refused the request: parameter beta is not finite");
     // And the compensation still runs on the old set.
     let sample = swg_protocol::EncoderSample { input_angle: 0.05, output_angle: 0.0, path: EvalPath::Fast };
-    let feedforward = link.replay(&sample).unwrap();
+    let feedforward = link.call::<endpoint::Replay>(&sample).unwrap();
     assert_eq!(feedforward.compensation, swg_protocol::Compensation::Active);
 }
 

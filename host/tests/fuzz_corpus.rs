@@ -9,6 +9,11 @@ mod frames;
 mod host;
 
 use std::path::{Path, PathBuf};
+use swg_protocol::{
+    encode_to_vec, Compensation, ControlMode, ControlOutput, ControlSample, ControllerConfig, DeviceInfo,
+    DriveErrorKind, EncoderSample, ErrorReply, EvalPath, Feedforward, GearModel, JointParams, Params, Request,
+    RequestId, Response, StorageError, TickStatus, Version, MODEL_VERSION, PROTOCOL_VERSION,
+};
 
 /// Mutations of each corpus input, beside the input itself.
 const MUTATIONS: u64 = 300;
@@ -118,4 +123,94 @@ fn the_fuzz_corpus_replays_without_a_panic() {
         runs += count;
     }
     println!("{} ({runs} runs in {:.2?})", report.join("; "), start.elapsed());
+}
+
+/// The frame decoder's seeds in `fuzz/corpus/frame_decode/` that hold frames of this
+/// protocol: one of every request and response (and some error replies), two frames in a row,
+/// and a frame after line noise. Written by `regenerate_the_frame_seeds`.
+fn frame_seeds() -> Vec<(String, Vec<u8>)> {
+    let params = JointParams {
+        model_version: MODEL_VERSION,
+        model: GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
+        gear_ratio: 100.0,
+        torque_limit: 50.0,
+        direction_band: 2.0e-6,
+    };
+    let config = ControllerConfig {
+        mode: ControlMode::Model,
+        kp: 0.06,
+        ki: 6.0,
+        integral_deadband: 0.05,
+        damping: 0.015,
+        torsion_damping: 0.03,
+        stiffness: 9000.0,
+        command_limit: 1.0,
+        period: 1.0e-3,
+    };
+    let requests = [
+        Request::GetDeviceInfo,
+        Request::WriteParams(params),
+        Request::ReadParams,
+        Request::Commit,
+        Request::Replay(EncoderSample { input_angle: 0.05, output_angle: 0.0, path: EvalPath::Fast }),
+        Request::Configure(config),
+        Request::SetReference(5.0),
+        Request::Control(ControlSample { input_angle: 0.05, output_angle: 0.0, reference: 5.0 }),
+        Request::GetStatus,
+    ];
+    let version = Version { major: 0, minor: 1, patch: 0 };
+    let responses = [
+        Response::DeviceInfo(DeviceInfo {
+            firmware_version: version,
+            protocol_version: PROTOCOL_VERSION,
+            model_version: MODEL_VERSION,
+        }),
+        Response::ParamsAccepted,
+        Response::Params(Some(params)),
+        Response::Committed(3),
+        Response::Feedforward(Feedforward {
+            deflection: 5.0e-4,
+            torque: 6.5,
+            stiffness: 12_000.0,
+            compensation: Compensation::Active,
+            direction: None,
+            memory: 2,
+        }),
+        Response::Error(ErrorReply::BadCrc),
+        Response::ControlAccepted,
+        Response::Control(ControlOutput { command: 0.1, estimate: 5.0, mode: ControlMode::Model, saturated: false }),
+        Response::Status(TickStatus { rate_hz: 20_000, ticks: 1_000, ..TickStatus::default() }),
+        Response::Error(ErrorReply::Storage(StorageError::Verify)),
+        Response::Error(ErrorReply::MotorDrive(DriveErrorKind::Fault)),
+    ];
+    let mut frames: Vec<Vec<u8>> =
+        requests.iter().zip(1..).map(|(r, id)| encode_to_vec(RequestId(id), r).unwrap()).collect();
+    frames.extend(responses.iter().zip(100..).map(|(r, id)| encode_to_vec(RequestId(id), r).unwrap()));
+    let mut seeds: Vec<(String, Vec<u8>)> =
+        frames.iter().enumerate().map(|(i, frame)| (format!("golden-{i}.bin"), frame.clone())).collect();
+    seeds.push(("two-frames.bin".into(), [frames[0].clone(), frames[2].clone()].concat()));
+    seeds.push(("garbage-then-frame.bin".into(), [&[0x13, 0x37, 0xff, 0x00][..], &frames[0]].concat()));
+    seeds
+}
+
+fn frame_seed_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/corpus/frame_decode")
+}
+
+/// The seeds are frames of this protocol: after a protocol change they fail here until
+/// `cargo test -p swg-host --test fuzz_corpus -- --ignored regenerate` rewrites them.
+#[test]
+fn the_frame_seeds_are_frames_of_this_protocol() {
+    for (name, bytes) in frame_seeds() {
+        let stored = std::fs::read(frame_seed_dir().join(&name)).unwrap_or_default();
+        assert!(stored == bytes, "fuzz/corpus/frame_decode/{name} is stale: regenerate the frame seeds");
+    }
+}
+
+#[test]
+#[ignore = "rewrites fuzz/corpus/frame_decode/golden-*.bin after a protocol change"]
+fn regenerate_the_frame_seeds() {
+    for (name, bytes) in frame_seeds() {
+        std::fs::write(frame_seed_dir().join(name), bytes).unwrap();
+    }
 }

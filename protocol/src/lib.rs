@@ -3,12 +3,31 @@
 //! Every frame, in either direction, is
 //!
 //! ```text
-//! COBS( postcard(protocol_version: u16, message) ++ CRC-32/ISO-HDLC(LE) ) 0x00
+//! COBS( postcard(protocol_version: u16, id: RequestId(u32), message) ++ CRC-32/ISO-HDLC(LE) ) 0x00
+//! └─────────────────────────── one frame ────────────────────────────────────────────────┘ └ delimiter
 //! ```
 //!
-//! The host sends one [`Request`] and waits for one [`Response`]. The protocol version
-//! leads the payload so that a peer speaking another version gets a clear
-//! [`ErrorReply::UnsupportedProtocol`] instead of a garbled message.
+//! The host sends one [`Request`] at a time and waits for the [`Response`] that carries the
+//! same [`RequestId`]. The protocol version leads the payload so that a peer speaking another
+//! version gets a clear [`ErrorReply::UnsupportedProtocol`] instead of a garbled message; the
+//! request id follows it, then the message.
+//!
+//! **Request ids.** The host numbers its requests (from a random start per connection, never
+//! [`RequestId::UNKNOWN`]); the device echoes the id of the request in its reply. A reply whose
+//! id is not that of the request the host waits for (a late answer after a timeout, or one a
+//! freshly booted board gives to bytes queued before it) is discarded and counted, never taken
+//! for the answer. An error reply to a frame the device could not read carries the id when it
+//! could be read — [`ErrorReply::UndecodableRequest`] (right version and CRC) — and otherwise
+//! [`RequestId::UNKNOWN`]: after a bad COBS encoding, a CRC mismatch, an overlong frame (the
+//! bytes cannot be trusted) or another protocol version (whose header may be laid out
+//! otherwise). The host does not take such a reply for its answer either: it counts it and
+//! keeps waiting, and if its request then goes unanswered, the timeout names the device's
+//! reason (most likely the request itself was corrupted on the way).
+//!
+//! **Endpoints.** The table in [`endpoint`] pairs each request with its response type (as
+//! postcard-rpc's endpoint declarations do): the host calls one with `Link::call::<E>`, the
+//! firmware answers one through [`Endpoint::reply`], so neither end can pair a request with
+//! another request's response, and a request variant without a row does not compile.
 #![no_std]
 
 #[cfg(feature = "use-std")]
@@ -26,14 +45,19 @@ use serde::{Deserialize, Serialize};
 /// [`Feedforward`]. Version 3: the joint's torque controller ([`Request::Configure`],
 /// [`Request::SetReference`], the lockstep [`Request::Control`] and their responses, the
 /// error replies [`ErrorReply::InvalidGain`] and [`ErrorReply::MotorDrive`]). Version 4: the
-/// controller's integral deadband and torsion damping in [`ControllerConfig`]. Version 5: an
-/// error reply names a model parameter by model-core's [`ParamName`] ([`ParamField::Model`]);
-/// [`JointParams::model`] is model-core's [`GearModel`], encoded as version 4's model was.
+/// controller's integral deadband and torsion damping in [`ControllerConfig`]. Version 5: the
+/// [`RequestId`] in every frame's header; the tick's timing ([`Request::GetStatus`],
+/// [`TickStatus`]); error replies that keep their cause's kind ([`ErrorReply::Storage`],
+/// [`ErrorReply::MotorDrive`]) and [`ErrorReply::CommitWhileDriving`],
+/// [`ErrorReply::NotLockstep`], [`ErrorReply::Busy`]; [`Response::Committed`] a tuple variant
+/// (same bytes); an error reply names a model parameter by model-core's [`ParamName`]
+/// ([`ParamField::Model`]); [`JointParams::model`] is model-core's [`GearModel`], encoded as
+/// version 4's model was.
 pub const PROTOCOL_VERSION: u16 = 5;
 
 /// Largest encoded frame, delimiter included: the longest message (a micro-slip
-/// [`Response::Params`] with every varint at its maximum) takes 109 bytes (tested), with room
-/// to spare.
+/// [`Response::Params`] with every varint at its maximum, the request id's included) takes 114
+/// bytes (tested), with room to spare.
 pub const MAX_FRAME_LEN: usize = 128;
 
 /// Largest payload (version, message and CRC) before COBS encoding.
@@ -41,6 +65,14 @@ const MAX_PAYLOAD_LEN: usize = MAX_FRAME_LEN - 2;
 
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 const CRC_LEN: usize = 4;
+
+/// CRC-32/ISO-HDLC of `bytes`: the frames' check, and the flash records' (`swg-joint`'s
+/// storage). Out of line: the firmware computes it in several places, and each inlined copy
+/// cost a few hundred bytes of flash.
+#[inline(never)]
+pub fn crc32(bytes: &[u8]) -> u32 {
+    CRC.checksum(bytes)
+}
 
 /// A `major.minor.patch` version.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -66,6 +98,151 @@ pub struct DeviceInfo {
     /// [`MODEL_VERSION`] of the model-core the firmware was built with.
     pub model_version: u16,
 }
+
+/// Which request a frame answers: the host numbers its requests, the device echoes the number
+/// in its reply (see the crate's documentation). On the wire a varint after the protocol
+/// version.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RequestId(pub u32);
+
+impl RequestId {
+    /// The id of an error reply to a frame whose id could not be read; never a request's.
+    pub const UNKNOWN: RequestId = RequestId(0);
+
+    /// The id after this one, skipping [`RequestId::UNKNOWN`].
+    pub const fn next(self) -> RequestId {
+        match self.0.wrapping_add(1) {
+            0 => RequestId(1),
+            id => RequestId(id),
+        }
+    }
+}
+
+impl fmt::Display for RequestId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            RequestId::UNKNOWN => f.write_str("unknown"),
+            RequestId(id) => write!(f, "{id}"),
+        }
+    }
+}
+
+/// The control tick's timing since boot: the board's timer starts each tick in an interrupt
+/// above the link's priority, and the tick counts what went wrong with its timing. Counters
+/// wrap at 2³².
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TickStatus {
+    /// The tick rate, Hz; 0 when the ticks are not timed (an in-process test device runs one
+    /// whenever the link hands it a sample).
+    pub rate_hz: u32,
+    /// Ticks run.
+    pub ticks: u32,
+    /// Ticks that had not finished when the next was due: the timer expired again during them.
+    pub overruns: u32,
+    /// Ticks that started more than `late_bound_ns` after their timer expired.
+    pub late: u32,
+    /// Whole periods that passed without a tick (the tick was held off longer than a period).
+    pub missed: u32,
+    /// The latency beyond which a tick counts as late, ns.
+    pub late_bound_ns: u32,
+    /// The longest latency from a timer expiry to its tick's start, ns.
+    pub worst_latency_ns: u32,
+    /// The longest time from a timer expiry to its tick's end, ns: the tick's worst case,
+    /// measured (at most a period, else the tick overran).
+    pub worst_tick_ns: u32,
+    /// The board's own ticks whose encoder reading failed: the command was zero.
+    pub sensor_faults: u32,
+    /// The kind of the last of those.
+    pub last_sensor_fault: Option<SensorErrorKind>,
+    /// The board's own ticks whose command the motor drive refused.
+    pub drive_faults: u32,
+    /// The kind of the last of those.
+    pub last_drive_fault: Option<DriveErrorKind>,
+}
+
+/// Why an angle sensor's reading failed; the kinds of embedded-hal's error convention, as
+/// `swg-joint`'s `sensor::Error::kind` reports them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SensorErrorKind {
+    /// The transfer on the sensor's bus failed.
+    Bus,
+    /// The answer arrived corrupted (a parity or CRC check failed).
+    Corrupt,
+    /// The sensor flagged an error of its own (magnetic field, framing, a bad command).
+    Sensor,
+    /// Any other failure.
+    Other,
+}
+
+impl fmt::Display for SensorErrorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            SensorErrorKind::Bus => "the sensor's bus transfer failed",
+            SensorErrorKind::Corrupt => "the sensor's answer was corrupted",
+            SensorErrorKind::Sensor => "the sensor flagged an error",
+            SensorErrorKind::Other => "the sensor failed",
+        })
+    }
+}
+
+/// Why the motor drive refused a command; the kinds of embedded-hal's error convention, as
+/// `swg-joint`'s `drive::Error::kind` reports them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum DriveErrorKind {
+    /// The command is beyond what the drive is set up to output.
+    OutOfRange,
+    /// The drive reports a fault (over-current, under-voltage, over-temperature).
+    Fault,
+    /// Any other failure.
+    Other,
+}
+
+impl fmt::Display for DriveErrorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            DriveErrorKind::OutOfRange => "the command is beyond the drive's range",
+            DriveErrorKind::Fault => "the drive reports a fault",
+            DriveErrorKind::Other => "the drive failed",
+        })
+    }
+}
+
+/// Why the parameter store could not write a set: which step of a commit failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum StorageError {
+    /// The flash cannot hold two slots, or its write size does not divide 8 bytes.
+    Geometry,
+    /// Erasing the slot failed.
+    Erase,
+    /// Writing the record or its CRC failed.
+    Write,
+    /// The record read back differs from what was written (worn or protected flash).
+    Verify,
+    /// The parameter set did not serialize into a record.
+    Encoding,
+}
+
+impl fmt::Display for StorageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            StorageError::Geometry => "flash region too small or write size unsupported",
+            StorageError::Erase => "flash erase failed",
+            StorageError::Write => "flash write failed",
+            StorageError::Verify => "flash read back differs from what was written",
+            StorageError::Encoding => "parameter set does not fit a record",
+        })
+    }
+}
+
+impl core::error::Error for StorageError {}
 
 /// Everything the joint needs for feed-forward: the model and how to apply it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -343,12 +520,12 @@ pub struct ControlOutput {
     pub saturated: bool,
 }
 
-/// Host → device.
+/// Host → device. Each variant is one [`endpoint`]'s request.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Request {
     GetDeviceInfo,
-    /// Validate and activate (between two ticks); not yet stored.
+    /// Validate and activate (at the next tick); not yet stored.
     WriteParams(JointParams),
     /// The active set, exactly as the firmware holds it.
     ReadParams,
@@ -363,9 +540,11 @@ pub enum Request {
     /// Run one control tick on these angles and reference (lockstep with a simulated plant);
     /// the command goes to the board's motor drive and comes back in the response.
     Control(ControlSample),
+    /// The control tick's timing counters.
+    GetStatus,
 }
 
-/// Device → host, one per request.
+/// Device → host, one per request: its endpoint's response, or [`Response::Error`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Response {
@@ -374,14 +553,115 @@ pub enum Response {
     /// `None` when the device has no valid parameters.
     Params(Option<JointParams>),
     /// Stored with this sequence number.
-    Committed {
-        sequence: u32,
-    },
+    Committed(u32),
     Feedforward(Feedforward),
     Error(ErrorReply),
     /// A [`Request::Configure`] or [`Request::SetReference`] took effect.
     ControlAccepted,
     Control(ControlOutput),
+    Status(TickStatus),
+}
+
+/// One request type and its response type: what the host sends and what the device answers
+/// when it does not refuse ([`Response::Error`] may answer any). Declared by the table in
+/// [`endpoint`]; the wire carries them as the [`Request`] and [`Response`] variants named there.
+pub trait Endpoint {
+    /// The request's content.
+    type Request;
+    /// The answer's content.
+    type Response;
+    /// The endpoint's name, for errors.
+    const NAME: &'static str;
+    /// `request` as the wire's message.
+    fn request(request: &Self::Request) -> Request;
+    /// The wire's answer as this endpoint's response, or back as it came when it is not.
+    fn response(response: Response) -> Result<Self::Response, Response>;
+    /// `response` as the wire's message: the device's side of [`Endpoint::response`].
+    fn reply(response: Self::Response) -> Response;
+}
+
+/// Declares the endpoints: `Name: Request::Variant(Payload) => Response::Variant(Payload);`, a
+/// unit variant's payload being `()`. Generates a marker type per row implementing
+/// [`Endpoint`], and [`Request::endpoint`], whose match over every request variant makes a
+/// request without a row a compile error.
+macro_rules! endpoints {
+    ($(
+        $(#[$doc:meta])*
+        $name:ident: Request::$request:ident $(($request_type:ty))? => Response::$response:ident $(($response_type:ty))?;
+    )*) => {
+        $(
+            $(#[$doc])*
+            #[derive(Clone, Copy, Debug)]
+            pub enum $name {}
+
+            impl $crate::Endpoint for $name {
+                type Request = endpoints!(@type $($request_type)?);
+                type Response = endpoints!(@type $($response_type)?);
+                const NAME: &'static str = stringify!($name);
+                fn request(request: &Self::Request) -> $crate::Request {
+                    endpoints!(@wrap $crate::Request::$request, request $(, $request_type)?)
+                }
+                fn response(response: $crate::Response) -> Result<Self::Response, $crate::Response> {
+                    match response {
+                        endpoints!(@pattern $crate::Response::$response, value $(, $response_type)?) => {
+                            Ok(endpoints!(@value value $(, $response_type)?))
+                        }
+                        other => Err(other),
+                    }
+                }
+                fn reply(response: Self::Response) -> $crate::Response {
+                    endpoints!(@wrap $crate::Response::$response, (&response) $(, $response_type)?)
+                }
+            }
+        )*
+
+        impl $crate::Request {
+            /// The name of the endpoint this request belongs to.
+            pub const fn endpoint(&self) -> &'static str {
+                match self {
+                    $(endpoints!(@pattern $crate::Request::$request, _value $(, $request_type)?) => stringify!($name),)*
+                }
+            }
+        }
+    };
+    (@type) => { () };
+    (@type $payload:ty) => { $payload };
+    (@wrap $variant:path, $value:expr) => {{
+        let () = *$value;
+        $variant
+    }};
+    (@wrap $variant:path, $value:expr, $payload:ty) => { $variant(*$value) };
+    (@pattern $variant:path, $value:ident) => { $variant };
+    (@pattern $variant:path, $value:ident, $payload:ty) => { $variant($value) };
+    (@value $value:ident) => { () };
+    (@value $value:ident, $payload:ty) => { $value };
+}
+
+/// The link's endpoints: each request paired with its response.
+pub mod endpoint {
+    use crate::TickStatus;
+    use crate::{ControlOutput, ControlSample, ControllerConfig, DeviceInfo, EncoderSample, Feedforward, JointParams};
+
+    endpoints! {
+        /// The device's firmware, protocol and model versions.
+        GetDeviceInfo: Request::GetDeviceInfo => Response::DeviceInfo(DeviceInfo);
+        /// Validates a set and activates it at the next tick, from rest; not yet stored.
+        WriteParams: Request::WriteParams(JointParams) => Response::ParamsAccepted;
+        /// The set the next tick uses, exactly as the firmware holds it.
+        ReadParams: Request::ReadParams => Response::Params(Option<JointParams>);
+        /// Stores the active set in flash; answers its record's sequence number.
+        Commit: Request::Commit => Response::Committed(u32);
+        /// One tick of the compensator on a recorded sample.
+        Replay: Request::Replay(EncoderSample) => Response::Feedforward(Feedforward);
+        /// The torque controller's mode and gains (its integral and velocity start afresh).
+        Configure: Request::Configure(ControllerConfig) => Response::ControlAccepted;
+        /// The joint torque reference for the board's own ticks.
+        SetReference: Request::SetReference(f32) => Response::ControlAccepted;
+        /// One lockstep control tick: angles and reference in, the motor command out.
+        Control: Request::Control(ControlSample) => Response::Control(ControlOutput);
+        /// The control tick's timing counters.
+        GetStatus: Request::GetStatus => Response::Status(TickStatus);
+    }
 }
 
 /// A parameter named in an error reply: one of the model's (model-core's [`ParamName`], which
@@ -436,8 +716,8 @@ pub enum ErrorReply {
     ModelOverflow,
     /// Commit without a valid active parameter set.
     NoParams,
-    /// Writing flash failed.
-    Storage,
+    /// The parameter store failed at this step of the commit.
+    Storage(StorageError),
     /// A replayed or lockstep control sample held NaN or infinity.
     NonFiniteSample,
     /// A controller configuration with a gain that is not finite or out of its range.
@@ -446,7 +726,15 @@ pub enum ErrorReply {
         fault: ParamFault,
     },
     /// The board's motor drive refused the command (the tick's command was not applied).
-    MotorDrive,
+    MotorDrive(DriveErrorKind),
+    /// Commit while the controller is configured to drive the motor: erasing flash stalls the
+    /// processor, and the control tick with it, for up to seconds on a single-bank part.
+    CommitWhileDriving,
+    /// A replay or lockstep control sample on a board whose ticks read its own encoders.
+    NotLockstep,
+    /// The control tick has not yet taken the link's previous command (the link waits for it
+    /// before it reads another request, so only a tick that stopped leads here).
+    Busy,
 }
 
 impl fmt::Display for ErrorReply {
@@ -468,13 +756,20 @@ impl fmt::Display for ErrorReply {
             },
             ErrorReply::ModelOverflow => f.write_str("model overflows f32 with these parameters"),
             ErrorReply::NoParams => f.write_str("no valid parameters on the device"),
-            ErrorReply::Storage => f.write_str("flash write failed"),
+            ErrorReply::Storage(error) => write!(f, "storing the parameters failed: {error}"),
             ErrorReply::NonFiniteSample => f.write_str("encoder sample is not finite"),
             ErrorReply::InvalidGain { field, fault } => match fault {
                 ParamFault::NotFinite => write!(f, "controller gain {field} is not finite"),
                 ParamFault::OutOfRange => write!(f, "controller gain {field} is out of range"),
             },
-            ErrorReply::MotorDrive => f.write_str("the motor drive refused the command"),
+            ErrorReply::MotorDrive(kind) => write!(f, "the motor drive refused the command: {kind}"),
+            ErrorReply::CommitWhileDriving => {
+                f.write_str("commit refused while the controller drives the motor: configure it off first")
+            }
+            ErrorReply::NotLockstep => {
+                f.write_str("this board ticks on its own encoders: replay and lockstep control are refused")
+            }
+            ErrorReply::Busy => f.write_str("the control tick has not taken the previous command"),
         }
     }
 }
@@ -492,8 +787,9 @@ pub enum FrameError {
     TooLong,
     /// Intact frame of another protocol version.
     Version(u16),
-    /// Intact frame whose message does not decode.
-    Message,
+    /// Intact frame of this version whose message does not decode; the request id when it
+    /// could be read, else [`RequestId::UNKNOWN`].
+    Message(RequestId),
     /// The message does not fit [`MAX_FRAME_LEN`] or the output buffer.
     BufferTooSmall,
 }
@@ -507,13 +803,23 @@ impl fmt::Display for FrameError {
             FrameError::Version(got) => {
                 write!(f, "peer speaks protocol version {got}, this end {PROTOCOL_VERSION}")
             }
-            FrameError::Message => f.write_str("frame holds no message of this protocol"),
+            FrameError::Message(_) => f.write_str("frame holds no message of this protocol"),
             FrameError::BufferTooSmall => f.write_str("message does not fit the frame buffer"),
         }
     }
 }
 
 impl core::error::Error for FrameError {}
+
+impl FrameError {
+    /// The id an error reply to this frame carries: the frame's own when it could be read.
+    pub const fn request_id(&self) -> RequestId {
+        match self {
+            FrameError::Message(id) => *id,
+            _ => RequestId::UNKNOWN,
+        }
+    }
+}
 
 impl From<FrameError> for ErrorReply {
     fn from(error: FrameError) -> Self {
@@ -522,21 +828,35 @@ impl From<FrameError> for ErrorReply {
             FrameError::Crc => ErrorReply::BadCrc,
             FrameError::TooLong => ErrorReply::FrameTooLong,
             FrameError::Version(got) => ErrorReply::UnsupportedProtocol { got, supported: PROTOCOL_VERSION },
-            FrameError::Message => ErrorReply::UndecodableRequest,
+            FrameError::Message(_) => ErrorReply::UndecodableRequest,
         }
     }
 }
 
-/// Encodes `message` as one frame into `out`, delimiter included; returns its length.
-pub fn encode<T: Serialize>(message: &T, out: &mut [u8]) -> Result<usize, FrameError> {
-    encode_with_version(PROTOCOL_VERSION, message, out)
+/// A decoded frame: the request id from its header and its message.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Envelope<T> {
+    pub id: RequestId,
+    pub message: T,
+}
+
+/// Encodes `message` with the request id `id` as one frame into `out`, delimiter included;
+/// returns its length.
+pub fn encode<T: Serialize>(id: RequestId, message: &T, out: &mut [u8]) -> Result<usize, FrameError> {
+    encode_with_version(PROTOCOL_VERSION, id, message, out)
 }
 
 /// [`encode`] with an explicit protocol version, for tests of version handling.
-pub fn encode_with_version<T: Serialize>(version: u16, message: &T, out: &mut [u8]) -> Result<usize, FrameError> {
+pub fn encode_with_version<T: Serialize>(
+    version: u16,
+    id: RequestId,
+    message: &T,
+    out: &mut [u8],
+) -> Result<usize, FrameError> {
     let mut payload = [0u8; MAX_PAYLOAD_LEN];
-    let body_len = postcard::to_slice(&(version, message), &mut payload).map_err(|_| FrameError::BufferTooSmall)?.len();
-    let crc = CRC.checksum(payload.get(..body_len).ok_or(FrameError::BufferTooSmall)?);
+    let body_len =
+        postcard::to_slice(&(version, id, message), &mut payload).map_err(|_| FrameError::BufferTooSmall)?.len();
+    let crc = crc32(payload.get(..body_len).ok_or(FrameError::BufferTooSmall)?);
     let with_crc = body_len + CRC_LEN;
     payload.get_mut(body_len..with_crc).ok_or(FrameError::BufferTooSmall)?.copy_from_slice(&crc.to_le_bytes());
     let source = payload.get(..with_crc).ok_or(FrameError::BufferTooSmall)?;
@@ -545,28 +865,32 @@ pub fn encode_with_version<T: Serialize>(version: u16, message: &T, out: &mut [u
     Ok(encoded + 1)
 }
 
-/// Encodes `message` as one frame into a new vector, delimiter included.
+/// Encodes `message` with the request id `id` as one frame into a new vector, delimiter included.
 #[cfg(feature = "use-std")]
-pub fn encode_to_vec<T: Serialize>(message: &T) -> Result<std::vec::Vec<u8>, FrameError> {
+pub fn encode_to_vec<T: Serialize>(id: RequestId, message: &T) -> Result<std::vec::Vec<u8>, FrameError> {
     let mut out = [0u8; MAX_FRAME_LEN];
-    let len = encode(message, &mut out)?;
+    let len = encode(id, message, &mut out)?;
     Ok(out.get(..len).ok_or(FrameError::BufferTooSmall)?.to_vec())
 }
 
 /// Decodes one frame (the bytes between two delimiters) in place.
-pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<T, FrameError> {
+pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<Envelope<T>, FrameError> {
     let len = cobs::decode_in_place(frame).map_err(|_| FrameError::Malformed)?;
     let payload = frame.get(..len).ok_or(FrameError::Malformed)?;
     let body_len = len.checked_sub(CRC_LEN).filter(|&n| n > 0).ok_or(FrameError::Malformed)?;
     let (body, crc) = payload.split_at(body_len);
-    if crc != CRC.checksum(body).to_le_bytes() {
+    if crc != crc32(body).to_le_bytes() {
         return Err(FrameError::Crc);
     }
-    let (version, message) = postcard::take_from_bytes::<u16>(body).map_err(|_| FrameError::Message)?;
+    let (version, rest) =
+        postcard::take_from_bytes::<u16>(body).map_err(|_| FrameError::Message(RequestId::UNKNOWN))?;
     if version != PROTOCOL_VERSION {
         return Err(FrameError::Version(version));
     }
-    postcard::from_bytes(message).map_err(|_| FrameError::Message)
+    let (id, message) =
+        postcard::take_from_bytes::<RequestId>(rest).map_err(|_| FrameError::Message(RequestId::UNKNOWN))?;
+    let message = postcard::from_bytes(message).map_err(|_| FrameError::Message(id))?;
+    Ok(Envelope { id, message })
 }
 
 /// Splits a byte stream into frames at the 0x00 delimiters.

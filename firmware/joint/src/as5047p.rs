@@ -4,7 +4,7 @@
 //! Command frame: bit 15 even parity, bit 14 read, bits 13..0 address. Every frame answers
 //! the previous one (bit 15 even parity, bit 14 error flag, bits 13..0 data), so a read
 //! takes two frames, each in its own chip-select cycle as the sensor requires.
-use crate::AngleSensor;
+use crate::sensor::{self, AngleSensor, ErrorKind};
 use embedded_hal::spi::SpiDevice;
 
 /// Angle with dynamic angle error compensation.
@@ -37,6 +37,16 @@ impl<E: core::fmt::Debug> core::fmt::Display for Error<E> {
             Error::Spi(error) => write!(f, "SPI error: {error:?}"),
             Error::Parity => f.write_str("AS5047P answer failed its parity check"),
             Error::Sensor { errfl } => write!(f, "AS5047P reported error flags {errfl:#05x}"),
+        }
+    }
+}
+
+impl<E: core::fmt::Debug> sensor::Error for Error<E> {
+    fn kind(&self) -> ErrorKind {
+        match self {
+            Error::Spi(_) => ErrorKind::Bus,
+            Error::Parity => ErrorKind::Corrupt,
+            Error::Sensor { .. } => ErrorKind::Sensor,
         }
     }
 }
@@ -81,9 +91,11 @@ impl<SPI: SpiDevice> As5047p<SPI> {
     }
 }
 
-impl<SPI: SpiDevice> AngleSensor for As5047p<SPI> {
+impl<SPI: SpiDevice> sensor::ErrorType for As5047p<SPI> {
     type Error = Error<SPI::Error>;
+}
 
+impl<SPI: SpiDevice> AngleSensor for As5047p<SPI> {
     fn read_angle(&mut self) -> Result<f32, Self::Error> {
         let counts = self.read_counts()?;
         Ok(f32::from(counts) * (core::f32::consts::TAU / COUNTS_PER_TURN))
@@ -148,7 +160,8 @@ mod tests {
     #[test]
     fn a_corrupted_answer_fails_parity() {
         let mut sensor = As5047p::new(expect(&[(0xFFFF, 0x0000), (0xC000, 0x1000)]));
-        assert_eq!(sensor.read_counts(), Err(Error::Parity));
+        let error = sensor.read_angle().unwrap_err();
+        assert_eq!((error, sensor::Error::kind(&error)), (Error::Parity, ErrorKind::Corrupt));
         sensor.release().done();
     }
 
@@ -157,7 +170,8 @@ mod tests {
         // EF set (bit 14) with even parity; ERRFL answers 0x0004 = parity error on MOSI.
         let mut sensor =
             As5047p::new(expect(&[(0xFFFF, 0x0000), (0xC000, 0x4001), (0x4001, 0x0000), (0xC000, 0x8004)]));
-        assert_eq!(sensor.read_counts(), Err(Error::Sensor { errfl: 0x0004 }));
+        let error = sensor.read_angle().unwrap_err();
+        assert_eq!((error, sensor::Error::kind(&error)), (Error::Sensor { errfl: 0x0004 }, ErrorKind::Sensor));
         sensor.release().done();
     }
 }

@@ -30,6 +30,18 @@ impl Installed {
     }
 }
 
+/// A validated set with its evaluator at rest ([`Compensator::prepare`]), ready to be
+/// installed by the control tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Prepared(Installed);
+
+impl Prepared {
+    /// The set.
+    pub fn params(&self) -> JointParams {
+        self.0.params
+    }
+}
+
 /// The feed-forward of one joint: parameters, the model's memory, evaluation, clamping.
 ///
 /// A new set is validated and prepared completely by [`Compensator::stage`] and takes effect
@@ -72,14 +84,27 @@ impl Compensator {
         }
     }
 
-    /// Validates `params` and prepares them, at rest, for the next tick.
-    pub fn stage(&mut self, params: JointParams) -> Result<(), ErrorReply> {
+    /// Validates `params` and prepares them, at rest, for [`Compensator::install`]: the slow
+    /// part of staging a set (the range checks, the fast path's constants), done where time
+    /// does not matter (the link's side on a board).
+    pub fn prepare(params: JointParams) -> Result<Prepared, ErrorReply> {
         params.validate()?;
         let evaluator = params.model.evaluator(params.direction_band).map_err(|_| ErrorReply::ModelOverflow)?;
-        let idle = if self.second_active { &mut self.slots.0 } else { &mut self.slots.1 };
-        *idle = Some(Installed { params, evaluator, fast: params.model.has_fast_path() });
-        self.staged = true;
+        Ok(Prepared(Installed { params, evaluator, fast: params.model.has_fast_path() }))
+    }
+
+    /// Validates `params` and prepares them, at rest, for the next tick.
+    pub fn stage(&mut self, params: JointParams) -> Result<(), ErrorReply> {
+        self.install(Self::prepare(params)?);
         Ok(())
+    }
+
+    /// Stages a prepared set for the next tick, in the slot not in use (a few hundred bytes
+    /// moved: fit for a tick).
+    pub fn install(&mut self, prepared: Prepared) {
+        let idle = if self.second_active { &mut self.slots.0 } else { &mut self.slots.1 };
+        *idle = Some(prepared.0);
+        self.staged = true;
     }
 
     /// The set the next tick will use.

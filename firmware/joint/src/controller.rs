@@ -51,25 +51,6 @@ pub const SCHEDULE_RANGE: (f32, f32) = (0.25, 1.0);
 /// The damping acts on the motor velocity above this frequency, Hz.
 pub const DAMPING_CUTOFF_HZ: f32 = 3.0;
 
-/// Where a board sends the motor torque command.
-pub trait MotorDrive {
-    /// Why a command was not applied; `Debug` so that a board can log it.
-    type Error: core::fmt::Debug;
-    /// Applies `torque`, N·m at the motor shaft: finite and within the configured limit.
-    fn apply(&mut self, torque: f32) -> Result<(), Self::Error>;
-}
-
-/// A drive that applies nothing: for links that only replay (the host's tests).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct NoDrive;
-
-impl MotorDrive for NoDrive {
-    type Error = core::convert::Infallible;
-    fn apply(&mut self, _torque: f32) -> Result<(), Self::Error> {
-        Ok(())
-    }
-}
-
 /// The torque controller's configuration and state.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Controller {
@@ -103,10 +84,16 @@ impl Controller {
     /// Validates and installs `config`; the integral and the velocity start afresh.
     pub fn configure(&mut self, config: ControllerConfig) -> Result<(), ErrorReply> {
         config.validate()?;
+        self.install(config);
+        Ok(())
+    }
+
+    /// Installs a configuration that [`ControllerConfig::validate`] accepted (the link
+    /// validates, the tick installs); the integral and the velocity start afresh.
+    pub(crate) fn install(&mut self, config: ControllerConfig) {
         // First-order low-pass at the cutoff (forward Euler, at most the whole step).
         let smoothing = limit(core::f32::consts::TAU * DAMPING_CUTOFF_HZ * config.period, 0.0, 1.0);
         *self = Controller { config: Some(config), reference: self.reference, smoothing, ..Controller::new() };
-        Ok(())
     }
 
     /// The configuration in use.

@@ -9,6 +9,11 @@
 //! ([`controller::Controller`]) closes its loop on that T_ff (or on one stiffness) and hands the
 //! motor command to the board's [`MotorDrive`].
 //!
+//! A board runs two halves at two priorities: the control tick ([`Joint`]: compensator and
+//! controller) in its timer interrupt, and the link ([`Server`]: frames, requests, replies,
+//! flash commits) below it, handing work to the tick through the lock-free [`handoff`].
+//! [`Device`] runs both in one thread for tests.
+//!
 //! Lints: the workspace's (firmware/Cargo.toml and firmware/clippy.toml).
 #![no_std]
 
@@ -16,15 +21,23 @@ pub mod as5047p;
 pub mod budget;
 mod compensator;
 pub mod controller;
+pub mod drive;
 pub mod fast;
 pub mod flash;
+pub mod handoff;
+pub mod handover;
+pub mod sensor;
 mod server;
 pub mod storage;
+mod tick;
 
-pub use compensator::{Compensator, MAX_DEFLECTION};
-pub use controller::{Controller, MotorDrive, NoDrive};
+pub use compensator::{Compensator, Prepared, MAX_DEFLECTION};
+pub use controller::Controller;
+pub use drive::{MotorDrive, NoDrive};
 pub use fast::FastModel;
-pub use server::Server;
+pub use sensor::AngleSensor;
+pub use server::{Device, Server};
+pub use tick::{Joint, TickStart};
 
 use swg_protocol::Version;
 
@@ -42,14 +55,6 @@ pub(crate) fn limit(value: f32, low: f32, high: f32) -> f32 {
     } else {
         value
     }
-}
-
-/// An absolute angle sensor on a shaft.
-pub trait AngleSensor {
-    /// Why a reading failed; `Debug` so that a board can log it and a test can unwrap it.
-    type Error: core::fmt::Debug;
-    /// The shaft angle in [0, 2π) rad.
-    fn read_angle(&mut self) -> Result<f32, Self::Error>;
 }
 
 /// Makes a single-turn angle multi-turn by counting the wraps between readings; valid while

@@ -1,126 +1,145 @@
-use crate::controller::{Controller, MotorDrive, NoDrive};
+//! The link's half of the joint: bytes in, one reply frame per request frame out, the
+//! parameter store, and the [`Handoff`](crate::handoff) to the control tick. It runs at the
+//! board's lowest priority; the tick ([`Joint`]) preempts it whenever its timer expires, so
+//! nothing here (a slow reply, a range check of a new set, a flash commit) can delay a tick
+//! beyond the few instructions of an exception entry.
+use crate::compensator::Prepared;
+use crate::drive::MotorDrive;
+use crate::handoff::{Command, Handoff, LinkPort, Sample, TickTiming};
+use crate::tick::Joint;
 use crate::{storage::ParamStore, Compensator, FIRMWARE_VERSION};
 use embedded_storage::nor_flash::NorFlash;
+use swg_protocol::endpoint::{Commit, Configure, GetDeviceInfo, GetStatus, ReadParams, SetReference, WriteParams};
 use swg_protocol::{
-    decode, encode, ControlOutput, DeviceInfo, ErrorReply, FrameReader, Request, Response, MAX_FRAME_LEN,
-    MODEL_VERSION, PROTOCOL_VERSION,
+    decode, encode, ControlMode, ControllerConfig, DeviceInfo, Endpoint, Envelope, ErrorReply, FrameReader,
+    JointParams, Request, RequestId, Response, MAX_FRAME_LEN, MODEL_VERSION, PROTOCOL_VERSION,
 };
 
-/// The device end of the link: bytes in, one response frame per request frame out.
+/// The device end of the link.
 pub struct Server<F> {
     reader: FrameReader<MAX_FRAME_LEN>,
-    compensator: Compensator,
-    controller: Controller,
     store: ParamStore<F>,
+    /// The set the next tick uses: the last one accepted, or the stored one at boot. The link
+    /// answers reads and commits from this copy; the tick has its own.
+    params: Option<JointParams>,
+    /// The last accepted controller configuration drives the motor (a mode other than `Off`).
+    driving: bool,
+    /// The request whose lockstep sample the tick has been handed: its answer is due.
+    awaiting: Option<RequestId>,
 }
 
 impl<F: NorFlash> Server<F> {
-    /// Starts with the newest valid parameter set in `store`, if any.
-    pub fn new(mut store: ParamStore<F>) -> Self {
-        let mut compensator = Compensator::new();
-        if let Some(stored) = store.load() {
-            // A stored set was validated when it was written; one that no longer validates
-            // (e.g. after a model change) leaves the compensation off.
-            let _ = compensator.stage(stored.params);
-        }
-        Server { reader: FrameReader::new(), compensator, controller: Controller::new(), store }
+    /// Starts with the newest valid parameter set in `store`, if any: the server, and the
+    /// joint for the tick with that set installed. A stored set was validated when it was
+    /// written; one that no longer validates (e.g. after a model change) leaves the
+    /// compensation off.
+    pub fn boot(mut store: ParamStore<F>) -> (Self, Joint) {
+        let prepared = store.load().and_then(|stored| Compensator::prepare(stored.params).ok());
+        let server = Server {
+            reader: FrameReader::new(),
+            store,
+            params: prepared.as_ref().map(Prepared::params),
+            driving: false,
+            awaiting: None,
+        };
+        (server, Joint::new(prepared))
     }
 
-    /// The compensator, for a board's control tick.
-    pub fn compensator(&mut self) -> &mut Compensator {
-        &mut self.compensator
+    /// Whether the server takes the next byte: not while a lockstep sample waits for its
+    /// tick, nor before the tick has taken the last command (at most one period either way).
+    /// Bytes wait in the board's receive buffer meanwhile.
+    pub fn ready(&self, port: &LinkPort) -> bool {
+        self.awaiting.is_none() && port.has_room()
     }
 
-    /// One control tick of the board's own timer at the reference set over the link: the
-    /// command goes to `drive` (and is returned).
-    pub fn control_tick<D: MotorDrive>(
-        &mut self,
-        input_angle: f32,
-        output_angle: f32,
-        drive: &mut D,
-    ) -> Result<ControlOutput, D::Error> {
-        let output = self.controller.tick_stored(&mut self.compensator, input_angle, output_angle);
-        drive.apply(output.command)?;
-        Ok(output)
-    }
-
-    /// Feeds one received byte; when it completes a frame, writes the response frame into
-    /// `out` and returns its length. Lockstep control requests go to no motor drive (the
-    /// command only comes back in the response): see [`Server::receive_driving`].
-    pub fn receive(&mut self, byte: u8, out: &mut [u8; MAX_FRAME_LEN]) -> Option<usize> {
-        self.receive_driving(byte, out, &mut NoDrive)
-    }
-
-    /// [`Server::receive`], with the command of a lockstep [`Request::Control`] applied to
-    /// `drive` before the response is written (a refused command is answered with
-    /// [`ErrorReply::MotorDrive`]).
-    pub fn receive_driving<D: MotorDrive>(
-        &mut self,
-        byte: u8,
-        out: &mut [u8; MAX_FRAME_LEN],
-        drive: &mut D,
-    ) -> Option<usize> {
-        let response = match self.reader.push(byte)? {
+    /// Feeds one received byte; when it completes a frame whose reply is ready, writes the
+    /// reply frame into `out` and returns its length. A lockstep sample's reply comes from
+    /// [`Server::poll`] once the tick has run it. Call only when [`Server::ready`].
+    pub fn receive(&mut self, byte: u8, port: &mut LinkPort, out: &mut [u8; MAX_FRAME_LEN]) -> Option<usize> {
+        let (id, response) = match self.reader.push(byte)? {
             Ok(frame) => match decode::<Request>(frame) {
-                Ok(request) => self.handle(request, drive),
-                Err(error) => Response::Error(error.into()),
+                Ok(Envelope { id, message }) => (id, self.handle(id, message, port)?),
+                Err(error) => (error.request_id(), Response::Error(error.into())),
             },
-            Err(error) => Response::Error(error.into()),
+            Err(error) => (error.request_id(), Response::Error(error.into())),
         };
         // Every response fits MAX_FRAME_LEN (tested in the protocol crate).
-        encode(&response, out).ok()
+        encode(id, &response, out).ok()
     }
 
-    fn handle<D: MotorDrive>(&mut self, request: Request, drive: &mut D) -> Response {
-        match request {
-            Request::GetDeviceInfo => Response::DeviceInfo(DeviceInfo {
+    /// The reply to the lockstep sample the tick has run, written into `out`; its length.
+    pub fn poll(&mut self, port: &mut LinkPort, out: &mut [u8; MAX_FRAME_LEN]) -> Option<usize> {
+        let id = self.awaiting?;
+        let answer = port.answer()?;
+        self.awaiting = None;
+        encode(id, &answer, out).ok()
+    }
+
+    /// The reply to `request`, or `None` when the tick has been handed its sample.
+    fn handle(&mut self, id: RequestId, request: Request, port: &mut LinkPort) -> Option<Response> {
+        let response = match request {
+            Request::GetDeviceInfo => GetDeviceInfo::reply(DeviceInfo {
                 firmware_version: FIRMWARE_VERSION,
                 protocol_version: PROTOCOL_VERSION,
                 model_version: MODEL_VERSION,
             }),
-            Request::WriteParams(params) => match self.compensator.stage(params) {
-                Ok(()) => Response::ParamsAccepted,
-                Err(reason) => Response::Error(reason),
-            },
-            Request::ReadParams => Response::Params(self.compensator.params()),
-            Request::Commit => match self.compensator.params() {
-                None => Response::Error(ErrorReply::NoParams),
-                Some(params) => match self.store.save(&params) {
-                    Ok(sequence) => Response::Committed { sequence },
-                    Err(_) => Response::Error(ErrorReply::Storage),
-                },
-            },
+            Request::GetStatus => GetStatus::reply(port.status()),
+            Request::WriteParams(params) => answer::<WriteParams>(self.write_params(params, port)),
+            Request::ReadParams => ReadParams::reply(self.params),
+            Request::Commit => answer::<Commit>(self.commit()),
+            Request::Configure(config) => answer::<Configure>(self.configure(config, port)),
+            Request::SetReference(reference) => answer::<SetReference>(if reference.is_finite() {
+                port.post(Command::SetReference(reference))
+            } else {
+                Err(ErrorReply::NonFiniteSample)
+            }),
             Request::Replay(sample) => {
-                if !(sample.input_angle.is_finite() && sample.output_angle.is_finite()) {
-                    return Response::Error(ErrorReply::NonFiniteSample);
-                }
-                let feedforward = self.compensator.tick(sample.input_angle, sample.output_angle, sample.path);
-                Response::Feedforward(feedforward)
+                let finite = sample.input_angle.is_finite() && sample.output_angle.is_finite();
+                return self.lockstep(id, finite, Sample::Replay(sample), port);
             }
-            Request::Configure(config) => match self.controller.configure(config) {
-                Ok(()) => Response::ControlAccepted,
-                Err(reason) => Response::Error(reason),
-            },
-            Request::SetReference(reference) => match self.controller.set_reference(reference) {
-                Ok(()) => Response::ControlAccepted,
-                Err(reason) => Response::Error(reason),
-            },
             Request::Control(sample) => {
                 let finite = [sample.input_angle, sample.output_angle, sample.reference];
-                if !finite.iter().all(|value| value.is_finite()) {
-                    return Response::Error(ErrorReply::NonFiniteSample);
-                }
-                let output = self.controller.tick(
-                    &mut self.compensator,
-                    sample.input_angle,
-                    sample.output_angle,
-                    sample.reference,
-                );
-                match drive.apply(output.command) {
-                    Ok(()) => Response::Control(output),
-                    Err(_) => Response::Error(ErrorReply::MotorDrive),
-                }
+                let finite = finite.iter().all(|value| value.is_finite());
+                return self.lockstep(id, finite, Sample::Control(sample), port);
             }
+        };
+        Some(response)
+    }
+
+    fn write_params(&mut self, params: JointParams, port: &mut LinkPort) -> Result<(), ErrorReply> {
+        port.post(Command::Install(Compensator::prepare(params)?))?;
+        self.params = Some(params);
+        Ok(())
+    }
+
+    /// A flash commit stalls the processor, and with it the tick, while it erases: refused
+    /// while the controller may drive the motor. With the controller off the command is zero,
+    /// and the ticks the erase takes are counted as missed.
+    fn commit(&mut self) -> Result<u32, ErrorReply> {
+        let params = self.params.ok_or(ErrorReply::NoParams)?;
+        if self.driving {
+            return Err(ErrorReply::CommitWhileDriving);
+        }
+        self.store.save(&params).map_err(ErrorReply::Storage)
+    }
+
+    fn configure(&mut self, config: ControllerConfig, port: &mut LinkPort) -> Result<(), ErrorReply> {
+        config.validate()?;
+        port.post(Command::Configure(config))?;
+        self.driving = config.mode != ControlMode::Off;
+        Ok(())
+    }
+
+    fn lockstep(&mut self, id: RequestId, finite: bool, sample: Sample, port: &mut LinkPort) -> Option<Response> {
+        if !finite {
+            return Some(Response::Error(ErrorReply::NonFiniteSample));
+        }
+        match port.post(Command::Sample(sample)) {
+            Ok(()) => {
+                self.awaiting = Some(id);
+                None
+            }
+            Err(reason) => Some(Response::Error(reason)),
         }
     }
 
@@ -130,16 +149,63 @@ impl<F: NorFlash> Server<F> {
     }
 }
 
+/// `result` as the endpoint's reply, or the error reply.
+fn answer<E: Endpoint>(result: Result<E::Response, ErrorReply>) -> Response {
+    match result {
+        Ok(response) => E::reply(response),
+        Err(reason) => Response::Error(reason),
+    }
+}
+
+/// The whole joint in one thread, for tests and the host's fake device: the link's server and
+/// the tick's joint over their handoff, the tick run (untimed) whenever the link hands it
+/// something, as the board's timer would at its next expiry.
+pub struct Device<F, D> {
+    handoff: Handoff,
+    server: Server<F>,
+    joint: Joint,
+    drive: D,
+}
+
+impl<F: NorFlash, D: MotorDrive> Device<F, D> {
+    pub fn new(store: ParamStore<F>, drive: D) -> Self {
+        let (server, joint) = Server::boot(store);
+        Device { handoff: Handoff::new(TickTiming::UNTIMED), server, joint, drive }
+    }
+
+    /// Feeds one received byte; returns the length of the reply frame written into `out`
+    /// when the byte completed a request.
+    pub fn receive(&mut self, byte: u8, out: &mut [u8; MAX_FRAME_LEN]) -> Option<usize> {
+        let (mut link, mut tick) = self.handoff.split();
+        let reply = self.server.receive(byte, &mut link, out);
+        if !self.server.ready(&link) {
+            self.joint.lockstep_tick(&mut tick, None, &mut self.drive);
+        }
+        reply.or_else(|| self.server.poll(&mut link, out))
+    }
+
+    /// The motor drive, as the ticks left it.
+    pub fn drive(&self) -> &D {
+        &self.drive
+    }
+
+    /// Gives the storage back, e.g. to simulate a reboot in tests.
+    pub fn into_store(self) -> ParamStore<F> {
+        self.server.into_store()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     extern crate std;
     use super::*;
+    use crate::drive::{self, NoDrive};
     use crate::flash::RamFlash;
     use model_core::Params;
     use std::vec::Vec;
     use swg_protocol::{
-        encode_with_version, Compensation, EncoderSample, EvalPath, GearModel, JointParams, ParamFault, ParamField,
-        ParamName, SlipParams, SLIP_ELEMENTS,
+        encode_with_version, Compensation, ControlSample, DriveErrorKind, EncoderSample, EvalPath, GainField,
+        GearModel, ParamFault, ParamField, ParamName, SlipParams, StorageError, SLIP_ELEMENTS,
     };
 
     const PARAMS: JointParams = JointParams {
@@ -150,42 +216,81 @@ mod tests {
         direction_band: 2.0e-6,
     };
 
-    fn server() -> Server<RamFlash<4096>> {
-        Server::new(ParamStore::new(RamFlash::new()).unwrap())
+    const CONFIG: ControllerConfig = ControllerConfig {
+        mode: ControlMode::OpenLoop,
+        kp: 0.05,
+        ki: 1.0,
+        integral_deadband: 0.1,
+        damping: 1.0e-3,
+        torsion_damping: 2.0e-3,
+        stiffness: 9000.0,
+        command_limit: 1.0,
+        period: 1.0e-3,
+    };
+
+    /// A drive that records what it was given, and refuses when told to.
+    #[derive(Default)]
+    struct Recorder {
+        applied: Vec<f32>,
+        refuse: bool,
     }
 
-    fn frame(request: &Request) -> Vec<u8> {
+    impl drive::ErrorType for Recorder {
+        type Error = DriveErrorKind;
+    }
+
+    impl MotorDrive for Recorder {
+        fn apply(&mut self, torque: f32) -> Result<(), DriveErrorKind> {
+            if self.refuse {
+                return Err(DriveErrorKind::OutOfRange);
+            }
+            self.applied.push(torque);
+            Ok(())
+        }
+    }
+
+    type Test<D = NoDrive> = Device<RamFlash<4096>, D>;
+
+    fn device() -> Test {
+        Device::new(ParamStore::new(RamFlash::new()).unwrap(), NoDrive)
+    }
+
+    fn frame(id: RequestId, request: &Request) -> Vec<u8> {
         let mut out = [0u8; MAX_FRAME_LEN];
-        let len = encode(request, &mut out).unwrap();
+        let len = encode(id, request, &mut out).unwrap();
         out[..len].to_vec()
     }
 
-    /// Sends raw bytes; returns every response they produced.
-    fn exchange(server: &mut Server<RamFlash<4096>>, bytes: &[u8]) -> Vec<Response> {
+    /// Sends raw bytes; returns every reply they produced, with its id.
+    fn exchange<D: MotorDrive>(device: &mut Test<D>, bytes: &[u8]) -> Vec<(RequestId, Response)> {
         let mut out = [0u8; MAX_FRAME_LEN];
-        let mut responses = Vec::new();
+        let mut replies = Vec::new();
         for &byte in bytes {
-            if let Some(len) = server.receive(byte, &mut out) {
-                responses.push(decode(&mut out[..len - 1]).unwrap());
+            if let Some(len) = device.receive(byte, &mut out) {
+                let envelope = decode::<Response>(&mut out[..len - 1]).unwrap();
+                replies.push((envelope.id, envelope.message));
             }
         }
-        responses
+        replies
     }
 
-    fn request(server: &mut Server<RamFlash<4096>>, request: &Request) -> Response {
-        let responses = exchange(server, &frame(request));
-        assert_eq!(responses.len(), 1);
-        responses[0]
+    /// One request, one reply, carrying the request's id.
+    fn request<D: MotorDrive>(device: &mut Test<D>, request: &Request) -> Response {
+        let id = RequestId(0x5EED);
+        let replies = exchange(device, &frame(id, request));
+        assert_eq!(replies.len(), 1);
+        assert_eq!(replies[0].0, id, "the reply echoes the request's id");
+        replies[0].1
     }
 
-    fn replay(server: &mut Server<RamFlash<4096>>) -> Response {
+    fn replay<D: MotorDrive>(device: &mut Test<D>) -> Response {
         let sample = EncoderSample { input_angle: 0.05, output_angle: 0.0, path: EvalPath::Fast };
-        request(server, &Request::Replay(sample))
+        request(device, &Request::Replay(sample))
     }
 
     #[test]
     fn device_info_names_all_versions() {
-        let Response::DeviceInfo(info) = request(&mut server(), &Request::GetDeviceInfo) else { panic!() };
+        let Response::DeviceInfo(info) = request(&mut device(), &Request::GetDeviceInfo) else { panic!() };
         assert_eq!(info.protocol_version, PROTOCOL_VERSION);
         assert_eq!(info.model_version, MODEL_VERSION);
         assert_eq!(info.firmware_version, FIRMWARE_VERSION);
@@ -193,13 +298,13 @@ mod tests {
 
     #[test]
     fn write_read_commit_and_reboot() {
-        let mut server = server();
-        assert_eq!(request(&mut server, &Request::ReadParams), Response::Params(None));
-        assert_eq!(request(&mut server, &Request::Commit), Response::Error(ErrorReply::NoParams));
-        assert_eq!(request(&mut server, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
-        assert_eq!(request(&mut server, &Request::ReadParams), Response::Params(Some(PARAMS)));
-        assert_eq!(request(&mut server, &Request::Commit), Response::Committed { sequence: 1 });
-        let mut rebooted = Server::new(server.into_store());
+        let mut device = device();
+        assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(None));
+        assert_eq!(request(&mut device, &Request::Commit), Response::Error(ErrorReply::NoParams));
+        assert_eq!(request(&mut device, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(Some(PARAMS)));
+        assert_eq!(request(&mut device, &Request::Commit), Response::Committed(1));
+        let mut rebooted = Device::new(device.into_store(), NoDrive);
         assert_eq!(request(&mut rebooted, &Request::ReadParams), Response::Params(Some(PARAMS)));
         let Response::Feedforward(out) = replay(&mut rebooted) else { panic!() };
         assert_eq!(out.compensation, Compensation::Active);
@@ -218,13 +323,13 @@ mod tests {
             }),
             ..PARAMS
         };
-        let mut server = server();
-        assert_eq!(request(&mut server, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
-        assert_eq!(request(&mut server, &Request::Commit), Response::Committed { sequence: 1 });
-        assert_eq!(request(&mut server, &Request::WriteParams(slip)), Response::ParamsAccepted);
-        assert_eq!(request(&mut server, &Request::ReadParams), Response::Params(Some(slip)));
-        assert_eq!(request(&mut server, &Request::Commit), Response::Committed { sequence: 2 });
-        let mut rebooted = Server::new(server.into_store());
+        let mut device = device();
+        assert_eq!(request(&mut device, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &Request::Commit), Response::Committed(1));
+        assert_eq!(request(&mut device, &Request::WriteParams(slip)), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(Some(slip)));
+        assert_eq!(request(&mut device, &Request::Commit), Response::Committed(2));
+        let mut rebooted = Device::new(device.into_store(), NoDrive);
         assert_eq!(request(&mut rebooted, &Request::ReadParams), Response::Params(Some(slip)));
         let Response::Feedforward(out) = replay(&mut rebooted) else { panic!() };
         assert_eq!((out.compensation, out.direction), (Compensation::Active, None));
@@ -232,11 +337,13 @@ mod tests {
         assert!(out.memory > 0 && usize::from(out.memory) < SLIP_ELEMENTS, "{out:?}");
     }
 
+    /// Bad frames are answered with the reason and, where the frame's id could be read, that
+    /// id; the unknown id otherwise.
     #[test]
     fn bad_traffic_gets_a_reason_and_changes_nothing() {
-        let mut server = server();
-        request(&mut server, &Request::WriteParams(PARAMS));
-        let before = replay(&mut server);
+        let mut device = device();
+        request(&mut device, &Request::WriteParams(PARAMS));
+        let before = replay(&mut device);
 
         let mut nan = PARAMS;
         if let GearModel::Genetic(model) = &mut nan.model {
@@ -244,113 +351,147 @@ mod tests {
         }
         let mut huge_band = PARAMS;
         huge_band.direction_band = 1.0;
-        let good = frame(&Request::WriteParams(huge_band));
+        let good = frame(RequestId(41), &Request::WriteParams(huge_band));
         let mut corrupted = good.clone();
         corrupted[10] ^= 0x40;
         let truncated = [&good[..good.len() / 2], &[0u8][..]].concat();
         let mut other_version = [0u8; MAX_FRAME_LEN];
-        let len = encode_with_version(PROTOCOL_VERSION + 1, &Request::Commit, &mut other_version).unwrap();
+        let len =
+            encode_with_version(PROTOCOL_VERSION + 1, RequestId(43), &Request::Commit, &mut other_version).unwrap();
         let too_long = [&[0x55u8; 300][..], &[0u8][..]].concat();
+        // A response where a request belongs: intact, so its id is read.
+        let mut not_a_request = [0u8; MAX_FRAME_LEN];
+        let not_a_request_len = encode(RequestId(44), &Response::ParamsAccepted, &mut not_a_request).unwrap();
 
-        let cases: [(Vec<u8>, ErrorReply); 6] = [
+        let unknown = RequestId::UNKNOWN;
+        let cases: [(Vec<u8>, RequestId, ErrorReply); 7] = [
             (
-                frame(&Request::WriteParams(nan)),
+                frame(RequestId(40), &Request::WriteParams(nan)),
+                RequestId(40),
                 ErrorReply::InvalidParam { field: ParamField::Model(ParamName::C1), fault: ParamFault::NotFinite },
             ),
-            (good, ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange }),
-            (corrupted, ErrorReply::BadCrc),
-            (truncated, ErrorReply::BadFrame),
+            (
+                good,
+                RequestId(41),
+                ErrorReply::InvalidParam { field: ParamField::DirectionBand, fault: ParamFault::OutOfRange },
+            ),
+            (corrupted, unknown, ErrorReply::BadCrc),
+            (truncated, unknown, ErrorReply::BadFrame),
             (
                 other_version[..len].to_vec(),
+                unknown,
                 ErrorReply::UnsupportedProtocol { got: PROTOCOL_VERSION + 1, supported: PROTOCOL_VERSION },
             ),
-            (too_long, ErrorReply::FrameTooLong),
+            (too_long, unknown, ErrorReply::FrameTooLong),
+            (not_a_request[..not_a_request_len].to_vec(), RequestId(44), ErrorReply::UndecodableRequest),
         ];
-        for (bytes, reason) in cases {
-            assert_eq!(exchange(&mut server, &bytes), [Response::Error(reason)]);
-            assert_eq!(request(&mut server, &Request::ReadParams), Response::Params(Some(PARAMS)));
+        for (bytes, id, reason) in cases {
+            assert_eq!(exchange(&mut device, &bytes), [(id, Response::Error(reason))]);
+            assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(Some(PARAMS)));
         }
         let nan_sample = EncoderSample { input_angle: f32::NAN, output_angle: 0.0, path: EvalPath::Direct };
-        assert_eq!(request(&mut server, &Request::Replay(nan_sample)), Response::Error(ErrorReply::NonFiniteSample));
+        assert_eq!(request(&mut device, &Request::Replay(nan_sample)), Response::Error(ErrorReply::NonFiniteSample));
         // Same tick result as before: the model's memory saw the same θ again.
-        assert_eq!(replay(&mut server), before);
-    }
-
-    /// A drive that records what it was given, and refuses when told to.
-    #[derive(Default)]
-    struct Recorder {
-        applied: Vec<f32>,
-        refuse: bool,
-    }
-
-    impl MotorDrive for Recorder {
-        type Error = ();
-        fn apply(&mut self, torque: f32) -> Result<(), ()> {
-            if self.refuse {
-                return Err(());
-            }
-            self.applied.push(torque);
-            Ok(())
-        }
+        assert_eq!(replay(&mut device), before);
     }
 
     #[test]
     fn control_requests_configure_tick_and_drive() {
-        use swg_protocol::{ControlMode, ControlSample, ControllerConfig, GainField};
-        let config = ControllerConfig {
-            mode: ControlMode::OpenLoop,
-            kp: 0.05,
-            ki: 1.0,
-            integral_deadband: 0.1,
-            damping: 1.0e-3,
-            torsion_damping: 2.0e-3,
-            stiffness: 9000.0,
-            command_limit: 1.0,
-            period: 1.0e-3,
-        };
-        let mut server = server();
-        let mut drive = Recorder::default();
-        let talk = |server: &mut Server<RamFlash<4096>>, drive: &mut Recorder, request: &Request| {
-            let mut out = [0u8; MAX_FRAME_LEN];
-            let mut responses = Vec::new();
-            for byte in frame(request) {
-                if let Some(len) = server.receive_driving(byte, &mut out, drive) {
-                    responses.push(decode::<Response>(&mut out[..len - 1]).unwrap());
-                }
-            }
-            assert_eq!(responses.len(), 1);
-            responses[0]
-        };
+        let mut device = Device::new(ParamStore::new(RamFlash::new()).unwrap(), Recorder::default());
         let sample = ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 10.0 };
         // Not configured, no parameters: Off, zero command, applied.
-        let Response::Control(out) = talk(&mut server, &mut drive, &Request::Control(sample)) else { panic!() };
+        let Response::Control(out) = request(&mut device, &Request::Control(sample)) else { panic!() };
         assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));
-        assert_eq!(talk(&mut server, &mut drive, &Request::Configure(config)), Response::ControlAccepted);
-        assert_eq!(talk(&mut server, &mut drive, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
-        let Response::Control(out) = talk(&mut server, &mut drive, &Request::Control(sample)) else { panic!() };
+        assert_eq!(request(&mut device, &Request::Configure(CONFIG)), Response::ControlAccepted);
+        assert_eq!(request(&mut device, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
+        let Response::Control(out) = request(&mut device, &Request::Control(sample)) else { panic!() };
         assert_eq!((out.command, out.mode), (10.0 / PARAMS.gear_ratio, ControlMode::OpenLoop));
-        assert_eq!(drive.applied, [0.0, 0.1]);
+        assert_eq!(device.drive().applied, [0.0, 0.1]);
         // Bad requests change nothing.
-        let bad = ControllerConfig { period: 0.0, ..config };
+        let bad = ControllerConfig { period: 0.0, ..CONFIG };
         assert_eq!(
-            talk(&mut server, &mut drive, &Request::Configure(bad)),
+            request(&mut device, &Request::Configure(bad)),
             Response::Error(ErrorReply::InvalidGain { field: GainField::Period, fault: ParamFault::OutOfRange })
         );
         let nan = ControlSample { reference: f32::NAN, ..sample };
-        assert_eq!(talk(&mut server, &mut drive, &Request::Control(nan)), Response::Error(ErrorReply::NonFiniteSample));
+        assert_eq!(request(&mut device, &Request::Control(nan)), Response::Error(ErrorReply::NonFiniteSample));
         assert_eq!(
-            talk(&mut server, &mut drive, &Request::SetReference(f32::INFINITY)),
+            request(&mut device, &Request::SetReference(f32::INFINITY)),
             Response::Error(ErrorReply::NonFiniteSample)
         );
-        assert_eq!(drive.applied.len(), 2);
-        // The board's own tick runs at the stored reference.
-        assert_eq!(talk(&mut server, &mut drive, &Request::SetReference(-5.0)), Response::ControlAccepted);
-        let out = server.control_tick(0.0, 0.0, &mut drive).unwrap();
-        assert_eq!(out.command, -5.0 / PARAMS.gear_ratio);
-        assert_eq!(drive.applied.last(), Some(&-0.05));
-        // A drive that refuses: the reply says so.
-        drive.refuse = true;
-        assert_eq!(talk(&mut server, &mut drive, &Request::Control(sample)), Response::Error(ErrorReply::MotorDrive));
-        assert!(server.control_tick(0.0, 0.0, &mut drive).is_err());
+        assert_eq!(request(&mut device, &Request::SetReference(-5.0)), Response::ControlAccepted);
+        assert_eq!(device.drive().applied.len(), 2);
+        // A drive that refuses: the reply says so, with its kind.
+        device.drive.refuse = true;
+        assert_eq!(
+            request(&mut device, &Request::Control(sample)),
+            Response::Error(ErrorReply::MotorDrive(DriveErrorKind::OutOfRange))
+        );
+    }
+
+    /// While the controller may drive the motor, a commit is refused (a flash erase would stall
+    /// the tick); once it is configured off, the commit goes through.
+    #[test]
+    fn no_commit_while_the_controller_drives() {
+        let mut device = device();
+        assert_eq!(request(&mut device, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &Request::Configure(CONFIG)), Response::ControlAccepted);
+        assert_eq!(request(&mut device, &Request::Commit), Response::Error(ErrorReply::CommitWhileDriving));
+        let off = ControllerConfig { mode: ControlMode::Off, ..CONFIG };
+        assert_eq!(request(&mut device, &Request::Configure(off)), Response::ControlAccepted);
+        assert_eq!(request(&mut device, &Request::Commit), Response::Committed(1));
+    }
+
+    /// A store that cannot erase: the commit's reply names the step.
+    #[test]
+    fn a_failed_commit_says_which_step_failed() {
+        use embedded_storage::nor_flash::{ErrorType, NorFlashErrorKind, ReadNorFlash};
+        struct NoErase(RamFlash<4096>);
+        impl ErrorType for NoErase {
+            type Error = NorFlashErrorKind;
+        }
+        impl ReadNorFlash for NoErase {
+            const READ_SIZE: usize = 1;
+            fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+                self.0.read(offset, bytes)
+            }
+            fn capacity(&self) -> usize {
+                self.0.capacity()
+            }
+        }
+        impl NorFlash for NoErase {
+            const WRITE_SIZE: usize = RamFlash::<4096>::WRITE_SIZE;
+            const ERASE_SIZE: usize = RamFlash::<4096>::ERASE_SIZE;
+            fn erase(&mut self, _: u32, _: u32) -> Result<(), Self::Error> {
+                Err(NorFlashErrorKind::Other)
+            }
+            fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+                self.0.write(offset, bytes)
+            }
+        }
+        let mut device = Device::new(ParamStore::new(NoErase(RamFlash::new())).unwrap(), NoDrive);
+        let mut out = [0u8; MAX_FRAME_LEN];
+        let mut reply = None;
+        for request in [Request::WriteParams(PARAMS), Request::Commit] {
+            for byte in frame(RequestId(9), &request) {
+                if let Some(len) = device.receive(byte, &mut out) {
+                    reply = Some(decode::<Response>(&mut out[..len - 1]).unwrap().message);
+                }
+            }
+        }
+        let error = ErrorReply::Storage(StorageError::Erase);
+        assert_eq!(reply, Some(Response::Error(error)));
+        assert_eq!(std::format!("{error}"), "storing the parameters failed: flash erase failed");
+    }
+
+    /// The status counts the ticks the link handed work to (an in-process device is untimed).
+    #[test]
+    fn the_status_counts_ticks() {
+        let mut device = device();
+        for _ in 0..3 {
+            replay(&mut device);
+        }
+        let Response::Status(status) = request(&mut device, &Request::GetStatus) else { panic!() };
+        assert_eq!((status.rate_hz, status.ticks, status.overruns, status.late), (0, 3, 0, 0));
     }
 }

@@ -1,7 +1,7 @@
 //! The parameter set in flash, as two slots with a sequence number and a CRC.
 //!
 //! A commit erases the older slot, writes the record without its CRC, then the CRC, and reads
-//! it back. Power lost at any point leaves the older slot intact, and the slot being written either
+//! it back byte for byte. Power lost at any point leaves the older slot intact, and the slot being written either
 //! without a matching CRC (ignored) or complete, so the newest valid record is always the
 //! old or the new set. Records that no longer validate (another model version) are ignored.
 //!
@@ -54,33 +54,9 @@ const MAX_PAYLOAD_LEN: usize = 128;
 const MAX_BODY_LEN: usize = (HEADER_LEN + MAX_PAYLOAD_LEN).div_ceil(ALIGN) * ALIGN;
 /// The longest record: body and CRC block.
 const RECORD_LEN: usize = MAX_BODY_LEN + ALIGN;
-const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
-/// Why the store could not read or write.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[non_exhaustive]
-pub enum StorageError {
-    /// The flash cannot hold two slots, or its write size does not divide 8 bytes.
-    Geometry,
-    /// The flash driver reported an error.
-    Flash,
-    /// The parameter set did not serialize into a record.
-    Encoding,
-    /// The record read back differs from what was written (worn or protected flash).
-    Verify,
-}
-
-impl core::fmt::Display for StorageError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            StorageError::Geometry => f.write_str("flash region too small or write size unsupported"),
-            StorageError::Flash => f.write_str("flash driver error"),
-            StorageError::Encoding => f.write_str("parameter set does not fit a record"),
-            StorageError::Verify => f.write_str("flash read back differs from what was written"),
-        }
-    }
-}
+/// Why the store could not write (or be set up): the step that failed, as the link reports it.
+pub use swg_protocol::StorageError;
 
 /// Why a slot holds no usable record ([`ParamStore::slots`]); [`ParamStore::load`] passes
 /// over such a slot.
@@ -186,20 +162,26 @@ impl<F: NorFlash> ParamStore<F> {
                 .len();
         header.copy_from_slice(&header_bytes(sequence, payload_len as u16));
         let body_len = (HEADER_LEN + payload_len).div_ceil(ALIGN) * ALIGN;
-        let crc = CRC.checksum(body.get(..HEADER_LEN + payload_len).ok_or(StorageError::Encoding)?);
+        let crc = swg_protocol::crc32(body.get(..HEADER_LEN + payload_len).ok_or(StorageError::Encoding)?);
         let mut crc_block = [0xFFu8; ALIGN];
         crc_block.get_mut(..4).ok_or(StorageError::Encoding)?.copy_from_slice(&crc.to_le_bytes());
 
         let start = slot * self.slot_len;
         let flash = &mut self.flash;
-        flash.erase(start, start + self.slot_len).map_err(|_| StorageError::Flash)?;
+        flash.erase(start, start + self.slot_len).map_err(|_| StorageError::Erase)?;
         let body = body.get(..body_len).ok_or(StorageError::Encoding)?;
-        flash.write(start, body).map_err(|_| StorageError::Flash)?;
-        flash.write(start + body_len as u32, &crc_block).map_err(|_| StorageError::Flash)?;
-        match self.read_slot(slot) {
-            Ok(stored) if stored == (Stored { params: *params, sequence }) => Ok(sequence),
-            _ => Err(StorageError::Verify),
+        flash.write(start, body).map_err(|_| StorageError::Write)?;
+        flash.write(start + body_len as u32, &crc_block).map_err(|_| StorageError::Write)?;
+        // Read back: the slot holds exactly the bytes written, so it decodes to `params` (the
+        // bytes compared, not the decoded set: cheaper in flash than comparing every field).
+        let mut record = [0u8; RECORD_LEN];
+        let record = record.get_mut(..body_len + ALIGN).ok_or(StorageError::Encoding)?;
+        flash.read(start, record).map_err(|_| StorageError::Verify)?;
+        let (written_body, written_crc) = record.split_at(body_len);
+        if written_body != body || written_crc != crc_block {
+            return Err(StorageError::Verify);
         }
+        Ok(sequence)
     }
 
     /// What each of the two slots holds, or why it is not usable (for diagnostics; [`load`]
@@ -259,7 +241,7 @@ fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
     }
     let body_len = (HEADER_LEN + payload_len).div_ceil(ALIGN) * ALIGN;
     let crc_at = record.get(body_len..body_len + 4).ok_or(SlotFault::Corrupt)?;
-    let crc = CRC.checksum(record.get(..HEADER_LEN + payload_len).ok_or(SlotFault::Corrupt)?);
+    let crc = swg_protocol::crc32(record.get(..HEADER_LEN + payload_len).ok_or(SlotFault::Corrupt)?);
     if crc_at != crc.to_le_bytes() {
         return Err(SlotFault::Corrupt);
     }

@@ -1,5 +1,6 @@
-//! The QEMU mps2-an386 board (Cortex-M4F): UART0 for the link, SysTick for counting
-//! instructions, semihosting to end the emulation with a status.
+//! The QEMU mps2-an386 board (Cortex-M4F): UART0 for the link, SysTick for the control tick
+//! (and for counting instructions in the benchmark), Timer0 as the tick's free-running clock,
+//! semihosting to end the emulation with a status.
 #![no_std]
 
 #[cfg(not(target_arch = "arm"))]
@@ -9,6 +10,7 @@ compile_error!("the firmware runs on thumbv7em-none-eabihf: build it from firmwa
 use defmt_semihosting as _;
 use panic_semihosting as _;
 
+pub mod timer;
 pub mod uart;
 
 /// The QEMU board's motor drive: this machine has no motor, the plant is simulated on the host
@@ -23,8 +25,11 @@ pub struct LinkDrive {
     pub count: u32,
 }
 
-impl swg_joint::MotorDrive for LinkDrive {
+impl swg_joint::drive::ErrorType for LinkDrive {
     type Error = core::convert::Infallible;
+}
+
+impl swg_joint::MotorDrive for LinkDrive {
     fn apply(&mut self, torque: f32) -> Result<(), Self::Error> {
         self.last = torque;
         self.count = self.count.wrapping_add(1);

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use swg_host::input::read_recording;
 use swg_host::link::replay::{device_model, device_params, replay, samples};
 use swg_host::report::params::read_model;
-use swg_protocol::EvalPath;
+use swg_protocol::{endpoint, EvalPath};
 
 #[derive(Args)]
 pub struct ReplayArgs {
@@ -42,7 +42,7 @@ pub fn run(args: ReplayArgs) -> Result<()> {
     };
     // The comparison runs both models from rest: writing the device's own set back resets its
     // memory (at its next tick), so the replay starts where the host's model does.
-    link.write_params(&joint)?;
+    link.call::<endpoint::WriteParams>(&joint)?;
     let samples = samples(&recording, joint.gear_ratio)?;
     let path = match args.path {
         Path::Direct => EvalPath::Direct,

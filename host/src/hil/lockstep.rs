@@ -9,7 +9,7 @@ use crate::link::push::{joint_params, JointSettings};
 use crate::link::Link;
 use model_core::GearModel;
 use std::time::{Duration, Instant};
-use swg_protocol::{ControlMode, ControlSample, DeviceInfo, JointParams, PROTOCOL_VERSION};
+use swg_protocol::{endpoint, ControlMode, ControlSample, DeviceInfo, JointParams, PROTOCOL_VERSION};
 
 /// What to run.
 #[derive(Clone, Debug, PartialEq)]
@@ -136,7 +136,7 @@ pub fn run(link: &mut Link, model: &GearModel<f64>, options: &HilOptions) -> Res
     };
     let pushed = joint_params(model, &settings).map_err(|e| HilError::Model(e.to_string()))?;
     let stiffness = linear_stiffness(model)?;
-    let device = link.device_info()?;
+    let device = link.call::<endpoint::GetDeviceInfo>(&())?;
     if device.protocol_version != PROTOCOL_VERSION {
         return Err(HilError::Protocol { device: device.protocol_version });
     }
@@ -149,8 +149,8 @@ pub fn run(link: &mut Link, model: &GearModel<f64>, options: &HilOptions) -> Res
     for &scenario in &options.scenarios {
         for &mode in &options.modes {
             // The model from rest, the controller afresh, the plant at rest.
-            link.write_params(&pushed)?;
-            link.configure(&config(mode))?;
+            link.call::<endpoint::WriteParams>(&pushed)?;
+            link.call::<endpoint::Configure>(&config(mode))?;
             let mut plant = Plant::new(options.plant, &options.truth, scenario.environment())?;
             let mut trace = Vec::with_capacity(ticks);
             let start = Instant::now();
@@ -164,7 +164,7 @@ pub fn run(link: &mut Link, model: &GearModel<f64>, options: &HilOptions) -> Res
                     output_angle: output_angle as f32,
                     reference: reference as f32,
                 };
-                let output = link.control(&sample)?;
+                let output = link.call::<endpoint::Control>(&sample)?;
                 let state = plant.state();
                 trace.push(Tick {
                     time,
@@ -198,7 +198,7 @@ pub fn run(link: &mut Link, model: &GearModel<f64>, options: &HilOptions) -> Res
             });
         }
     }
-    link.configure(&config(ControlMode::Off))?;
+    link.call::<endpoint::Configure>(&config(ControlMode::Off))?;
     Ok(HilReport {
         device,
         pushed,
@@ -335,8 +335,10 @@ mod tests {
     fn without_parameters_the_joint_is_not_driven() {
         let mut link = FakeDevice::new().link();
         let config = controller_config(ControlMode::Model, &super::super::GAINS, 9000.0, 0.05, 1.0e-3);
-        link.configure(&config).unwrap();
-        let out = link.control(&ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 10.0 }).unwrap();
+        link.call::<endpoint::Configure>(&config).unwrap();
+        let out = link
+            .call::<endpoint::Control>(&ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 10.0 })
+            .unwrap();
         assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));
     }
 
@@ -348,6 +350,6 @@ mod tests {
         assert!(matches!(run(&mut link, &model, &options), Err(HilError::Seconds(_))));
         let options = HilOptions { rate_hz: 0.0, ..HilOptions::new(genetic_truth()) };
         assert!(matches!(run(&mut link, &model, &options), Err(HilError::Rate(_))));
-        assert_eq!(link.read_params().unwrap(), None);
+        assert_eq!(link.call::<endpoint::ReadParams>(&()).unwrap(), None);
     }
 }

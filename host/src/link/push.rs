@@ -2,7 +2,7 @@
 use super::{Link, LinkError};
 use model_core::{GearModel, MODEL_VERSION};
 use std::time::{Duration, Instant};
-use swg_protocol::{DeviceInfo, ErrorReply, JointParams, PROTOCOL_VERSION};
+use swg_protocol::{endpoint, DeviceInfo, ErrorReply, FrameError, JointParams, PROTOCOL_VERSION};
 
 /// How the joint applies the model, pushed with it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,10 +79,9 @@ pub struct PushReport {
 /// Checks the device's versions, writes `params`, reads them back and compares, commits.
 pub fn push(link: &mut Link, params: &JointParams) -> Result<PushReport, PushError> {
     let start = Instant::now();
-    let device = link.device_info().map_err(|error| match error {
-        LinkError::Refused(ErrorReply::UnsupportedProtocol { supported, .. }) => {
-            PushError::ProtocolMismatch { device: supported }
-        }
+    let device = link.call::<endpoint::GetDeviceInfo>(&()).map_err(|error| match error {
+        // A device of another protocol answers in frames of its own version.
+        LinkError::Frame(FrameError::Version(device)) => PushError::ProtocolMismatch { device },
         error => error.into(),
     })?;
     if device.protocol_version != PROTOCOL_VERSION {
@@ -91,13 +90,13 @@ pub fn push(link: &mut Link, params: &JointParams) -> Result<PushReport, PushErr
     if device.model_version != params.model_version {
         return Err(PushError::ModelMismatch { device: device.model_version });
     }
-    let previous = link.read_params()?;
-    link.write_params(params)?;
-    let read = link.read_params()?;
+    let previous = link.call::<endpoint::ReadParams>(&())?;
+    link.call::<endpoint::WriteParams>(params)?;
+    let read = link.call::<endpoint::ReadParams>(&())?;
     if read != Some(*params) {
         return Err(PushError::ReadBack { written: Box::new(*params), read: Box::new(read) });
     }
-    let sequence = link.commit()?;
+    let sequence = link.call::<endpoint::Commit>(&())?;
     Ok(PushReport { device, previous, written: *params, sequence, elapsed: start.elapsed() })
 }
 
@@ -192,9 +191,9 @@ mod tests {
         push(&mut link, &good).unwrap();
         for model in [GearModel::Genetic(SEED_TABLE_FIT), GearModel::MicroSlip(MICRO_SLIP_SET)] {
             let params = joint_params(&model, &SETTINGS).unwrap();
-            link.write_params(&params).unwrap();
+            link.call::<endpoint::WriteParams>(&params).unwrap();
         }
-        link.write_params(&good).unwrap();
+        link.call::<endpoint::WriteParams>(&good).unwrap();
 
         let mut cases: Vec<(GearModel<f64>, ParamField)> = Vec::new();
         for base in [GearModel::Genetic(PAPER_TABLE_2), GearModel::MicroSlip(MICRO_SLIP_SET)] {
@@ -226,11 +225,11 @@ mod tests {
             );
             // Sent anyway: the device refuses it with the same reply, the old set stays.
             let sent = JointParams { model: joint_model(&model).unwrap(), ..good };
-            match link.write_params(&sent) {
+            match link.call::<endpoint::WriteParams>(&sent) {
                 Err(LinkError::Refused(r)) => assert_eq!(r, reason, "{model:?}"),
                 other => panic!("{model:?}: {other:?}"),
             }
-            assert_eq!(link.read_params().unwrap(), Some(good));
+            assert_eq!(link.call::<endpoint::ReadParams>(&()).unwrap(), Some(good));
         }
     }
 

@@ -6,7 +6,7 @@ use model_core::memory::Hysteretic;
 use model_core::tolerance::{Bound, RELATIVE_TOLERANCE};
 use model_core::{Evaluator, GearModel};
 use std::collections::HashMap;
-use swg_protocol::{Compensation, EncoderSample, EvalPath, Feedforward, JointParams};
+use swg_protocol::{endpoint, Compensation, EncoderSample, EvalPath, Feedforward, JointParams};
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -137,7 +137,7 @@ pub fn replay(
 ) -> Result<ReplayReport, ReplayError> {
     let mut comparison = Comparison::new(model, joint)?;
     for (index, &(input_angle, output_angle)) in samples.iter().enumerate() {
-        let feedforward = link.replay(&EncoderSample { input_angle, output_angle, path })?;
+        let feedforward = link.call::<endpoint::Replay>(&EncoderSample { input_angle, output_angle, path })?;
         comparison.add(index, &feedforward)?;
     }
     Ok(comparison.finish())
@@ -268,7 +268,7 @@ impl Comparison {
 
 /// The device's parameters, which replay needs.
 pub fn device_params(link: &mut Link) -> Result<JointParams, ReplayError> {
-    link.read_params()?.ok_or(ReplayError::NoParams)
+    link.call::<endpoint::ReadParams>(&())?.ok_or(ReplayError::NoParams)
 }
 
 /// The f64 model of a device set, exactly as the device holds it (every f32 is an f64).
@@ -350,7 +350,7 @@ mod tests {
         let samples = samples(&recording(None), joint.gear_ratio).unwrap();
         for path in [EvalPath::Direct, EvalPath::Fast] {
             // Each replay from rest: a write resets the device's memory.
-            link.write_params(&joint).unwrap();
+            link.call::<endpoint::WriteParams>(&joint).unwrap();
             let report = replay(&mut link, &joint, &device_model(&joint), &samples, path).unwrap();
             assert!(report.passed(), "{path:?}: {report}");
             assert_eq!((report.samples, report.active), (samples.len(), samples.len()));
@@ -364,12 +364,12 @@ mod tests {
             let (mut link, joint) = pushed(&model, 100.0);
             for samples in motions() {
                 for path in [EvalPath::Direct, EvalPath::Fast] {
-                    link.write_params(&joint).unwrap();
+                    link.call::<endpoint::WriteParams>(&joint).unwrap();
                     let report = replay(&mut link, &joint, &device_model(&joint), &samples, path).unwrap();
                     assert!(report.passed(), "{:?} {path:?}: {report}", model.kind());
                     assert!(report.reversals >= 8 && report.deepest_memory >= 2, "{report}");
                     // Against the unrounded f64 parameters too.
-                    link.write_params(&joint).unwrap();
+                    link.call::<endpoint::WriteParams>(&joint).unwrap();
                     let report = replay(&mut link, &joint, &model, &samples, path).unwrap();
                     assert!(report.passed(), "{:?} {path:?} against f64: {report}", model.kind());
                 }

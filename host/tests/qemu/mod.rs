@@ -6,8 +6,15 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use swg_host::link::Link;
+use swg_protocol::endpoint;
 
 /// One QEMU running the joint firmware, its UART0 on a free local TCP port; killed on drop.
+///
+/// QEMU runs with `-icount shift=0`: virtual time is the instruction count (1 ns each), so the
+/// firmware's SysTick tick and its timing counters (late ticks, overruns, missed periods)
+/// measure the firmware alone. Without it SysTick follows the host's clock, and a loaded
+/// machine (CI's two cores running the tests) would make ticks late that the firmware did not
+/// delay. (The firmware never sleeps, so `-icount`'s `sleep` option does not matter.)
 pub struct Qemu {
     child: Child,
     port: u16,
@@ -22,6 +29,7 @@ impl Qemu {
         let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
         let child = Command::new("qemu-system-arm")
             .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-display", "none", "-monitor", "none"])
+            .args(["-icount", "shift=0"])
             .args(["-semihosting-config", "enable=on,target=native"])
             .arg("-serial")
             .arg(format!("tcp:127.0.0.1:{port},server=on,wait=off,nodelay=on"))
@@ -39,30 +47,21 @@ impl Qemu {
         format!("tcp://127.0.0.1:{}", self.port)
     }
 
-    /// A link on which the firmware has answered, with nothing stale in flight. A freshly
-    /// booted QEMU refuses connections while it opens its port, can reset the first connection
-    /// (`Connection reset by peer`, seen in CI), or answers a request late, on the next
-    /// connection. So the device info is asked until it comes; then that link is dropped after
-    /// a pause in which any late answer arrives (and is lost with it), and a new one is opened
-    /// and checked: its first response is to its own request. A QEMU that has exited (its port
-    /// taken, say) is reported with its status.
+    /// A link on which the firmware has answered. A freshly booted QEMU refuses connections
+    /// while it opens its port and can reset the first connection (`Connection reset by peer`,
+    /// seen in CI), so the device info is asked until it comes. A late answer to an earlier
+    /// attempt, arriving on this link, carries another request's id and is discarded. A QEMU
+    /// that has exited (its port taken, say) is reported with its status.
     pub fn ready_link(&mut self) -> Link {
         let address = self.address();
-        let answers = |timeout| {
-            Link::open(&address, timeout).and_then(|mut link| {
-                link.device_info()?;
-                Ok(link)
-            })
-        };
         let start = Instant::now();
         loop {
             if let Ok(Some(status)) = self.child.try_wait() {
                 panic!("QEMU exited before the firmware answered on {address}: {status}");
             }
-            let attempt = answers(Duration::from_millis(500)).and_then(|first| {
-                std::thread::sleep(Duration::from_millis(300));
-                drop(first);
-                answers(Duration::from_secs(2))
+            let attempt = Link::open(&address, Duration::from_secs(2)).and_then(|mut link| {
+                link.call::<endpoint::GetDeviceInfo>(&())?;
+                Ok(link)
             });
             match attempt {
                 Ok(link) => return link,
