@@ -196,7 +196,7 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
 
     let frame = encode_to_vec(RequestId(1), &Request::WriteParams(JointParams { torque_limit: 5.0, ..good })).unwrap();
     let mut corrupted = frame.clone();
-    corrupted[12] ^= 0x10;
+    corrupted[swg_protocol::payload_index(&frame, 12).unwrap()] ^= 0x10;
     let truncated = [&frame[..frame.len() / 2], &[0u8]].concat();
     let mut other_version = [0u8; MAX_FRAME_LEN];
     let len =

@@ -59,10 +59,10 @@ pub const SEED_TABLE_FIT: Params<f64> = Params {
 /// evaluate both sets on a loop of this amplitude.
 pub const SEED_AMPLITUDE: f64 = 1.168e-3;
 
-/// The reference set of the micro-slip kind for tests and benchmarks: 16 elements of rising
-/// stiffness k_i = 120 + 15·i N·m/rad on the slip grid 10⁻⁵ … 2·10⁻³ rad, beside the spring
-/// 6·10³·θ + 1.2·10¹⁰·θ³.
-pub const MICRO_SLIP_SET: crate::memory::SlipParams<f64, 16> = crate::memory::SlipParams {
+/// The reference set of the micro-slip kind for tests and benchmarks, as model version 1 wrote it:
+/// 16 elements of rising stiffness k_i = 120 + 15·i N·m/rad on the slip grid 10⁻⁵ … 2·10⁻³ rad,
+/// beside the spring 6·10³·θ + 1.2·10¹⁰·θ³.
+pub const MICRO_SLIP_V1: crate::legacy::SlipParamsV1<f64> = crate::legacy::SlipParamsV1 {
     c1: 6.0e3,
     c2: 1.2e10,
     c3: 0.0,
@@ -72,6 +72,11 @@ pub const MICRO_SLIP_SET: crate::memory::SlipParams<f64, 16> = crate::memory::Sl
     slip_min: 1.0e-5,
     slip_max: 2.0e-3,
 };
+
+/// [`MICRO_SLIP_V1`] as today's model (`legacy`'s upgrade: the same torque).
+pub fn micro_slip_set() -> Result<crate::GearModel<f64>, Error> {
+    crate::legacy::GearModelV1::MicroSlip(MICRO_SLIP_V1).upgrade()
+}
 
 /// Both reference sets with a short name, for running a check on each.
 pub const REFERENCE_SETS: [(&str, Params<f64>); 2] =

@@ -2,7 +2,15 @@
 //! the wire carries (in f32) and that the joint evaluates, and its one stateful evaluator.
 //!
 //! ```text
-//! GearModel<f64> ── params file (serde: {"model": kind, "params": {…}}) ── fit, predict, simulate
+//! T(θ) = S(x) + H(x),   x = θ − θ0
+//! ```
+//!
+//! θ0 is the deflection's zero (where the encoders read the gear unstressed), S the free-form
+//! spring ([`Spring`]: memoryless, asymmetric, continued beyond its identified range with the
+//! edge stiffness) and H the kind's hysteresis with its memory ([`Hysteresis`]).
+//!
+//! ```text
+//! GearModel<f64> ── params file (serde: {"model": kind, "params": {zero, spring, …}}) ── fit, predict, simulate
 //!      │ try_map(f64 → f32, naming the parameter that does not fit)
 //!      ▼
 //! GearModel<f32> ── the wire's JointParams.model (postcard) ── flash records
@@ -11,18 +19,19 @@
 //! Evaluator<F>   ── step(θ) every sample: host (f64) and joint tick (f32)
 //! ```
 //!
-//! **Adding a kind** is a variant here (with its parameters' names in [`ParamName`], its checks,
-//! its evaluator in [`Evaluator`], its f32 range bound in `range`), its fit on the host, and one
-//! arm in the firmware's fast-path dispatch, which budgets its per-tick cost. Nothing else
-//! branches on the kind: every other use goes through the methods below.
-use crate::memory::{GeneticMemory, Hysteretic, MicroSlip, SlipParams};
+//! **Adding a kind** is a variant of [`Hysteresis`] and of [`Evaluator`]'s hysteresis here
+//! (with its parameters' names in [`ParamName`], its checks, its range bound in `range`, its f32
+//! tolerance in `tolerance`, its serde names), its fit on the host, and one arm in the firmware's
+//! budget, which bounds its per-tick cost. Nothing else branches on the kind.
+use crate::memory::{GeneticMemory, Hysteretic, MicroSlip, SlipElement};
 use crate::range::{self, Culprit};
+use crate::spring::{PreparedSpring, Spring};
 use crate::{Direction, Elementary, Error, Evaluation, Identifiable, Libm, Model, ParamName, Params, Real};
 
 /// Turning points the genetic kind remembers, on the host as on the joint: deeper nested
 /// excursions retrace reversibly.
 pub const TURNING_POINTS: usize = 16;
-/// Elasto-slip elements of the micro-slip kind, on the host as on the joint.
+/// Most elasto-slip elements of the micro-slip kind, on the host as on the joint.
 pub const SLIP_ELEMENTS: usize = 16;
 
 /// A model kind: what `fit --model` identifies and what a params file and the wire name.
@@ -31,8 +40,7 @@ pub const SLIP_ELEMENTS: usize = 16;
 pub enum Kind {
     /// The paper's genetic model, generalised to any motion by Madelung's rules.
     Genetic,
-    /// Maxwell-slip (a discrete Iwan model): an odd polynomial spring with [`SLIP_ELEMENTS`]
-    /// elasto-slip elements.
+    /// Maxwell-slip (a discrete Iwan model): up to [`SLIP_ELEMENTS`] elasto-slip elements.
     MicroSlip,
 }
 
@@ -60,24 +68,22 @@ impl Kind {
     pub const fn description(self) -> &'static str {
         match self {
             Kind::Genetic => "The paper's genetic model, with Madelung's rules on a recording",
-            Kind::MicroSlip => "Maxwell-slip: an odd polynomial spring and 16 elasto-slip elements (recordings)",
+            Kind::MicroSlip => "Maxwell-slip: up to 16 elasto-slip elements, each its own slip deflection (recordings)",
         }
     }
 
-    /// What the kind's torque is, for reports.
+    /// What the kind's hysteresis is, for reports.
     pub const fn equation(self) -> &'static str {
         match self {
             Kind::Genetic => {
-                "T = c1·θ + c2·θ³ + c3·θ⁵ + z(θ), z the paper's hysteresis (α, β, ω) on every branch between turning points (Madelung's rules)"
+                "H = the paper's hysteresis z (α, β, ω) on every branch between turning points (Madelung's rules)"
             }
-            Kind::MicroSlip => {
-                "T = c1·θ + c2·θ³ + c3·θ⁵ + Σ k_i·e_i, 16 elasto-slip elements slipping at deflections on the log grid slip_min … slip_max"
-            }
+            Kind::MicroSlip => "H = Σ k_i·e_i, elasto-slip elements slipping at deflections d_i",
         }
     }
 
-    /// Whether the kind has a stateless form on a symmetric loop ([`GearModel::symmetric_model`]):
-    /// the paper's genetic loop, which a loop table (one symmetric loop) identifies.
+    /// Whether the kind has a stateless form on a symmetric loop: the paper's genetic loop, which
+    /// a loop table (one symmetric loop) identifies.
     pub const fn has_symmetric_loop(self) -> bool {
         matches!(self, Kind::Genetic)
     }
@@ -103,92 +109,145 @@ pub enum ParamFault {
     OutOfRange,
 }
 
-/// A gear's model: its kind and that kind's parameters, in `F` (f64 on the host, f32 on the
-/// joint).
-///
-/// In a human-readable serde format (a params file) it is `{"model": name, "params": {…}}`,
-/// the kind's [`Kind::name`] and its parameters by name; in a compact one (postcard, on the wire
-/// and in flash) the variant's index and the parameters in order.
+/// The genetic kind's hysteresis: the paper's α (N·m/rad per unit of ω), β and ω (1/s). Only
+/// h = A·α/(ω(1 + r²)) and r = β/ω are identifiable; fits write the point with ω = 1.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Genetic<F> {
+    pub alpha: F,
+    pub beta: F,
+    pub omega: F,
+}
+
+impl<F: Real> Genetic<F> {
+    /// The paper's parameters of this hysteresis with no spring.
+    fn params(&self) -> Params<F> {
+        let zero = F::zero();
+        Params { c1: zero, c2: zero, c3: zero, alpha: self.alpha, beta: self.beta, omega: self.omega }
+    }
+
+    /// The paper's model of this hysteresis with no spring: what the memory evaluates.
+    fn model(&self) -> Result<Model<F>, Error> {
+        Model::new(self.params())
+    }
+}
+
+/// A gear's hysteresis, of one kind.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum GearModel<F> {
-    /// T = c1·θ + c2·θ³ + c3·θ⁵ + the genetic hysteresis (α, β, ω) with Madelung's rules.
-    Genetic(Params<F>),
-    /// T = c1·θ + c2·θ³ + c3·θ⁵ + Σ k_i·e_i over [`SLIP_ELEMENTS`] elasto-slip elements.
-    MicroSlip(SlipParams<F, SLIP_ELEMENTS>),
+pub enum Hysteresis<F> {
+    Genetic(Genetic<F>),
+    /// The elements, slip deflections increasing; the first `count` are used.
+    MicroSlip(([SlipElement<F>; SLIP_ELEMENTS], u8)),
+}
+
+/// A gear's model: its deflection zero, its spring and its hysteresis, in `F` (f64 on the host,
+/// f32 on the joint).
+///
+/// In a human-readable serde format (a params file) it is `{"model": name, "params": {"zero",
+/// "spring", …the kind's own}}`; in a compact one (postcard, on the wire and in flash) the
+/// fields in order, the kind by its index.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GearModel<F> {
+    /// θ0, rad: the deflection at which the gear is unstressed.
+    pub zero: F,
+    pub spring: Spring<F>,
+    pub hysteresis: Hysteresis<F>,
 }
 
 impl<F> GearModel<F> {
     /// The model's kind.
     pub const fn kind(&self) -> Kind {
-        match self {
-            GearModel::Genetic(_) => Kind::Genetic,
-            GearModel::MicroSlip(_) => Kind::MicroSlip,
+        match self.hysteresis {
+            Hysteresis::Genetic(_) => Kind::Genetic,
+            Hysteresis::MicroSlip(_) => Kind::MicroSlip,
         }
-    }
-}
-
-impl<F: Copy> GearModel<F> {
-    /// Each parameter converted by `convert`, which may refuse one by its name (the first refusal
-    /// wins): f64 → f32 for the joint, naming the parameter that does not fit.
-    pub fn try_map<G: Default, E>(
-        &self,
-        mut convert: impl FnMut(ParamName, F) -> Result<G, E>,
-    ) -> Result<GearModel<G>, E> {
-        Ok(match self {
-            GearModel::Genetic(params) => GearModel::Genetic(params.try_map(convert)?),
-            GearModel::MicroSlip(params) => GearModel::MicroSlip(params.try_map(&mut convert)?),
-        })
-    }
-
-    /// Each parameter converted by `convert`, which is given its name too.
-    pub fn map<G: Default>(&self, mut convert: impl FnMut(ParamName, F) -> G) -> GearModel<G> {
-        let converted: Result<GearModel<G>, core::convert::Infallible> =
-            self.try_map(|name, value| Ok(convert(name, value)));
-        match converted {
-            Ok(model) => model,
-            Err(never) => match never {},
-        }
-    }
-
-    /// The model with parameter `name` set to `value` (a name the kind does not have changes
-    /// nothing).
-    pub fn with(&self, name: ParamName, value: F) -> GearModel<F>
-    where
-        F: Default,
-    {
-        self.map(|each, old| if each == name { value } else { old })
     }
 }
 
 impl<F: Real> GearModel<F> {
-    /// The first parameter that is not finite, or out of its range (ω = 0; a negative element
-    /// stiffness; slip deflections not 0 < d_min < d_max): what a joint refuses a set for.
+    /// The paper's model: its six parameters, the odd polynomial spring unbounded, θ0 = 0.
+    pub fn paper(params: Params<F>) -> Self {
+        GearModel {
+            zero: F::zero(),
+            spring: Spring::polynomial(params.c1, params.c2, params.c3),
+            hysteresis: Hysteresis::Genetic(Genetic { alpha: params.alpha, beta: params.beta, omega: params.omega }),
+        }
+    }
+
+    /// A micro-slip model: θ0, the spring and up to [`SLIP_ELEMENTS`] elements.
+    pub fn micro_slip(zero: F, spring: Spring<F>, elements: &[SlipElement<F>]) -> Result<Self, Error> {
+        let mut all = [SlipElement::default(); SLIP_ELEMENTS];
+        all.get_mut(..elements.len()).ok_or(Error::InvalidSlipRange)?.copy_from_slice(elements);
+        Ok(GearModel { zero, spring, hysteresis: Hysteresis::MicroSlip((all, elements.len() as u8)) })
+    }
+
+    /// The paper's six parameters, where the model is the paper's: the genetic kind, the odd
+    /// polynomial spring without knots, θ0 = 0 (the loop fit of a loop table, the diagnosis'
+    /// baseline, today's symmetric loop).
+    pub fn paper_params(&self) -> Option<Params<F>> {
+        let Hysteresis::Genetic(g) = self.hysteresis else { return None };
+        let s = &self.spring;
+        (self.zero == F::zero() && s.knots().is_empty()).then_some(Params {
+            c1: s.c1,
+            c2: s.c2,
+            c3: s.c3,
+            alpha: g.alpha,
+            beta: g.beta,
+            omega: g.omega,
+        })
+    }
+
+    /// The micro-slip kind's elements in use.
+    pub fn slip_elements(&self) -> &[SlipElement<F>] {
+        match &self.hysteresis {
+            Hysteresis::MicroSlip((elements, count)) => elements.get(..usize::from(*count)).unwrap_or(&[]),
+            Hysteresis::Genetic(_) => &[],
+        }
+    }
+
+    /// The first parameter that is not finite, or out of its range: the spring's
+    /// ([`Spring::check`]), θ0, then the kind's (ω = 0; a slip deflection ≤ 0 or out of order, a
+    /// negative element stiffness, too many elements): what a joint refuses a set for.
     pub fn check(&self) -> Result<(), (ParamName, ParamFault)> {
-        let mut not_finite = Ok(());
-        let _ = self.try_map(|name, value| {
-            if value.is_finite() {
-                Ok(())
-            } else {
-                not_finite = Err((name, ParamFault::NotFinite));
-                Err(())
-            }
-        });
-        not_finite?;
+        if !self.zero.is_finite() {
+            return Err((ParamName::Zero, ParamFault::NotFinite));
+        }
+        self.spring.check()?;
         let out_of_range = |name| Err((name, ParamFault::OutOfRange));
-        match self {
-            GearModel::Genetic(params) if params.omega == F::zero() => out_of_range(ParamName::Omega),
-            GearModel::Genetic(_) => Ok(()),
-            GearModel::MicroSlip(params) => {
-                if let Some(i) = (0u8..).zip(params.stiffness).find_map(|(i, k)| (k < F::zero()).then_some(i)) {
-                    out_of_range(ParamName::SlipStiffness(i))
-                } else if params.slip_min <= F::zero() {
-                    out_of_range(ParamName::SlipMin)
-                } else if params.slip_max <= params.slip_min {
-                    out_of_range(ParamName::SlipMax)
-                } else {
-                    Ok(())
+        match &self.hysteresis {
+            Hysteresis::Genetic(g) => {
+                let fields = [(ParamName::Alpha, g.alpha), (ParamName::Beta, g.beta), (ParamName::Omega, g.omega)];
+                if let Some((name, _)) = fields.into_iter().find(|(_, value)| !value.is_finite()) {
+                    return Err((name, ParamFault::NotFinite));
                 }
+                if g.omega == F::zero() {
+                    return out_of_range(ParamName::Omega);
+                }
+                Ok(())
+            }
+            Hysteresis::MicroSlip((elements, count)) => {
+                if usize::from(*count) > SLIP_ELEMENTS {
+                    return out_of_range(ParamName::Slip(SLIP_ELEMENTS as u8));
+                }
+                let mut previous = F::zero();
+                for (i, element) in (0u8..).zip(elements.iter().take(usize::from(*count))) {
+                    if !element.slip.is_finite() {
+                        return Err((ParamName::Slip(i), ParamFault::NotFinite));
+                    }
+                    if !element.stiffness.is_finite() {
+                        return Err((ParamName::SlipStiffness(i), ParamFault::NotFinite));
+                    }
+                    if element.slip <= previous {
+                        return out_of_range(ParamName::Slip(i));
+                    }
+                    if element.stiffness < F::zero() {
+                        return out_of_range(ParamName::SlipStiffness(i));
+                    }
+                    previous = element.slip;
+                }
+                Ok(())
             }
         }
     }
@@ -202,70 +261,111 @@ impl<F: Real> GearModel<F> {
     /// (rad; negative or NaN counts as 0); the micro-slip kind needs none (noise only makes tiny
     /// reversible loops).
     pub fn evaluator(&self, band: F) -> Result<Evaluator<F>, Error> {
-        Ok(match self {
-            GearModel::Genetic(params) => Evaluator::Genetic(GeneticMemory::new(Model::new(*params)?, band)),
-            GearModel::MicroSlip(params) => Evaluator::MicroSlip(MicroSlip::new(*params)?),
-        })
+        if let Err((name, _)) = self.check() {
+            return Err(Error::InvalidParameter(name));
+        }
+        let hysteresis = match &self.hysteresis {
+            Hysteresis::Genetic(g) => HysteresisState::Genetic(GeneticMemory::new(g.model()?, band)),
+            Hysteresis::MicroSlip(_) => HysteresisState::MicroSlip(MicroSlip::new(self.slip_elements())?),
+        };
+        Ok(Evaluator { zero: self.zero, spring: self.spring.prepare()?, hysteresis })
     }
 
     /// Whether the model can be evaluated in `F` for every |θ| ≤ `max_deflection` and every
     /// state its evaluator can reach (model-core's `range`); else the parameter at fault.
     pub fn evaluable_within(&self, max_deflection: F) -> Result<(), Culprit> {
-        match self {
-            GearModel::Genetic(params) => range::genetic(params, max_deflection, TURNING_POINTS),
-            GearModel::MicroSlip(params) => range::micro_slip(params, max_deflection),
-        }
+        range::gear(self, max_deflection)
     }
 
     /// Whether the evaluator stays where elementary functions approximated for speed (the joint's
     /// fast path) hold: the genetic kind when it forms h·e^(−rφ) directly
     /// ([`Model::has_direct_decay`]); kinds without transcendental functions always.
     pub fn has_fast_path(&self) -> bool {
-        match self {
-            GearModel::Genetic(params) => Model::new(*params).is_ok_and(|model| model.has_direct_decay()),
-            GearModel::MicroSlip(_) => true,
+        match &self.hysteresis {
+            Hysteresis::Genetic(g) => g.model().is_ok_and(|model| model.has_direct_decay()),
+            Hysteresis::MicroSlip(_) => true,
         }
     }
 
-    /// The spring's stiffness at θ = 0, N·m/rad: the linear stiffness a controller falls back to.
+    /// The spring's stiffness at θ0, N·m/rad: the linear stiffness a controller falls back to.
     pub fn linear_stiffness(&self) -> F {
-        match self {
-            GearModel::Genetic(params) => params.c1,
-            GearModel::MicroSlip(params) => params.c1,
-        }
+        self.spring.prepare().map_or(self.spring.c1, |mut spring| spring.evaluate(F::zero()).stiffness)
     }
 
     /// The identifiable part (h, r) of the hysteresis on a loop of amplitude `amplitude`, where the
     /// kind has one: only h and r of the genetic kind's (α, β, ω) are identifiable.
     pub fn identifiable(&self, amplitude: F) -> Option<Identifiable<F>> {
-        match self {
-            GearModel::Genetic(params) => params.identifiable(amplitude).ok(),
-            GearModel::MicroSlip(_) => None,
+        match &self.hysteresis {
+            Hysteresis::Genetic(g) => g.params().identifiable(amplitude).ok(),
+            Hysteresis::MicroSlip(_) => None,
         }
     }
 
-    /// The genetic kind's parameters, for what is defined on that kind alone (the loop fit of a
-    /// loop table, the diagnosis' effect search).
-    pub fn as_genetic(&self) -> Option<&Params<F>> {
-        match self {
-            GearModel::Genetic(params) => Some(params),
-            GearModel::MicroSlip(_) => None,
+    /// The deflections θ the spring was identified over, rad (its range from θ0).
+    pub fn range(&self) -> [F; 2] {
+        let [lo, hi] = self.spring.range;
+        [self.zero + lo, self.zero + hi]
+    }
+}
+
+impl<F: Copy + Default> GearModel<F> {
+    /// Each parameter converted by `convert`, which may refuse one by its name (the first refusal
+    /// wins): f64 → f32 for the joint, naming the parameter that does not fit.
+    pub fn try_map<G: Copy + Default, E>(
+        &self,
+        mut convert: impl FnMut(ParamName, F) -> Result<G, E>,
+    ) -> Result<GearModel<G>, E> {
+        let zero = convert(ParamName::Zero, self.zero)?;
+        let s = &self.spring;
+        let (c1, c2, c3) = (convert(ParamName::C1, s.c1)?, convert(ParamName::C2, s.c2)?, convert(ParamName::C3, s.c3)?);
+        let mut knots = [crate::spring::Knot::default(); crate::spring::MAX_KNOTS];
+        for ((i, knot), slot) in (0u8..).zip(s.knots.0.iter().take(usize::from(s.knots.1))).zip(knots.iter_mut()) {
+            *slot = crate::spring::Knot {
+                x: convert(ParamName::Knot(i), knot.x)?,
+                stiffness: convert(ParamName::KnotStiffness(i), knot.stiffness)?,
+            };
+        }
+        let range = [convert(ParamName::RangeMin, s.range[0])?, convert(ParamName::RangeMax, s.range[1])?];
+        let spring = Spring { c1, c2, c3, knots: (knots, s.knots.1), range };
+        let hysteresis = match &self.hysteresis {
+            Hysteresis::Genetic(g) => Hysteresis::Genetic(Genetic {
+                alpha: convert(ParamName::Alpha, g.alpha)?,
+                beta: convert(ParamName::Beta, g.beta)?,
+                omega: convert(ParamName::Omega, g.omega)?,
+            }),
+            Hysteresis::MicroSlip((elements, count)) => {
+                let mut converted = [SlipElement::default(); SLIP_ELEMENTS];
+                for ((i, element), slot) in (0u8..).zip(elements.iter().take(usize::from(*count))).zip(converted.iter_mut()) {
+                    *slot = SlipElement {
+                        slip: convert(ParamName::Slip(i), element.slip)?,
+                        stiffness: convert(ParamName::SlipStiffness(i), element.stiffness)?,
+                    };
+                }
+                Hysteresis::MicroSlip((converted, *count))
+            }
+        };
+        Ok(GearModel { zero, spring, hysteresis })
+    }
+
+    /// Each parameter converted by `convert`, which is given its name too.
+    pub fn map<G: Copy + Default>(&self, mut convert: impl FnMut(ParamName, F) -> G) -> GearModel<G> {
+        let converted: Result<GearModel<G>, core::convert::Infallible> =
+            self.try_map(|name, value| Ok(convert(name, value)));
+        match converted {
+            Ok(model) => model,
+            Err(never) => match never {},
         }
     }
 
-    /// The stateless model of symmetric loops, where the kind has one
-    /// ([`Kind::has_symmetric_loop`]): the paper's loop at any amplitude A, which a sine between
-    /// ±A follows without memory and a loop table holds one of.
-    pub fn symmetric_model(&self) -> Result<Option<Model<F>>, Error> {
-        match self {
-            GearModel::Genetic(params) => Model::new(*params).map(Some),
-            GearModel::MicroSlip(_) => Ok(None),
-        }
+    /// The model with parameter `name` set to `value` (a name the model does not have changes
+    /// nothing).
+    pub fn with(&self, name: ParamName, value: F) -> GearModel<F> {
+        self.map(|each, old| if each == name { value } else { old })
     }
 }
 
 impl<F: Copy + Default + core::fmt::LowerExp> core::fmt::Display for GearModel<F> {
-    /// The kind and every parameter by name: `genetic c1=9.0e3 … omega=1e0`.
+    /// The kind and every parameter by name: `genetic zero=0e0 c1=9.0e3 … omega=1e0`.
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(self.kind().label())?;
         self.try_map(|name, value| write!(f, " {name}={value:e}")).map(|_: GearModel<()>| ())
@@ -283,13 +383,21 @@ pub struct Memory {
     pub depth: usize,
 }
 
+/// The kind's hysteresis with its memory, in x = θ − θ0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum HysteresisState<F> {
+    Genetic(GeneticMemory<F, TURNING_POINTS>),
+    MicroSlip(MicroSlip<F, SLIP_ELEMENTS>),
+}
+
 /// The stateful evaluator of a [`GearModel`]: fed θ sample by sample from rest, it keeps what the
 /// motion has left behind. The same on the host (f64, with libm) and on the joint (f32, with
 /// libm or the firmware's fast elementary functions).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Evaluator<F> {
-    Genetic(GeneticMemory<F, TURNING_POINTS>),
-    MicroSlip(MicroSlip<F, SLIP_ELEMENTS>),
+pub struct Evaluator<F> {
+    zero: F,
+    spring: PreparedSpring<F>,
+    hysteresis: HysteresisState<F>,
 }
 
 impl<F: Real> Evaluator<F> {
@@ -297,44 +405,65 @@ impl<F: Real> Evaluator<F> {
     /// same state whichever `E` runs a sample.
     #[inline(always)]
     pub fn step_with<E: Elementary<F>>(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
-        match self {
-            Evaluator::Genetic(memory) => memory.step_with::<E>(theta),
-            // No transcendental functions.
-            Evaluator::MicroSlip(slip) => slip.step(theta),
-        }
+        self.step_reporting::<E>(theta).0
     }
 
     /// [`Evaluator::step_with`] and [`Evaluator::memory`] after it, in one dispatch on the kind
     /// (the joint's tick: a second dispatch cost instructions every tick).
     #[inline(always)]
     pub fn step_reporting<E: Elementary<F>>(&mut self, theta: F) -> (Result<Evaluation<F>, Error>, Memory) {
-        match self {
-            Evaluator::Genetic(memory) => {
-                let evaluation = memory.step_with::<E>(theta);
+        let x = theta - self.zero;
+        let (hysteresis, memory) = match &mut self.hysteresis {
+            HysteresisState::Genetic(memory) => {
+                let evaluation = memory.step_with::<E>(x);
                 (evaluation, Memory { direction: memory.direction(), depth: memory.depth() })
             }
-            Evaluator::MicroSlip(slip) => {
-                let evaluation = slip.step(theta);
+            HysteresisState::MicroSlip(slip) => {
+                let evaluation = slip.step(x);
                 (evaluation, Memory { direction: None, depth: slip.slipping() })
             }
-        }
+        };
+        let evaluation = hysteresis.and_then(|h| {
+            let total = self.spring.evaluate(x).plus(h);
+            if total.torque.is_finite() && total.stiffness.is_finite() {
+                Ok(total)
+            } else {
+                Err(Error::Overflow)
+            }
+        });
+        (evaluation, memory)
     }
 
     /// What the evaluator remembers.
     #[inline(always)]
     pub fn memory(&self) -> Memory {
-        match self {
-            Evaluator::Genetic(memory) => Memory { direction: memory.direction(), depth: memory.depth() },
-            Evaluator::MicroSlip(slip) => Memory { direction: None, depth: slip.slipping() },
+        match &self.hysteresis {
+            HysteresisState::Genetic(memory) => Memory { direction: memory.direction(), depth: memory.depth() },
+            HysteresisState::MicroSlip(slip) => Memory { direction: None, depth: slip.slipping() },
         }
+    }
+
+    /// How far θ (rad) lies beyond the spring's identified range (0 within it), rad.
+    pub fn excess(&self, theta: F) -> F {
+        self.spring.excess(theta - self.zero)
+    }
+
+    /// The kind's hysteresis with its memory.
+    pub fn hysteresis(&self) -> &HysteresisState<F> {
+        &self.hysteresis
+    }
+
+    /// The deflection's zero θ0, rad.
+    pub fn zero(&self) -> F {
+        self.zero
     }
 }
 
 impl<F: Real> Hysteretic<F> for Evaluator<F> {
     fn reset(&mut self) {
-        match self {
-            Evaluator::Genetic(memory) => memory.reset(),
-            Evaluator::MicroSlip(slip) => slip.reset(),
+        match &mut self.hysteresis {
+            HysteresisState::Genetic(memory) => memory.reset(),
+            HysteresisState::MicroSlip(slip) => slip.reset(),
         }
     }
 
@@ -349,76 +478,100 @@ mod serde_forms {
     use super::*;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+    /// The genetic kind's parameters as a file and the wire write them.
+    #[derive(Serialize, Deserialize)]
+    #[serde(bound(deserialize = "F: Deserialize<'de> + Default + Copy"))]
+    struct GeneticForm<F> {
+        zero: F,
+        spring: Spring<F>,
+        alpha: F,
+        beta: F,
+        omega: F,
+    }
+
+    /// The micro-slip kind's parameters as a file and the wire write them.
+    #[derive(Serialize, Deserialize)]
+    #[serde(bound(deserialize = "F: Deserialize<'de> + Default + Copy"))]
+    struct MicroSlipForm<F> {
+        zero: F,
+        spring: Spring<F>,
+        #[serde(with = "crate::serde_array::prefix")]
+        elements: ([SlipElement<F>; SLIP_ELEMENTS], u8),
+    }
+
     /// `{"model": "genetic-hysteresis", "params": {…}}`. The names are [`Kind::name`] (tested).
     #[derive(Serialize)]
+    #[cfg_attr(feature = "use-std", derive(Deserialize))]
     #[serde(tag = "model", content = "params")]
-    enum Named<'a, F> {
+    #[serde(bound(deserialize = "F: Deserialize<'de> + Default + Copy"))]
+    enum Named<F> {
         #[serde(rename = "genetic-hysteresis")]
-        Genetic(&'a Params<F>),
+        Genetic(GeneticForm<F>),
         #[serde(rename = "micro-slip")]
-        MicroSlip(&'a SlipParams<F, SLIP_ELEMENTS>),
+        MicroSlip(MicroSlipForm<F>),
     }
 
-    // Adjacent tagging reads the two fields in any order, buffering in serde's `Content`, which
-    // needs an allocator: files are read on the host only.
-    #[cfg(feature = "use-std")]
-    #[derive(Deserialize)]
-    #[serde(tag = "model", content = "params")]
-    #[serde(bound(deserialize = "F: Deserialize<'de> + Default"))]
-    enum NamedOwned<F> {
-        #[serde(rename = "genetic-hysteresis")]
-        Genetic(Params<F>),
-        #[serde(rename = "micro-slip")]
-        MicroSlip(SlipParams<F, SLIP_ELEMENTS>),
+    #[derive(Serialize, Deserialize)]
+    #[serde(bound(deserialize = "F: Deserialize<'de> + Default + Copy"))]
+    enum Indexed<F> {
+        Genetic(GeneticForm<F>),
+        MicroSlip(MicroSlipForm<F>),
     }
 
-    #[derive(Serialize)]
-    enum Indexed<'a, F> {
-        Genetic(&'a Params<F>),
-        MicroSlip(&'a SlipParams<F, SLIP_ELEMENTS>),
+    /// The kind's parameters apart, and whether it is the genetic kind.
+    fn forms<F: Copy>(model: &GearModel<F>) -> Result<GeneticForm<F>, MicroSlipForm<F>> {
+        let (zero, spring) = (model.zero, model.spring);
+        match model.hysteresis {
+            Hysteresis::Genetic(g) => Ok(GeneticForm { zero, spring, alpha: g.alpha, beta: g.beta, omega: g.omega }),
+            Hysteresis::MicroSlip(elements) => Err(MicroSlipForm { zero, spring, elements }),
+        }
     }
 
-    #[derive(Deserialize)]
-    #[serde(bound(deserialize = "F: Deserialize<'de> + Default"))]
-    enum IndexedOwned<F> {
-        Genetic(Params<F>),
-        MicroSlip(SlipParams<F, SLIP_ELEMENTS>),
+    fn genetic<F>(form: GeneticForm<F>) -> GearModel<F> {
+        let GeneticForm { zero, spring, alpha, beta, omega } = form;
+        GearModel { zero, spring, hysteresis: Hysteresis::Genetic(Genetic { alpha, beta, omega }) }
     }
 
-    impl<F: Serialize> Serialize for GearModel<F> {
+    fn micro_slip<F>(form: MicroSlipForm<F>) -> GearModel<F> {
+        GearModel { zero: form.zero, spring: form.spring, hysteresis: Hysteresis::MicroSlip(form.elements) }
+    }
+
+    impl<F: Serialize + Copy> Serialize for GearModel<F> {
         fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-            match (self, serializer.is_human_readable()) {
-                (GearModel::Genetic(p), true) => Named::Genetic(p).serialize(serializer),
-                (GearModel::MicroSlip(p), true) => Named::MicroSlip(p).serialize(serializer),
-                (GearModel::Genetic(p), false) => Indexed::Genetic(p).serialize(serializer),
-                (GearModel::MicroSlip(p), false) => Indexed::MicroSlip(p).serialize(serializer),
+            match (forms(self), serializer.is_human_readable()) {
+                (Ok(g), true) => Named::Genetic(g).serialize(serializer),
+                (Err(m), true) => Named::MicroSlip(m).serialize(serializer),
+                (Ok(g), false) => Indexed::Genetic(g).serialize(serializer),
+                (Err(m), false) => Indexed::MicroSlip(m).serialize(serializer),
             }
         }
     }
 
-    impl<'de, F: Deserialize<'de> + Default> Deserialize<'de> for GearModel<F> {
+    impl<'de, F: Deserialize<'de> + Default + Copy> Deserialize<'de> for GearModel<F> {
         fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+            // Adjacent tagging reads the two fields in any order, buffering in serde's
+            // `Content`, which needs an allocator: files are read on the host only.
             #[cfg(feature = "use-std")]
             if deserializer.is_human_readable() {
-                return Ok(match NamedOwned::deserialize(deserializer)? {
-                    NamedOwned::Genetic(p) => GearModel::Genetic(p),
-                    NamedOwned::MicroSlip(p) => GearModel::MicroSlip(p),
+                return Ok(match Named::deserialize(deserializer)? {
+                    Named::Genetic(g) => genetic(g),
+                    Named::MicroSlip(m) => micro_slip(m),
                 });
             }
-            Ok(match IndexedOwned::deserialize(deserializer)? {
-                IndexedOwned::Genetic(p) => GearModel::Genetic(p),
-                IndexedOwned::MicroSlip(p) => GearModel::MicroSlip(p),
+            Ok(match Indexed::deserialize(deserializer)? {
+                Indexed::Genetic(g) => genetic(g),
+                Indexed::MicroSlip(m) => micro_slip(m),
             })
         }
     }
 
-    impl<F: Serialize> GearModel<F> {
+    impl<F: Serialize + Copy> GearModel<F> {
         /// The parameters alone, by name (a params file's `params`), for a report that writes
         /// the kind's name in a field of its own.
         pub fn serialize_params<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-            match self {
-                GearModel::Genetic(p) => p.serialize(serializer),
-                GearModel::MicroSlip(p) => p.serialize(serializer),
+            match forms(self) {
+                Ok(g) => g.serialize(serializer),
+                Err(m) => m.serialize(serializer),
             }
         }
     }

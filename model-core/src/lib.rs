@@ -31,8 +31,10 @@ use num_traits::{Float, FloatConst};
 
 /// Name of the model in files and on the wire.
 pub const MODEL_NAME: &str = "genetic-hysteresis";
-/// Version of the model's equations; bumped when T(θ) changes meaning.
-pub const MODEL_VERSION: u16 = 1;
+/// Version of the model's equations; bumped when T(θ) changes meaning. Version 2: the deflection's
+/// zero θ0 and the free-form spring of every kind ([`GearModel`]), the micro-slip kind's
+/// elements each with its own slip deflection; version 1's sets load through [`legacy`].
+pub const MODEL_VERSION: u16 = 2;
 
 /// The float types the model runs on: `f32` on the microcontroller, `f64` on the host.
 pub trait Real: Float + FloatConst + Default + fmt::Debug + private::Sealed {
@@ -88,8 +90,8 @@ pub enum ParamName {
     Omega,
     /// k_i of micro-slip element i.
     SlipStiffness(u8),
-    SlipMin,
-    SlipMax,
+    /// d_i, the slip deflection of micro-slip element i.
+    Slip(u8),
     /// θ0, the deflection's zero.
     Zero,
     /// The x of the spring's knot i.
@@ -119,8 +121,7 @@ impl ParamName {
             ParamName::Beta => "beta",
             ParamName::Omega => "omega",
             ParamName::SlipStiffness(_) => "stiffness",
-            ParamName::SlipMin => "slip_min",
-            ParamName::SlipMax => "slip_max",
+            ParamName::Slip(_) => "slip",
             ParamName::Zero => "zero",
             ParamName::Knot(_) => "knot",
             ParamName::KnotStiffness(_) => "knot_stiffness",
@@ -137,8 +138,7 @@ impl ParamName {
             ParamName::C3 => "N·m/rad⁵",
             ParamName::Alpha => "N·m/rad per unit of ω",
             ParamName::Beta | ParamName::Omega => "1/s",
-            ParamName::SlipMin
-            | ParamName::SlipMax
+            ParamName::Slip(_)
             | ParamName::Zero
             | ParamName::Knot(_)
             | ParamName::RangeMin
@@ -151,7 +151,7 @@ impl fmt::Display for ParamName {
     /// The name as in files; an element's stiffness with its index, `stiffness[3]`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ParamName::SlipStiffness(i) | ParamName::Knot(i) | ParamName::KnotStiffness(i) => {
+            ParamName::SlipStiffness(i) | ParamName::Slip(i) | ParamName::Knot(i) | ParamName::KnotStiffness(i) => {
                 write!(f, "{}[{i}]", self.as_str())
             }
             name => f.write_str(name.as_str()),
@@ -181,6 +181,9 @@ pub enum Error {
     /// A spring's knots are not finite and increasing with stiffnesses ≥ 0, or its range does
     /// not hold x = 0.
     InvalidSpring,
+    /// A parameter of a gear's model is not finite or out of its range
+    /// ([`GearModel::check`] says which).
+    InvalidParameter(ParamName),
 }
 
 impl fmt::Display for Error {
@@ -199,6 +202,7 @@ impl fmt::Display for Error {
             Error::InvalidSlipRange => {
                 f.write_str("micro-slip deflections must satisfy 0 < d_min < d_max, both finite rad")
             }
+            Error::InvalidParameter(name) => write!(f, "parameter {name} is not finite or out of its range"),
             Error::InvalidSpring => f.write_str(
                 "spring knots must be finite and increasing with stiffness >= 0 N·m/rad, its range must hold x = 0",
             ),
@@ -321,6 +325,8 @@ pub struct Model<F> {
     /// k itself, rounded once (formed in f64), where the direct form h·e^(−rφ) applies:
     /// |r| ≤ [`MAX_DIRECT_DECAY_R`] and k finite; `None` elsewhere.
     direct_k: Option<F>,
+    /// Whether the polynomial spring is there (not c1 = c2 = c3 = 0).
+    has_spring: bool,
 }
 
 impl<F: Real> Model<F> {
@@ -344,7 +350,8 @@ impl<F: Real> Model<F> {
         let sign_k = if params.alpha == F::zero() { F::zero() } else { sign(params.alpha) * sign(params.omega) };
         let polynomial = Polynomial::new(params.c1, params.c2, params.c3)?;
         let direct_k = Self::direct_k(&params, r);
-        Ok(Model { polynomial, r, ln_abs_k, sign_k, direct_k })
+        let has_spring = [params.c1, params.c2, params.c3].iter().any(|c| *c != F::zero());
+        Ok(Model { polynomial, r, ln_abs_k, sign_k, direct_k, has_spring })
     }
 
     /// k = α/(ω(1 + r²)) in f64, rounded to F once, where the direct form applies.
@@ -362,6 +369,12 @@ impl<F: Real> Model<F> {
     /// The polynomial spring c1·θ + c2·θ³ + c3·θ⁵.
     pub fn polynomial(&self) -> &Polynomial<F> {
         &self.polynomial
+    }
+
+    /// Whether the polynomial spring is there (not c1 = c2 = c3 = 0).
+    #[inline(always)]
+    pub fn has_spring(&self) -> bool {
+        self.has_spring
     }
 
     /// r = β/ω.
@@ -743,8 +756,12 @@ pub mod range;
 #[cfg(feature = "serde")]
 mod serde_array;
 pub mod spring;
-pub use gear::{Evaluator, GearModel, Kind, Memory, ParamFault, SLIP_ELEMENTS, TURNING_POINTS};
-pub use memory::{GeneticMemory, Hysteretic, MicroSlip, SlipElements, SlipParams, TurningPoint};
+pub use gear::{
+    Evaluator, GearModel, Genetic, Hysteresis, HysteresisState, Kind, Memory, ParamFault, SLIP_ELEMENTS, TURNING_POINTS,
+};
+pub mod legacy;
+pub use memory::{GeneticMemory, Hysteretic, MicroSlip, SlipElement, SlipElements, TurningPoint};
+pub use spring::{Knot, Spring};
 pub mod tolerance;
 
 #[cfg(test)]

@@ -14,7 +14,7 @@
 //!
 //! Like the rest of the crate: `no_std`, no allocation, never panics, f32 and f64. A step that
 //! returns an error leaves the evaluator as it was (the sample is skipped).
-use crate::{Direction, Elementary, Error, Evaluation, Libm, Model, ParamName, Polynomial, Real, Scale};
+use crate::{Direction, Elementary, Error, Evaluation, Libm, Model, Real, Scale};
 
 /// A hysteretic element fed the deflection θ sample by sample.
 pub trait Hysteretic<F> {
@@ -595,7 +595,9 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
         theta: F,
     ) -> (Result<Evaluation<F>, Error>, F) {
         let h = branch.evaluate::<E>(model, theta);
-        (finite(model.polynomial.evaluate(theta).plus(h)), h.torque)
+        // A gear's model adds its spring itself: its hysteresis' model has none to evaluate.
+        let t = if model.has_spring() { model.polynomial.evaluate(theta).plus(h) } else { h };
+        (finite(t), h.torque)
     }
 }
 
@@ -648,72 +650,16 @@ pub fn slip_grid<F: Real, const M: usize>(slip_min: F, slip_max: F) -> Result<[F
     Ok(grid)
 }
 
-/// The parameters of [`MicroSlip`]: the spring c1·θ + c2·θ³ + c3·θ⁵ (N·m/rad, /rad³, /rad⁵)
-/// and the M element stiffnesses k_i (N·m/rad) on the slip grid [`slip_grid`]`(slip_min,
-/// slip_max)` (rad).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// One elasto-slip element of the micro-slip kind: a spring of stiffness k in series with a
+/// slider that slips when the spring's deflection reaches d.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(bound(deserialize = "F: serde::Deserialize<'de> + Default")))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct SlipParams<F, const M: usize> {
-    pub c1: F,
-    pub c2: F,
-    pub c3: F,
-    /// k_i ≥ 0 of element i, which slips at elastic deflection d_i.
-    #[cfg_attr(feature = "serde", serde(with = "crate::serde_array"))]
-    pub stiffness: [F; M],
-    /// d_min, rad.
-    pub slip_min: F,
-    /// d_max, rad.
-    pub slip_max: F,
-}
-
-impl<F: Real, const M: usize> SlipParams<F, M> {
-    /// All finite, every k_i ≥ 0, 0 < d_min < d_max.
-    pub fn validate(&self) -> Result<(), Error> {
-        for (name, value) in [(ParamName::C1, self.c1), (ParamName::C2, self.c2), (ParamName::C3, self.c3)] {
-            if !value.is_finite() {
-                return Err(Error::NonFiniteParameter(name));
-            }
-        }
-        if let Some((index, _)) = self.stiffness.iter().enumerate().find(|(_, k)| !(k.is_finite() && **k >= F::zero()))
-        {
-            return Err(Error::InvalidSlipStiffness(index));
-        }
-        slip_grid::<F, M>(self.slip_min, self.slip_max).map(|_| ())
-    }
-}
-
-impl<F: Copy, const M: usize> SlipParams<F, M> {
-    /// Each parameter converted by `convert`, which may refuse one by its name (the first
-    /// refusal wins); element i's stiffness is [`ParamName::SlipStiffness`]`(i)`.
-    pub fn try_map<G: Default, E>(
-        &self,
-        mut convert: impl FnMut(ParamName, F) -> Result<G, E>,
-    ) -> Result<SlipParams<G, M>, E> {
-        let c1 = convert(ParamName::C1, self.c1)?;
-        let c2 = convert(ParamName::C2, self.c2)?;
-        let c3 = convert(ParamName::C3, self.c3)?;
-        let mut stiffness: [G; M] = core::array::from_fn(|_| G::default());
-        for ((i, k), slot) in (0usize..).zip(self.stiffness).zip(stiffness.iter_mut()) {
-            // Element indices are named in a u8 on the wire; M is 16 on the joint.
-            *slot = convert(ParamName::SlipStiffness(u8::try_from(i).unwrap_or(u8::MAX)), k)?;
-        }
-        let slip_min = convert(ParamName::SlipMin, self.slip_min)?;
-        let slip_max = convert(ParamName::SlipMax, self.slip_max)?;
-        Ok(SlipParams { c1, c2, c3, stiffness, slip_min, slip_max })
-    }
-}
-
-impl<const M: usize> SlipParams<f64, M> {
-    /// The set rounded to f32, as the microcontroller holds it.
-    pub fn to_f32(&self) -> SlipParams<f32, M> {
-        let rounded: Result<SlipParams<f32, M>, core::convert::Infallible> = self.try_map(|_, value| Ok(value as f32));
-        match rounded {
-            Ok(params) => params,
-            Err(never) => match never {},
-        }
-    }
+pub struct SlipElement<F> {
+    /// d, rad (> 0).
+    pub slip: F,
+    /// k, N·m/rad (≥ 0).
+    pub stiffness: F,
 }
 
 /// The M elasto-slip elements alone, each with unit stiffness: element i's elastic deflection
@@ -806,42 +752,64 @@ fn slide<F: Real>(e: F, delta: F, d: F) -> (F, bool) {
     }
 }
 
-/// Maxwell-slip (a discrete Iwan model): an odd polynomial spring c1·θ + c2·θ³ + c3·θ⁵ in
-/// parallel with M elasto-slip elements, element i a spring k_i in series with a slider that
-/// slips when the spring's deflection reaches d_i.
+/// Maxwell-slip (a discrete Iwan model): up to M elasto-slip elements, element i a spring k_i in
+/// series with a slider that slips when the spring's deflection reaches d_i (each element its
+/// own d_i); the gear's spring is added by its model ([`crate::GearModel`]).
 ///
-/// T = poly(θ) + Σ k_i·e_i; K = poly′(θ) + Σ k_i over the sticking elements (|e_i| < d_i).
-/// Madelung's rules hold exactly; the loops are rate-independent and point-symmetric
-/// (Masing's rule).
+/// H = Σ k_i·e_i; dH/dθ = Σ k_i over the sticking elements (|e_i| < d_i). Madelung's rules hold
+/// exactly; the loops are rate-independent and point-symmetric (Masing's rule).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MicroSlip<F, const M: usize> {
-    polynomial: Polynomial<F>,
+    slip: [F; M],
     stiffness: [F; M],
-    elements: SlipElements<F, M>,
+    elastic: [F; M],
+    theta: F,
+    /// Elements in use: the first `count`.
+    count: usize,
     /// How many elements slip (|e_i| = d_i), counted by the step that moved them.
     slipping: usize,
 }
 
 impl<F: Real, const M: usize> MicroSlip<F, M> {
-    /// Validates `params` ([`SlipParams::validate`]); at rest.
-    pub fn new(params: SlipParams<F, M>) -> Result<Self, Error> {
-        params.validate()?;
+    /// At rest, with `elements` (at most M; each d_i finite > 0 ([`Error::InvalidSlipRange`]),
+    /// each k_i finite ≥ 0 ([`Error::InvalidSlipStiffness`])).
+    pub fn new(elements: &[SlipElement<F>]) -> Result<Self, Error> {
+        if elements.len() > M {
+            return Err(Error::InvalidSlipRange);
+        }
+        let (mut slip, mut stiffness) = ([F::one(); M], [F::zero(); M]);
+        for (i, ((element, d), k)) in elements.iter().zip(slip.iter_mut()).zip(stiffness.iter_mut()).enumerate() {
+            if !(element.slip.is_finite() && element.slip > F::zero()) {
+                return Err(Error::InvalidSlipRange);
+            }
+            if !(element.stiffness.is_finite() && element.stiffness >= F::zero()) {
+                return Err(Error::InvalidSlipStiffness(i));
+            }
+            (*d, *k) = (element.slip, element.stiffness);
+        }
         Ok(MicroSlip {
-            polynomial: Polynomial::new(params.c1, params.c2, params.c3)?,
-            stiffness: params.stiffness,
-            elements: SlipElements::on_grid(params.slip_min, params.slip_max)?,
+            slip,
+            stiffness,
+            elastic: [F::zero(); M],
+            theta: F::zero(),
+            count: elements.len(),
             slipping: 0,
         })
     }
 
-    /// The elements' stiffnesses k_i, N·m/rad.
-    pub fn stiffness(&self) -> &[F; M] {
-        &self.stiffness
+    /// The elements' slip deflections d_i, rad.
+    pub fn slip(&self) -> &[F] {
+        self.slip.get(..self.count).unwrap_or(&[])
     }
 
-    /// The elements' state.
-    pub fn elements(&self) -> &SlipElements<F, M> {
-        &self.elements
+    /// The elements' stiffnesses k_i, N·m/rad.
+    pub fn stiffness(&self) -> &[F] {
+        self.stiffness.get(..self.count).unwrap_or(&[])
+    }
+
+    /// The elements' elastic deflections e_i, rad.
+    pub fn elastic(&self) -> &[F] {
+        self.elastic.get(..self.count).unwrap_or(&[])
     }
 
     /// How many elements slip (|e_i| = d_i): none at rest (what the joint reports as the
@@ -853,23 +821,26 @@ impl<F: Real, const M: usize> MicroSlip<F, M> {
 
 impl<F: Real, const M: usize> Hysteretic<F> for MicroSlip<F, M> {
     fn reset(&mut self) {
-        self.elements.reset();
+        self.elastic = [F::zero(); M];
+        self.theta = F::zero();
         self.slipping = 0;
     }
 
-    /// One pass over the elements moves each, sums T and K and counts the slipping ones; the
-    /// new deflections are committed only if T and K are finite. (Stepping a copy of the
-    /// elements, evaluating it in a second pass and counting in a third cost the M4F far more
-    /// instructions per tick.)
+    /// One pass over the elements moves each, sums H and dH/dθ and counts the slipping ones; the
+    /// new deflections are committed only if both are finite. (Stepping a copy of the elements,
+    /// evaluating it in a second pass and counting in a third cost the M4F far more instructions
+    /// per tick.)
     fn step(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);
         }
-        let delta = theta - self.elements.theta;
-        let mut total = self.polynomial.evaluate(theta);
-        let mut elastic = self.elements.elastic;
+        let delta = theta - self.theta;
+        let mut total = Evaluation { torque: F::zero(), stiffness: F::zero() };
+        let mut elastic = self.elastic;
         let mut slipping = 0;
-        for ((e, d), k) in elastic.iter_mut().zip(self.elements.slip.iter()).zip(self.stiffness.iter()) {
+        // Every slot, the unused too (k = 0, d = 1 rad: they never slip): a loop of a fixed length
+        // is unrolled, and the worst case, all M in use, is what the tick is budgeted for.
+        for ((e, d), k) in elastic.iter_mut().zip(self.slip.iter()).zip(self.stiffness.iter()) {
             let sticks;
             (*e, sticks) = slide(*e, delta, *d);
             total.torque = total.torque + *k * *e;
@@ -880,8 +851,8 @@ impl<F: Real, const M: usize> Hysteretic<F> for MicroSlip<F, M> {
             }
         }
         let evaluation = finite(total)?;
-        self.elements.elastic = elastic;
-        self.elements.theta = theta;
+        self.elastic = elastic;
+        self.theta = theta;
         self.slipping = slipping;
         Ok(evaluation)
     }

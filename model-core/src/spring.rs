@@ -80,8 +80,8 @@ impl<F: Real> Spring<F> {
         self.knots.0.get(..usize::from(self.knots.1)).unwrap_or(&[])
     }
 
-    /// The first parameter that is not finite or out of its range: knots not increasing, a
-    /// negative knot stiffness, a range that does not hold x = 0.
+    /// The first parameter that is not finite or out of its range: knots not increasing or beyond
+    /// the range, a negative knot stiffness, a range that does not hold x = 0.
     pub fn check(&self) -> Result<(), (ParamName, ParamFault)> {
         for (name, value) in [(ParamName::C1, self.c1), (ParamName::C2, self.c2), (ParamName::C3, self.c3)] {
             if !value.is_finite() {
@@ -119,20 +119,25 @@ impl<F: Real> Spring<F> {
         if hi <= lo || hi < F::zero() {
             return Err((ParamName::RangeMax, ParamFault::OutOfRange));
         }
+        // Knots beyond the range would shape a spring no sample identified: beyond it the spring
+        // is its edge's line.
+        if let Some(i) = (0u8..).zip(self.knots()).find_map(|(i, k)| (k.x < lo || k.x > hi).then_some(i)) {
+            return Err((ParamName::Knot(i), ParamFault::OutOfRange));
+        }
         Ok(())
     }
 
-    /// The spring ready to evaluate: per segment its start, torque and stiffness there and the
-    /// stiffness's slope, and the values at the range's edges.
+    /// The spring ready to evaluate: per segment of the knots' part its quadratic in x and where
+    /// it ends, and the polynomial's values at the range's edges.
     pub fn prepare(&self) -> Result<PreparedSpring<F>, Error> {
         self.check().map_err(|_| Error::InvalidSpring)?;
         let polynomial = Polynomial::new(self.c1, self.c2, self.c3)?;
         let knots = self.knots();
         let half = F::one() / (F::one() + F::one());
+        // From knot j the stiffness is K_j + slope_j·(x − x_j) and P = P_j + K_j·d + slope_j·d²/2
+        // (P_j from knot 0, shifted below so that P(0) = 0); left of knot 0 and right of the last,
+        // the end knot's stiffness. Each piece as a + b·x + c·x², ending at the next knot.
         let mut segments = [Segment::default(); MAX_KNOTS + 1];
-        // Segment 0 runs up to the first knot with its stiffness; segment j + 1 from knot j to
-        // knot j + 1; the last beyond the last knot. Each starts at a knot (the first from the
-        // left, backwards), P measured from knot 0 and shifted so that P(0) = 0 below.
         let mut torque = F::zero();
         for (j, knot) in knots.iter().enumerate() {
             let next = knots.get(j + 1);
@@ -140,61 +145,78 @@ impl<F: Real> Spring<F> {
                 Some(next) => (next.stiffness - knot.stiffness) / (next.x - knot.x),
                 None => F::zero(),
             };
+            let end = next.map_or_else(F::infinity, |next| next.x);
             if let Some(segment) = segments.get_mut(j + 1) {
-                *segment = Segment { start: knot.x, torque, stiffness: knot.stiffness, slope };
+                *segment = Segment::from_start(knot.x, torque, knot.stiffness, slope, end);
+            }
+            if j == 0 {
+                if let Some(segment) = segments.first_mut() {
+                    *segment = Segment::from_start(knot.x, F::zero(), knot.stiffness, F::zero(), knot.x);
+                }
             }
             if let Some(next) = next {
                 torque = torque + (knot.stiffness + next.stiffness) * half * (next.x - knot.x);
             }
         }
-        if let (Some(first), Some(segment)) = (knots.first(), segments.first_mut()) {
-            *segment = Segment { start: first.x, torque: F::zero(), stiffness: first.stiffness, slope: F::zero() };
-        }
         let count = if knots.is_empty() { 0 } else { knots.len() + 1 };
         let mut prepared = PreparedSpring {
-            polynomial,
+            polynomial: self.has_polynomial().then_some(polynomial),
             segments,
             count,
             range: self.range,
             at_range: [Evaluation::default(); 2],
             cursor: 0,
         };
-        // P(0) = 0: shift every segment's torque by P at x = 0.
+        // P(0) = 0.
         let at_zero = prepared.knots_part(F::zero());
         for segment in prepared.segments.iter_mut().take(count) {
-            segment.torque = segment.torque - at_zero.torque;
+            segment.a = segment.a - at_zero.torque;
         }
         prepared.cursor = 0;
         let [lo, hi] = self.range;
-        prepared.at_range = [prepared.inside(lo), prepared.inside(hi)];
+        prepared.at_range = [polynomial.evaluate(lo), polynomial.evaluate(hi)];
         let finite = |e: &Evaluation<F>| e.torque.is_finite() && e.stiffness.is_finite();
-        if !prepared.at_range.iter().all(finite) || !prepared.segments.iter().all(|s| s.torque.is_finite()) {
+        let segments_finite = prepared.segments.iter().all(|s| s.a.is_finite() && s.b.is_finite() && s.c.is_finite());
+        if !prepared.at_range.iter().all(finite) || !segments_finite {
             return Err(Error::Overflow);
         }
         Ok(prepared)
     }
+
+    /// Whether the odd polynomial is there (not c1 = c2 = c3 = 0).
+    fn has_polynomial(&self) -> bool {
+        [self.c1, self.c2, self.c3].iter().any(|c| *c != F::zero())
+    }
 }
 
-/// One piece of the stiffness curve: from `start`, P = torque + (stiffness + slope·d/2)·d and
-/// k = stiffness + slope·d, d = x − start.
+/// One piece of the knots' part: for x below `end`, P = a + b·x + c·x² and k = b + 2c·x.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Segment<F> {
-    start: F,
-    torque: F,
-    stiffness: F,
-    slope: F,
+    end: F,
+    a: F,
+    b: F,
+    c: F,
+}
+
+impl<F: Real> Segment<F> {
+    /// The piece from `start` with P = `torque`, k = `stiffness` and dk/dx = `slope` there.
+    fn from_start(start: F, torque: F, stiffness: F, slope: F, end: F) -> Self {
+        let c = slope / (F::one() + F::one());
+        Segment { end, a: torque - stiffness * start + c * start * start, b: stiffness - slope * start, c }
+    }
 }
 
 /// A [`Spring`] ready to evaluate sample by sample; it remembers the last segment, so that a
 /// tick finds the next one in a step or two (x moves little between ticks).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PreparedSpring<F> {
-    polynomial: Polynomial<F>,
+    /// The odd polynomial, where it is there.
+    polynomial: Option<Polynomial<F>>,
     segments: [Segment<F>; MAX_KNOTS + 1],
     /// Segments in use: knots + 1, or 0 without knots.
     count: usize,
     range: [F; 2],
-    /// S and its stiffness at the range's two edges.
+    /// The polynomial and its stiffness at the range's two edges.
     at_range: [Evaluation<F>; 2],
     cursor: usize,
 }
@@ -203,14 +225,21 @@ impl<F: Real> PreparedSpring<F> {
     /// S(x) and dS/dx, x = θ − θ0 in rad; beyond the range, the line of the edge's stiffness.
     #[inline(always)]
     pub fn evaluate(&mut self, x: F) -> Evaluation<F> {
-        let [lo, hi] = self.range;
-        let [at_lo, at_hi] = self.at_range;
-        if x > hi {
-            Evaluation { torque: at_hi.torque + at_hi.stiffness * (x - hi), stiffness: at_hi.stiffness }
-        } else if x < lo {
-            Evaluation { torque: at_lo.torque + at_lo.stiffness * (x - lo), stiffness: at_lo.stiffness }
-        } else {
-            self.inside(x)
+        let knots = self.knots_part(x);
+        match &self.polynomial {
+            None => knots,
+            Some(polynomial) => {
+                let [lo, hi] = self.range;
+                let [at_lo, at_hi] = self.at_range;
+                let polynomial = if x > hi {
+                    Evaluation { torque: at_hi.torque + at_hi.stiffness * (x - hi), stiffness: at_hi.stiffness }
+                } else if x < lo {
+                    Evaluation { torque: at_lo.torque + at_lo.stiffness * (x - lo), stiffness: at_lo.stiffness }
+                } else {
+                    polynomial.evaluate(x)
+                };
+                polynomial.plus(knots)
+            }
         }
     }
 
@@ -231,32 +260,26 @@ impl<F: Real> PreparedSpring<F> {
         self.range
     }
 
-    #[inline(always)]
-    fn inside(&mut self, x: F) -> Evaluation<F> {
-        self.polynomial.evaluate(x).plus(self.knots_part(x))
-    }
-
-    /// P(x) and k(x), moving the cursor to x's segment.
+    /// P(x) and k(x), moving the cursor to x's segment (the knots' part is linear beyond the
+    /// outer knots: no range to check).
     #[inline(always)]
     fn knots_part(&mut self, x: F) -> Evaluation<F> {
-        if self.count == 0 {
-            return Evaluation::default();
-        }
-        // Segment j + 1 starts at knot j; segment 0 holds everything left of knot 0.
-        let last = self.count - 1;
-        let mut cursor = self.cursor.min(last);
-        while cursor < last && self.segments.get(cursor + 1).is_some_and(|s| x >= s.start) {
+        let last = self.count.saturating_sub(1);
+        let mut cursor = self.cursor;
+        while cursor < last && self.segments.get(cursor).is_some_and(|s| x >= s.end) {
             cursor += 1;
         }
-        while cursor > 0 && self.segments.get(cursor).is_some_and(|s| x < s.start) {
+        while cursor > 0 && self.segments.get(cursor - 1).is_some_and(|s| x < s.end) {
             cursor -= 1;
         }
         self.cursor = cursor;
-        let Some(segment) = self.segments.get(cursor) else { return Evaluation::default() };
-        let d = x - segment.start;
-        let half = F::one() / (F::one() + F::one());
-        let stiffness = segment.stiffness + segment.slope * d;
-        Evaluation { torque: segment.torque + (segment.stiffness + segment.slope * d * half) * d, stiffness }
+        match self.segments.get(cursor) {
+            Some(s) if self.count > 0 => {
+                let cx = s.c * x;
+                Evaluation { torque: s.a + x * (s.b + cx), stiffness: s.b + cx + cx }
+            }
+            _ => Evaluation::default(),
+        }
     }
 }
 

@@ -4,8 +4,9 @@
 //! |θ| ≤ 0.99·A) plus how far the exact model itself moves when θ or A move by 2⁻²²
 //! relative, the rounding of θ/A in f32: near the turning points |θ| = A the model is steep
 //! in θ/A, and no f32 evaluation can do better than that.
-use crate::memory::{branch, slip_grid, TurningPoint};
-use crate::{Direction, Evaluation, Evaluator, GearModel, Model, Polynomial, SLIP_ELEMENTS};
+use crate::gear::{Hysteresis, HysteresisState};
+use crate::memory::{branch, TurningPoint};
+use crate::{Direction, Evaluation, Evaluator, GearModel, Model};
 #[allow(unused_imports)]
 use num_traits::Float;
 
@@ -73,19 +74,38 @@ const ROUNDING: f64 = 1.0 / 4_194_304.0;
 
 impl GearModel<f64> {
     /// The motion's scale for [`RELATIVE_TOLERANCE`]: max |T| and max |K| over |θ| ≤
-    /// `envelope` (the genetic kind: [`loop_scales`] at `envelope`/0.99; the micro-slip kind:
-    /// |spring| + Σ k_i·min(d_i, envelope) and spring′ + Σ k_i).
+    /// `envelope`: the spring's over those θ plus the hysteresis' (the genetic kind: the largest
+    /// loop's, [`loop_scales`] at the half-width the envelope allows; the micro-slip kind:
+    /// Σ k_i·min(d_i, that half-width) and Σ k_i).
     pub fn scales(&self, envelope: f64) -> Result<(f64, f64), crate::Error> {
-        match self {
-            GearModel::Genetic(params) => loop_scales(&Model::new(*params)?, envelope / 0.99),
-            GearModel::MicroSlip(params) => {
-                let spring = Polynomial::new(params.c1, params.c2, params.c3)?.evaluate(envelope);
-                let grid = slip_grid::<f64, SLIP_ELEMENTS>(params.slip_min, params.slip_max)?;
-                let elements: f64 = params.stiffness.iter().zip(grid).map(|(k, d)| k * d.min(envelope)).sum();
-                let stiffness: f64 = params.stiffness.iter().sum();
-                Ok((spring.torque.abs() + elements, spring.stiffness.abs() + stiffness))
-            }
+        let mut spring = self.spring.prepare()?;
+        let (mut torque, mut stiffness) = (0.0f64, 0.0f64);
+        for i in 0..=400 {
+            let theta = envelope * (f64::from(i) / 200.0 - 1.0);
+            let e = spring.evaluate(theta - self.zero);
+            torque = torque.max(e.torque.abs());
+            stiffness = stiffness.max(e.stiffness.abs());
         }
+        let width = envelope + self.zero.abs();
+        let hysteresis = match &self.hysteresis {
+            Hysteresis::Genetic(g) => {
+                let model = Model::new(crate::Params {
+                    c1: 0.0,
+                    c2: 0.0,
+                    c3: 0.0,
+                    alpha: g.alpha,
+                    beta: g.beta,
+                    omega: g.omega,
+                })?;
+                loop_scales(&model, width / 0.99)?
+            }
+            Hysteresis::MicroSlip(_) => {
+                let elements = self.slip_elements();
+                let t: f64 = elements.iter().map(|e| e.stiffness * e.slip.min(width)).sum();
+                (t, elements.iter().map(|e| e.stiffness).sum())
+            }
+        };
+        Ok((torque + hysteresis.0, stiffness + hysteresis.1))
     }
 }
 
@@ -104,44 +124,50 @@ pub struct Rounding {
 }
 
 impl Evaluator<f64> {
-    /// [`Rounding`] at θ (rad), the deflection this evaluator has just stepped to:
+    /// [`Rounding`] at θ (rad), the deflection this evaluator has just stepped to, where it gave
+    /// `exact`:
     ///
+    /// - x = θ − θ0 rounds in f32 by 2⁻²²·(|θ| + |θ0|): K times that on T;
     /// - genetic: the current branch (from its start, the top turning point, to its target) is
-    ///   re-evaluated with θ and each end's θ moved by ±2⁻²² of the largest of them — the f32
-    ///   rounding of θ − c and of the half-width w, which near a branch's ends, where the model
-    ///   is steep in (θ − c)/w, no f32 evaluation can do better than (the analogue of
+    ///   re-evaluated with x and each end's x moved by ±2⁻²² of the largest of them — the f32
+    ///   rounding of x − c and of the half-width w, which near a branch's ends, where the model
+    ///   is steep in (x − c)/w, no f32 evaluation can do better than (the analogue of
     ///   [`Bound::at`] on one loop, at the branch's own half-width); the memory must match
     ///   exactly (its turning points are the samples themselves, exact in both);
-    /// - micro-slip: K·2⁻²²·|θ| for θ, and for each element within 10⁻⁵·d_i + 2⁻²¹·(|θ| + d_i)
-    ///   of its slip limit its k_i on K, k_i·that margin on T, and one on the memory.
+    /// - micro-slip: for each element within 10⁻⁵·d_i + 2⁻²¹·(|x| + d_i) of its slip limit its
+    ///   k_i on K, k_i·that margin on T, and one on the memory.
     pub fn rounding(&self, theta: f64, exact: &Evaluation<f64>) -> Result<Rounding, crate::Error> {
-        match self {
-            Evaluator::Genetic(memory) => {
-                let (torque, stiffness) = branch_spread(memory.model(), memory.turning_points(), theta)?;
-                Ok(Rounding { torque, stiffness, memory: 0 })
+        let x = theta - self.zero();
+        let mut rounding = Rounding {
+            torque: exact.stiffness.abs() * ROUNDING * (theta.abs() + self.zero().abs()),
+            stiffness: 0.0,
+            memory: 0,
+        };
+        match self.hysteresis() {
+            HysteresisState::Genetic(memory) => {
+                let (torque, stiffness) = branch_spread(memory.model(), memory.turning_points(), x)?;
+                rounding.torque += torque;
+                rounding.stiffness += stiffness;
             }
-            Evaluator::MicroSlip(slip) => {
-                let elements = slip.elements();
-                let mut rounding =
-                    Rounding { torque: exact.stiffness.abs() * ROUNDING * theta.abs(), stiffness: 0.0, memory: 0 };
-                for ((k, e), d) in slip.stiffness().iter().zip(elements.elastic()).zip(elements.slip()) {
-                    let margin = 1.0e-5 * d + 2.0 * ROUNDING * (theta.abs() + d);
+            HysteresisState::MicroSlip(slip) => {
+                for ((k, e), d) in slip.stiffness().iter().zip(slip.elastic()).zip(slip.slip()) {
+                    let margin = 1.0e-5 * d + 2.0 * ROUNDING * (x.abs() + d);
                     if d - e.abs() <= margin {
                         rounding.memory += 1;
                         rounding.stiffness += k;
                         rounding.torque += k * margin;
                     }
                 }
-                Ok(rounding)
             }
         }
+        Ok(rounding)
     }
 }
 
-/// How far the genetic model's T and K at θ move when θ and the current branch's two ends move
-/// by ±2⁻²² of the largest of them (their f32 rounding). The branch runs from the top turning
-/// point to the one below it, or to its mirror (−θ, −H) when it is alone; at rest (no turning
-/// points) T is the polynomial alone.
+/// How far the genetic hysteresis H and dH/dx at x move when x and the current branch's two ends
+/// move by ±2⁻²² of the largest of them (their f32 rounding). The branch runs from the top turning
+/// point to the one below it, or to its mirror (−x, −H) when it is alone; at rest (no turning
+/// points) H = 0.
 fn branch_spread(model: &Model<f64>, points: &[TurningPoint<f64>], theta: f64) -> Result<(f64, f64), crate::Error> {
     let polynomial = model.polynomial();
     let evaluate =

@@ -36,7 +36,8 @@ extern crate std;
 use core::fmt;
 use model_core::range::Culprit;
 pub use model_core::{
-    Direction, GearModel, ParamFault, ParamName, Params, SlipParams, MODEL_VERSION, SLIP_ELEMENTS, TURNING_POINTS,
+    Direction, GearModel, Knot, ParamFault, ParamName, Params, SlipElement, Spring, MODEL_VERSION, SLIP_ELEMENTS,
+    TURNING_POINTS,
 };
 use serde::{Deserialize, Serialize};
 
@@ -52,13 +53,15 @@ use serde::{Deserialize, Serialize};
 /// [`ErrorReply::NotLockstep`], [`ErrorReply::Busy`]; [`Response::Committed`] a tuple variant
 /// (same bytes); an error reply names a model parameter by model-core's [`ParamName`]
 /// ([`ParamField::Model`]); [`JointParams::model`] is model-core's [`GearModel`], encoded as
-/// version 4's model was.
-pub const PROTOCOL_VERSION: u16 = 5;
+/// version 4's model was. Version 6: [`JointParams::model`] is the model of model version 2 (the
+/// deflection's zero, the free-form spring, the micro-slip kind's elements each with its own slip
+/// deflection); frames up to [`MAX_FRAME_LEN`] = 512 bytes.
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// Largest encoded frame, delimiter included: the longest message (a micro-slip
-/// [`Response::Params`] with every varint at its maximum, the request id's included) takes 114
-/// bytes (tested), with room to spare.
-pub const MAX_FRAME_LEN: usize = 128;
+/// [`Response::Params`] with 17 knots, 16 elements and every varint at its maximum, the request
+/// id's included) takes 321 bytes (tested), with room for a kind with more parameters.
+pub const MAX_FRAME_LEN: usize = 512;
 
 /// Largest payload (version, message and CRC) before COBS encoding.
 const MAX_PAYLOAD_LEN: usize = MAX_FRAME_LEN - 2;
@@ -891,6 +894,26 @@ pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<Envelope<T>
         postcard::take_from_bytes::<RequestId>(rest).map_err(|_| FrameError::Message(RequestId::UNKNOWN))?;
     let message = postcard::from_bytes(message).map_err(|_| FrameError::Message(id))?;
     Ok(Envelope { id, message })
+}
+
+/// The position in an encoded frame (as [`encode`] writes it) of byte `n` of what it carries
+/// (version, id, message and CRC), skipping COBS's code bytes: what a test flips to corrupt a frame
+/// without breaking its COBS structure, so that the CRC must catch it.
+pub fn payload_index(frame: &[u8], n: usize) -> Option<usize> {
+    let mut code_at = 0;
+    let mut seen = 0;
+    while let Some(&code) = frame.get(code_at) {
+        if code == 0 {
+            return None;
+        }
+        let data = code_at + 1..code_at + usize::from(code);
+        if n < seen + data.len() {
+            return Some(data.start + (n - seen));
+        }
+        seen += data.len();
+        code_at = data.end;
+    }
+    None
 }
 
 /// Splits a byte stream into frames at the 0x00 delimiters.

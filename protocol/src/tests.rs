@@ -2,13 +2,15 @@ extern crate std;
 use super::*;
 use std::{vec, vec::Vec};
 
-const PARAMS: JointParams = JointParams {
-    model_version: MODEL_VERSION,
-    model: GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.298, omega: 1.0 }),
-    gear_ratio: 100.0,
-    torque_limit: 50.0,
-    direction_band: 2.0e-5,
-};
+fn params() -> JointParams {
+    JointParams {
+        model_version: MODEL_VERSION,
+        model: GearModel::paper(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.298, omega: 1.0 }),
+        gear_ratio: 100.0,
+        torque_limit: 50.0,
+        direction_band: 2.0e-5,
+    }
+}
 
 /// An id for tests that are not about ids.
 const ID: RequestId = RequestId(77);
@@ -35,59 +37,64 @@ fn message_of<T: for<'a> Deserialize<'a>>(sent: &[u8]) -> Result<T, FrameError> 
     })
 }
 
-/// A parameter set with every field different, so that the golden frames fail if two
-/// fields trade places (or encodings). All values are exact in f32.
-const DISTINCT_PARAMS: JointParams = JointParams {
-    model_version: 1,
-    model: GearModel::Genetic(Params { c1: 9000.0, c2: 1.25e10, c3: -3.0e14, alpha: 48.5, beta: -2.25, omega: 1.0 }),
-    gear_ratio: 100.0,
-    torque_limit: 50.0,
-    direction_band: 2.0e-5,
-};
+/// A spring with every field different: a polynomial part, five knots, its range; exact in f32.
+fn distinct_spring(offset: f32) -> Spring<f32> {
+    let knot = |x: f32, stiffness: f32| Knot { x: x / 1024.0, stiffness: stiffness + offset };
+    let knots = [knot(-1.5, 15000.5), knot(-0.75, 9000.25), knot(0.0, 7000.75), knot(0.5, 8000.5), knot(1.25, 12000.25)];
+    let mut spring = Spring::of_knots(&knots, [-1.75 / 1024.0, 1.5 / 1024.0]).unwrap();
+    (spring.c1, spring.c2, spring.c3) = (150.5 + offset, 1.25e10, -3.0e14);
+    spring
+}
 
-/// k_i = 100·(i + 1) + 0.25 N·m/rad: every element different, all exact in f32.
-const DISTINCT_STIFFNESS: [f32; SLIP_ELEMENTS] = {
-    let mut k = [0.0f32; SLIP_ELEMENTS];
-    let mut i = 0;
-    while i < SLIP_ELEMENTS {
-        k[i] = 100.0 * (i + 1) as f32 + 0.25;
-        i += 1;
+/// A genetic set with every field different, so that the golden frames fail if two fields trade
+/// places (or encodings). All values are exact in f32.
+fn distinct_params() -> JointParams {
+    let paper = GearModel::paper(Params { c1: 0.0, c2: 0.0, c3: 0.0, alpha: 48.5, beta: -2.25, omega: 1.0 });
+    JointParams {
+        model_version: 1,
+        model: GearModel { zero: -1.0 / 128.0, spring: distinct_spring(0.0), ..paper },
+        gear_ratio: 100.0,
+        torque_limit: 50.0,
+        direction_band: 2.0e-5,
     }
-    k
-};
+}
 
 /// A micro-slip set with every field different from every other (and from the genetic set's
-/// joint fields), exact in f32.
-const DISTINCT_SLIP_PARAMS: JointParams = JointParams {
-    model_version: 1,
-    model: GearModel::MicroSlip(SlipParams {
-        c1: 6000.0,
-        c2: 2.5e9,
-        c3: -5.0e13,
-        stiffness: DISTINCT_STIFFNESS,
-        slip_min: 1.0 / 65536.0,
-        slip_max: 1.0 / 512.0,
-    }),
-    gear_ratio: 80.0,
-    torque_limit: 35.5,
-    direction_band: 2.5e-6,
-};
+/// joint fields), exact in f32: 16 elements, d_i = (2i + 3)/16384 rad (odd: none a knot's x),
+/// k_i = 100·(i + 1) + 0.25.
+fn distinct_slip_params() -> JointParams {
+    let elements: Vec<SlipElement<f32>> = (0..SLIP_ELEMENTS)
+        .map(|i| SlipElement { slip: (2 * i + 3) as f32 / 16384.0, stiffness: 100.0 * (i + 1) as f32 + 0.25 })
+        .collect();
+    JointParams {
+        model_version: 1,
+        model: GearModel::micro_slip(1.0 / 256.0, distinct_spring(0.125), &elements).unwrap(),
+        gear_ratio: 80.0,
+        torque_limit: 35.5,
+        direction_band: 2.5e-6,
+    }
+}
+
+/// Every parameter of a set, model and joint, in order.
+fn fields(params: &JointParams) -> Vec<f32> {
+    let mut fields = Vec::new();
+    params.model.map(|_, value| {
+        fields.push(value);
+        value
+    });
+    fields.extend([params.gear_ratio, params.torque_limit, params.direction_band]);
+    fields
+}
 
 #[test]
 fn the_distinct_sets_have_distinct_fields() {
-    let GearModel::MicroSlip(slip) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
-    let mut fields = vec![slip.c1, slip.c2, slip.c3, slip.slip_min, slip.slip_max];
-    fields.extend(slip.stiffness);
-    fields.extend([
-        DISTINCT_SLIP_PARAMS.gear_ratio,
-        DISTINCT_SLIP_PARAMS.torque_limit,
-        DISTINCT_SLIP_PARAMS.direction_band,
-    ]);
-    for (i, a) in fields.iter().enumerate() {
-        assert!(fields[i + 1..].iter().all(|b| a != b), "{fields:?}");
+    for set in [distinct_params(), distinct_slip_params()] {
+        let fields = fields(&set);
+        for (i, a) in fields.iter().enumerate() {
+            assert!(fields[i + 1..].iter().all(|b| a != b), "{fields:?}");
+        }
+        assert_eq!(JointParams { model_version: MODEL_VERSION, ..set }.validate(), Ok(()));
     }
-    assert_eq!(DISTINCT_SLIP_PARAMS.validate(), Ok(()));
-    assert_eq!(DISTINCT_PARAMS.validate(), Ok(()));
 }
 
 /// Encodes `message` with `id` and compares the frame with `golden`, then decodes `golden` back.
@@ -169,20 +176,22 @@ fn covers_every_variant<T>(cases: &[(RequestId, T, &[u8])], variant: fn(&T) -> u
 // the next one and leads with the distance to the first. Every frame has its own request id,
 // of one to five varint bytes.
 //
-// One frame checked by hand, Request::GetDeviceInfo with id 1: the payload is 05 | 01 | 00,
-// its CRC-32/ISO-HDLC is 0xe091_2ab8 (`python3 -c 'import zlib; print(hex(zlib.crc32(bytes([5, 1, 0]))))'`),
-// little-endian b8 2a 91 e0, so COBS(05 01 00 b8 2a 91 e0) = 03 05 01 | 05 b8 2a 91 e0 (each
+// One frame checked by hand, Request::GetDeviceInfo with id 1: the payload is 06 | 01 | 00,
+// its CRC-32/ISO-HDLC is 0xe2d7_94e1 (`python3 -c 'import zlib; print(hex(zlib.crc32(bytes([6, 1, 0]))))'`),
+// little-endian e1 94 d7 e2, so COBS(06 01 00 e1 94 d7 e2) = 03 06 01 | 05 e1 94 d7 e2 (each
 // code byte the distance to the next zero, the last to the end) and the delimiter 00.
 //
-// The genetic set's payload (DISTINCT_PARAMS):
-//   model_version 01 | Genetic 00 | c1 9e3 = 460ca000 | c2 1.25e10 = 503a43b7 |
-//   c3 -3e14 = d7886c99 | alpha 48.5 = 42420000 | beta -2.25 = c0100000 | omega 1 = 3f800000 |
+// The genetic set's payload (distinct_params(), f32 big-endian here, little-endian on the wire):
+//   model_version 01 | Genetic 00 | zero -2⁻⁷ = bc000000 | spring: c1 150.5 = 43168000 |
+//   c2 1.25e10 = 503a43b7 | c3 -3e14 = d7886c99 | 5 knots 05: x -1.5/1024 = bac00000,
+//   k 15000.5 = 466a6200, … | range -1.75/1024 = bae00000, 1.5/1024 = 3ac00000 |
+//   alpha 48.5 = 42420000 | beta -2.25 = c0100000 | omega 1 = 3f800000 |
 //   gear_ratio 100 = 42c80000 | torque_limit 50 = 42480000 | direction_band 2e-5 = 37a7c5ac
-// The micro-slip set's (DISTINCT_SLIP_PARAMS):
-//   model_version 01 | MicroSlip 01 | c1 6e3 = 45bb8000 | c2 2.5e9 = 4f1502f9 |
-//   c3 -5e13 = d635e621 | stiffness 100.25 = 42c88000, 200.25 = 43484000, … 1600.25 = 44c80800 |
-//   slip_min 2⁻¹⁶ = 37800000 | slip_max 2⁻⁹ = 3b000000 | gear_ratio 80 = 42a00000 |
-//   torque_limit 35.5 = 420e0000 | direction_band 2.5e-6 = 3627c5ac
+// The micro-slip set's (distinct_slip_params()):
+//   model_version 01 | MicroSlip 01 | zero 2⁻⁸ = 3b800000 | the spring (c1 150.625, knots' k + 0.125) |
+//   16 elements 10: slip 3/16384 = 39400000, k 100.25 = 42c88000, … slip 33/16384 = 3b040000,
+//   k 1600.25 = 44c80800 | gear_ratio 80 = 42a00000 | torque_limit 35.5 = 420e0000 |
+//   direction_band 2.5e-6 = 3627c5ac
 
 /// A controller configuration with every field different, exact in f32.
 const DISTINCT_CONFIG: ControllerConfig = ControllerConfig {
@@ -201,48 +210,33 @@ const DISTINCT_CONFIG: ControllerConfig = ControllerConfig {
 fn golden_requests() {
     let cases: [(RequestId, Request, &[u8]); 10] = [
         // id 1 | 00 (checked by hand above)
-        (RequestId(1), Request::GetDeviceInfo, &[0x03, 0x05, 0x01, 0x05, 0xb8, 0x2a, 0x91, 0xe0, 0x00]),
+        (RequestId(1), Request::GetDeviceInfo, &[0x03, 0x06, 0x01, 0x05, 0xe1, 0x94, 0xd7, 0xe2, 0x00]),
         (
             // id 300 = ac 02 | 01 | the genetic set
             RequestId(300),
-            Request::WriteParams(DISTINCT_PARAMS),
-            &[
-                0x06, 0x05, 0xac, 0x02, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c,
-                0x88, 0xd7, 0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8,
-                0x42, 0x01, 0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0x1b, 0x7c, 0x07, 0xeb, 0x00,
-            ],
+            Request::WriteParams(distinct_params()),
+            &[0x06, 0x06, 0xac, 0x02, 0x01, 0x01, 0x01, 0x01, 0x01, 0x02, 0xbc, 0x0d, 0x80, 0x16, 0x43, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7, 0x05, 0x01, 0x03, 0xc0, 0xba, 0x04, 0x62, 0x6a, 0x46, 0x01, 0x03, 0x40, 0xba, 0x04, 0xa1, 0x0c, 0x46, 0x01, 0x01, 0x01, 0x01, 0x04, 0xc6, 0xda, 0x45, 0x01, 0x01, 0x02, 0x3a, 0x04, 0x04, 0xfa, 0x45, 0x01, 0x03, 0xa0, 0x3a, 0x04, 0x81, 0x3b, 0x46, 0x01, 0x03, 0xe0, 0xba, 0x01, 0x03, 0xc0, 0x3a, 0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42, 0x01, 0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0x17, 0x20, 0x67, 0x3a, 0x00],
         ),
         (
             // id 0x4000 = 80 80 01 | 01 | the micro-slip set
             RequestId(0x4000),
-            Request::WriteParams(DISTINCT_SLIP_PARAMS),
-            &[
-                0x08, 0x05, 0x80, 0x80, 0x01, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15, 0x4f, 0x21,
-                0xe6, 0x35, 0xd6, 0x04, 0x80, 0xc8, 0x42, 0x04, 0x40, 0x48, 0x43, 0x04, 0x20, 0x96, 0x43, 0x04, 0x20,
-                0xc8, 0x43, 0x04, 0x20, 0xfa, 0x43, 0x04, 0x10, 0x16, 0x44, 0x04, 0x10, 0x2f, 0x44, 0x04, 0x10, 0x48,
-                0x44, 0x04, 0x10, 0x61, 0x44, 0x04, 0x10, 0x7a, 0x44, 0x04, 0x88, 0x89, 0x44, 0x04, 0x08, 0x96, 0x44,
-                0x04, 0x88, 0xa2, 0x44, 0x04, 0x08, 0xaf, 0x44, 0x04, 0x88, 0xbb, 0x44, 0x04, 0x08, 0xc8, 0x44, 0x01,
-                0x03, 0x80, 0x37, 0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5,
-                0x27, 0x36, 0x5d, 0x6b, 0xb4, 0xde, 0x00,
-            ],
+            Request::WriteParams(distinct_slip_params()),
+            &[0x08, 0x06, 0x80, 0x80, 0x01, 0x01, 0x01, 0x01, 0x01, 0x03, 0x80, 0x3b, 0x0d, 0xa0, 0x16, 0x43, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7, 0x05, 0x01, 0x07, 0xc0, 0xba, 0x80, 0x62, 0x6a, 0x46, 0x01, 0x07, 0x40, 0xba, 0x80, 0xa1, 0x0c, 0x46, 0x01, 0x01, 0x01, 0x01, 0x04, 0xc7, 0xda, 0x45, 0x01, 0x01, 0x02, 0x3a, 0x04, 0x05, 0xfa, 0x45, 0x01, 0x07, 0xa0, 0x3a, 0x80, 0x81, 0x3b, 0x46, 0x01, 0x03, 0xe0, 0xba, 0x01, 0x04, 0xc0, 0x3a, 0x10, 0x01, 0x03, 0x40, 0x39, 0x04, 0x80, 0xc8, 0x42, 0x01, 0x03, 0xa0, 0x39, 0x04, 0x40, 0x48, 0x43, 0x01, 0x03, 0xe0, 0x39, 0x04, 0x20, 0x96, 0x43, 0x01, 0x03, 0x10, 0x3a, 0x04, 0x20, 0xc8, 0x43, 0x01, 0x03, 0x30, 0x3a, 0x04, 0x20, 0xfa, 0x43, 0x01, 0x03, 0x50, 0x3a, 0x04, 0x10, 0x16, 0x44, 0x01, 0x03, 0x70, 0x3a, 0x04, 0x10, 0x2f, 0x44, 0x01, 0x03, 0x88, 0x3a, 0x04, 0x10, 0x48, 0x44, 0x01, 0x03, 0x98, 0x3a, 0x04, 0x10, 0x61, 0x44, 0x01, 0x03, 0xa8, 0x3a, 0x04, 0x10, 0x7a, 0x44, 0x01, 0x03, 0xb8, 0x3a, 0x04, 0x88, 0x89, 0x44, 0x01, 0x03, 0xc8, 0x3a, 0x04, 0x08, 0x96, 0x44, 0x01, 0x03, 0xd8, 0x3a, 0x04, 0x88, 0xa2, 0x44, 0x01, 0x03, 0xe8, 0x3a, 0x04, 0x08, 0xaf, 0x44, 0x01, 0x03, 0xf8, 0x3a, 0x04, 0x88, 0xbb, 0x44, 0x01, 0x03, 0x04, 0x3b, 0x04, 0x08, 0xc8, 0x44, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36, 0xe4, 0xb3, 0x6a, 0x5c, 0x00],
         ),
         // id 2 | 02
-        (RequestId(2), Request::ReadParams, &[0x08, 0x05, 0x02, 0x02, 0x57, 0x18, 0xb2, 0x25, 0x00]),
+        (RequestId(2), Request::ReadParams, &[0x08, 0x06, 0x02, 0x02, 0x0e, 0xa6, 0xf4, 0x27, 0x00]),
         // id u32::MAX = ff ff ff ff 0f | 03
         (
             RequestId(u32::MAX),
             Request::Commit,
-            &[0x0c, 0x05, 0xff, 0xff, 0xff, 0xff, 0x0f, 0x03, 0xf0, 0xe3, 0xf8, 0x9f, 0x00],
+            &[0x0c, 0x06, 0xff, 0xff, 0xff, 0xff, 0x0f, 0x03, 0x6d, 0xf9, 0x10, 0xae, 0x00],
         ),
         (
             // id 0x12345678 = f8 ac d1 91 01 | 04 | input_angle 1 = 3f800000 |
             // output_angle -0.5 = bf000000 | Fast 01
             RequestId(0x1234_5678),
             Request::Replay(EncoderSample { input_angle: 1.0, output_angle: -0.5, path: EvalPath::Fast }),
-            &[
-                0x08, 0x05, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01,
-                0x85, 0xd1, 0x5b, 0x57, 0x00,
-            ],
+            &[0x08, 0x06, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x04, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x01, 0x07, 0xbf, 0x01, 0x77, 0x65, 0x93, 0x7e, 0x00],
         ),
         (
             // id 127 = 7f | 05 | Model 03 | kp 0.0625 = 3d800000 | ki 2.5 = 40200000 |
@@ -251,30 +245,23 @@ fn golden_requests() {
             // command_limit 0.75 = 3f400000 | period 2⁻¹⁰ = 3a800000
             RequestId(127),
             Request::Configure(DISTINCT_CONFIG),
-            &[
-                0x05, 0x05, 0x7f, 0x05, 0x03, 0x01, 0x03, 0x80, 0x3d, 0x01, 0x03, 0x20, 0x40, 0x01, 0x01, 0x02, 0x3e,
-                0x01, 0x01, 0x02, 0x3c, 0x01, 0x01, 0x02, 0x3d, 0x01, 0x03, 0x80, 0x46, 0x01, 0x03, 0x40, 0x3f, 0x01,
-                0x07, 0x80, 0x3a, 0xac, 0xc7, 0x01, 0x61, 0x00,
-            ],
+            &[0x05, 0x06, 0x7f, 0x05, 0x03, 0x01, 0x03, 0x80, 0x3d, 0x01, 0x03, 0x20, 0x40, 0x01, 0x01, 0x02, 0x3e, 0x01, 0x01, 0x02, 0x3c, 0x01, 0x01, 0x02, 0x3d, 0x01, 0x03, 0x80, 0x46, 0x01, 0x03, 0x40, 0x3f, 0x01, 0x07, 0x80, 0x3a, 0x52, 0xbc, 0xe1, 0x05, 0x00],
         ),
         (
             // id 128 = 80 01 | 06 | -7.25 = c0e80000
             RequestId(128),
             Request::SetReference(-7.25),
-            &[0x05, 0x05, 0x80, 0x01, 0x06, 0x01, 0x07, 0xe8, 0xc0, 0xae, 0xa6, 0x0b, 0xec, 0x00],
+            &[0x05, 0x06, 0x80, 0x01, 0x06, 0x01, 0x07, 0xe8, 0xc0, 0x4d, 0xa1, 0x84, 0x62, 0x00],
         ),
         (
             // id 65535 = ff ff 03 | 07 | input_angle 12.5 = 41480000 | output_angle -0.375 = bec00000 |
             // reference 8.75 = 410c0000
             RequestId(65_535),
             Request::Control(ControlSample { input_angle: 12.5, output_angle: -0.375, reference: 8.75 }),
-            &[
-                0x06, 0x05, 0xff, 0xff, 0x03, 0x07, 0x01, 0x03, 0x48, 0x41, 0x01, 0x03, 0xc0, 0xbe, 0x01, 0x07, 0x0c,
-                0x41, 0x34, 0x28, 0x84, 0x7a, 0x00,
-            ],
+            &[0x06, 0x06, 0xff, 0xff, 0x03, 0x07, 0x01, 0x03, 0x48, 0x41, 0x01, 0x03, 0xc0, 0xbe, 0x01, 0x07, 0x0c, 0x41, 0xb0, 0x73, 0x1e, 0x29, 0x00],
         ),
         // id 9 | 08
-        (RequestId(9), Request::GetStatus, &[0x08, 0x05, 0x09, 0x08, 0x82, 0x28, 0x93, 0x26, 0x00]),
+        (RequestId(9), Request::GetStatus, &[0x08, 0x06, 0x09, 0x08, 0xdb, 0x96, 0xd5, 0x24, 0x00]),
     ];
     covers_every_variant(&cases, request_variant, 9);
     for (id, request, golden) in cases {
@@ -293,41 +280,29 @@ fn golden_responses() {
                 protocol_version: 300,
                 model_version: 7,
             }),
-            &[0x03, 0x05, 0x03, 0x01, 0x0a, 0x01, 0x02, 0xac, 0x02, 0x07, 0x1c, 0xe4, 0x48, 0xc9, 0x00],
+            &[0x03, 0x06, 0x03, 0x01, 0x0a, 0x01, 0x02, 0xac, 0x02, 0x07, 0xd9, 0xd8, 0xc5, 0xf0, 0x00],
         ),
         // id 4 | 01
-        (RequestId(4), Response::ParamsAccepted, &[0x08, 0x05, 0x04, 0x01, 0x6b, 0xee, 0xe1, 0xea, 0x00]),
+        (RequestId(4), Response::ParamsAccepted, &[0x08, 0x06, 0x04, 0x01, 0x32, 0x50, 0xa7, 0xe8, 0x00]),
         (
             // id 1000 = e8 07 | 02 | Some 01 | the genetic set
             RequestId(1000),
-            Response::Params(Some(DISTINCT_PARAMS)),
-            &[
-                0x07, 0x05, 0xe8, 0x07, 0x02, 0x01, 0x01, 0x01, 0x0c, 0xa0, 0x0c, 0x46, 0xb7, 0x43, 0x3a, 0x50, 0x99,
-                0x6c, 0x88, 0xd7, 0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03,
-                0xc8, 0x42, 0x01, 0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0x2c, 0xd0, 0xd4, 0x04, 0x00,
-            ],
+            Response::Params(Some(distinct_params())),
+            &[0x07, 0x06, 0xe8, 0x07, 0x02, 0x01, 0x01, 0x01, 0x01, 0x01, 0x02, 0xbc, 0x0d, 0x80, 0x16, 0x43, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7, 0x05, 0x01, 0x03, 0xc0, 0xba, 0x04, 0x62, 0x6a, 0x46, 0x01, 0x03, 0x40, 0xba, 0x04, 0xa1, 0x0c, 0x46, 0x01, 0x01, 0x01, 0x01, 0x04, 0xc6, 0xda, 0x45, 0x01, 0x01, 0x02, 0x3a, 0x04, 0x04, 0xfa, 0x45, 0x01, 0x03, 0xa0, 0x3a, 0x04, 0x81, 0x3b, 0x46, 0x01, 0x03, 0xe0, 0xba, 0x01, 0x03, 0xc0, 0x3a, 0x01, 0x03, 0x42, 0x42, 0x01, 0x03, 0x10, 0xc0, 0x01, 0x03, 0x80, 0x3f, 0x01, 0x03, 0xc8, 0x42, 0x01, 0x0b, 0x48, 0x42, 0xac, 0xc5, 0xa7, 0x37, 0x44, 0x62, 0x66, 0x7c, 0x00],
         ),
         (
             // id 0x200000 = 80 80 80 01 | 02 | Some 01 | the micro-slip set
             RequestId(0x20_0000),
-            Response::Params(Some(DISTINCT_SLIP_PARAMS)),
-            &[
-                0x0a, 0x05, 0x80, 0x80, 0x80, 0x01, 0x02, 0x01, 0x01, 0x01, 0x0c, 0x80, 0xbb, 0x45, 0xf9, 0x02, 0x15,
-                0x4f, 0x21, 0xe6, 0x35, 0xd6, 0x04, 0x80, 0xc8, 0x42, 0x04, 0x40, 0x48, 0x43, 0x04, 0x20, 0x96, 0x43,
-                0x04, 0x20, 0xc8, 0x43, 0x04, 0x20, 0xfa, 0x43, 0x04, 0x10, 0x16, 0x44, 0x04, 0x10, 0x2f, 0x44, 0x04,
-                0x10, 0x48, 0x44, 0x04, 0x10, 0x61, 0x44, 0x04, 0x10, 0x7a, 0x44, 0x04, 0x88, 0x89, 0x44, 0x04, 0x08,
-                0x96, 0x44, 0x04, 0x88, 0xa2, 0x44, 0x04, 0x08, 0xaf, 0x44, 0x04, 0x88, 0xbb, 0x44, 0x04, 0x08, 0xc8,
-                0x44, 0x01, 0x03, 0x80, 0x37, 0x01, 0x01, 0x02, 0x3b, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42,
-                0xac, 0xc5, 0x27, 0x36, 0x0d, 0xfb, 0x32, 0x1b, 0x00,
-            ],
+            Response::Params(Some(distinct_slip_params())),
+            &[0x0a, 0x06, 0x80, 0x80, 0x80, 0x01, 0x02, 0x01, 0x01, 0x01, 0x01, 0x03, 0x80, 0x3b, 0x0d, 0xa0, 0x16, 0x43, 0xb7, 0x43, 0x3a, 0x50, 0x99, 0x6c, 0x88, 0xd7, 0x05, 0x01, 0x07, 0xc0, 0xba, 0x80, 0x62, 0x6a, 0x46, 0x01, 0x07, 0x40, 0xba, 0x80, 0xa1, 0x0c, 0x46, 0x01, 0x01, 0x01, 0x01, 0x04, 0xc7, 0xda, 0x45, 0x01, 0x01, 0x02, 0x3a, 0x04, 0x05, 0xfa, 0x45, 0x01, 0x07, 0xa0, 0x3a, 0x80, 0x81, 0x3b, 0x46, 0x01, 0x03, 0xe0, 0xba, 0x01, 0x04, 0xc0, 0x3a, 0x10, 0x01, 0x03, 0x40, 0x39, 0x04, 0x80, 0xc8, 0x42, 0x01, 0x03, 0xa0, 0x39, 0x04, 0x40, 0x48, 0x43, 0x01, 0x03, 0xe0, 0x39, 0x04, 0x20, 0x96, 0x43, 0x01, 0x03, 0x10, 0x3a, 0x04, 0x20, 0xc8, 0x43, 0x01, 0x03, 0x30, 0x3a, 0x04, 0x20, 0xfa, 0x43, 0x01, 0x03, 0x50, 0x3a, 0x04, 0x10, 0x16, 0x44, 0x01, 0x03, 0x70, 0x3a, 0x04, 0x10, 0x2f, 0x44, 0x01, 0x03, 0x88, 0x3a, 0x04, 0x10, 0x48, 0x44, 0x01, 0x03, 0x98, 0x3a, 0x04, 0x10, 0x61, 0x44, 0x01, 0x03, 0xa8, 0x3a, 0x04, 0x10, 0x7a, 0x44, 0x01, 0x03, 0xb8, 0x3a, 0x04, 0x88, 0x89, 0x44, 0x01, 0x03, 0xc8, 0x3a, 0x04, 0x08, 0x96, 0x44, 0x01, 0x03, 0xd8, 0x3a, 0x04, 0x88, 0xa2, 0x44, 0x01, 0x03, 0xe8, 0x3a, 0x04, 0x08, 0xaf, 0x44, 0x01, 0x03, 0xf8, 0x3a, 0x04, 0x88, 0xbb, 0x44, 0x01, 0x03, 0x04, 0x3b, 0x04, 0x08, 0xc8, 0x44, 0x01, 0x03, 0xa0, 0x42, 0x01, 0x0b, 0x0e, 0x42, 0xac, 0xc5, 0x27, 0x36, 0x8d, 0x6e, 0x9d, 0x3d, 0x00],
         ),
         // id 5 | 02 | None 00
-        (RequestId(5), Response::Params(None), &[0x04, 0x05, 0x05, 0x02, 0x05, 0x47, 0x8f, 0x67, 0x22, 0x00]),
+        (RequestId(5), Response::Params(None), &[0x04, 0x06, 0x05, 0x02, 0x05, 0xa9, 0x20, 0xd2, 0x30, 0x00]),
         (
             // id 6 | 03 | sequence 0x12345678 = f8 ac d1 91 01
             RequestId(6),
             Response::Committed(0x1234_5678),
-            &[0x0d, 0x05, 0x06, 0x03, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x72, 0xff, 0x69, 0x24, 0x00],
+            &[0x0d, 0x06, 0x06, 0x03, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x91, 0xf8, 0xe6, 0xaa, 0x00],
         ),
         (
             // id 0xfedcba98 = 98 f5 f2 f6 0f | 04 | deflection -2⁻¹⁰ = ba800000 | torque -12.5 = c1480000 |
@@ -341,10 +316,7 @@ fn golden_responses() {
                 direction: Some(Direction::Falling),
                 memory: 3,
             }),
-            &[
-                0x08, 0x05, 0x98, 0xf5, 0xf2, 0xf6, 0x0f, 0x04, 0x01, 0x03, 0x80, 0xba, 0x01, 0x03, 0x48, 0xc1, 0x0c,
-                0x40, 0x1c, 0x47, 0x01, 0x01, 0x01, 0x03, 0x4e, 0xf1, 0x4c, 0x6a, 0x00,
-            ],
+            &[0x08, 0x06, 0x98, 0xf5, 0xf2, 0xf6, 0x0f, 0x04, 0x01, 0x03, 0x80, 0xba, 0x01, 0x03, 0x48, 0xc1, 0x0c, 0x40, 0x1c, 0x47, 0x01, 0x01, 0x01, 0x03, 0x73, 0xc8, 0xa9, 0x1c, 0x00],
         ),
         (
             // id 10 | 04 | deflection 2⁻¹¹ = 3a000000 | torque 6.75 = 40d80000 |
@@ -358,19 +330,16 @@ fn golden_responses() {
                 direction: None,
                 memory: 11,
             }),
-            &[
-                0x04, 0x05, 0x0a, 0x04, 0x01, 0x01, 0x02, 0x3a, 0x01, 0x03, 0xd8, 0x40, 0x04, 0x80, 0x3b, 0x46, 0x01,
-                0x06, 0x0b, 0xfb, 0x81, 0x4c, 0xfc, 0x00,
-            ],
+            &[0x04, 0x06, 0x0a, 0x04, 0x01, 0x01, 0x02, 0x3a, 0x01, 0x03, 0xd8, 0x40, 0x04, 0x80, 0x3b, 0x46, 0x01, 0x06, 0x0b, 0x99, 0x5c, 0xca, 0x16, 0x00],
         ),
         (
             // id 11 | 05 | UnsupportedProtocol 03 | got 07 | supported 02
             RequestId(11),
             Response::Error(ErrorReply::UnsupportedProtocol { got: 7, supported: 2 }),
-            &[0x0b, 0x05, 0x0b, 0x05, 0x03, 0x07, 0x02, 0x81, 0xb8, 0x08, 0x02, 0x00],
+            &[0x0b, 0x06, 0x0b, 0x05, 0x03, 0x07, 0x02, 0x2f, 0xca, 0x9c, 0x84, 0x00],
         ),
         // id 12 | 06
-        (RequestId(12), Response::ControlAccepted, &[0x08, 0x05, 0x0c, 0x06, 0xc0, 0xf1, 0x5c, 0xbc, 0x00]),
+        (RequestId(12), Response::ControlAccepted, &[0x08, 0x06, 0x0c, 0x06, 0x99, 0x4f, 0x1a, 0xbe, 0x00]),
         (
             // id 13 | 07 | command -0.4375 = bee00000 | estimate 9.5 = 41180000 | Linear 02 | true 01
             RequestId(13),
@@ -380,10 +349,7 @@ fn golden_responses() {
                 mode: ControlMode::Linear,
                 saturated: true,
             }),
-            &[
-                0x04, 0x05, 0x0d, 0x07, 0x01, 0x03, 0xe0, 0xbe, 0x01, 0x09, 0x18, 0x41, 0x02, 0x01, 0xf3, 0x3a, 0x91,
-                0xf7, 0x00,
-            ],
+            &[0x04, 0x06, 0x0d, 0x07, 0x01, 0x03, 0xe0, 0xbe, 0x01, 0x09, 0x18, 0x41, 0x02, 0x01, 0x3d, 0x56, 0x5b, 0x4a, 0x00],
         ),
         (
             // id 14 | 08 | rate_hz 20000 = a0 9c 01 | ticks 0x12345678 = f8 ac d1 91 01 |
@@ -405,10 +371,7 @@ fn golden_responses() {
                 drive_faults: 5,
                 last_drive_fault: Some(DriveErrorKind::Fault),
             }),
-            &[
-                0x20, 0x05, 0x0e, 0x08, 0xa0, 0x9c, 0x01, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x01, 0x02, 0x03, 0xd0, 0x0f,
-                0xac, 0x02, 0xa0, 0x9c, 0x01, 0x04, 0x01, 0x01, 0x05, 0x01, 0x01, 0xee, 0x64, 0x32, 0x89, 0x00,
-            ],
+            &[0x20, 0x06, 0x0e, 0x08, 0xa0, 0x9c, 0x01, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x01, 0x02, 0x03, 0xd0, 0x0f, 0xac, 0x02, 0xa0, 0x9c, 0x01, 0x04, 0x01, 0x01, 0x05, 0x01, 0x01, 0x2d, 0x49, 0xa6, 0x3a, 0x00],
         ),
     ];
     covers_every_variant(&cases, response_variant, 9);
@@ -422,28 +385,28 @@ fn golden_error_replies() {
     let cases: [(RequestId, ErrorReply, &[u8]); 18] = [
         // Each is id | 05 (Response::Error) | variant index | fields. The replies to frames that
         // could not be read carry the unknown id, 00.
-        (RequestId::UNKNOWN, ErrorReply::BadFrame, &[0x02, 0x05, 0x02, 0x05, 0x05, 0x6b, 0xdb, 0xed, 0x6b, 0x00]),
-        (RequestId::UNKNOWN, ErrorReply::BadCrc, &[0x02, 0x05, 0x07, 0x05, 0x01, 0xfd, 0xeb, 0xea, 0x1c, 0x00]),
-        (RequestId::UNKNOWN, ErrorReply::FrameTooLong, &[0x02, 0x05, 0x07, 0x05, 0x02, 0x47, 0xba, 0xe3, 0x85, 0x00]),
+        (RequestId::UNKNOWN, ErrorReply::BadFrame, &[0x02, 0x06, 0x02, 0x05, 0x05, 0x85, 0x74, 0x58, 0x79, 0x00]),
+        (RequestId::UNKNOWN, ErrorReply::BadCrc, &[0x02, 0x06, 0x07, 0x05, 0x01, 0x13, 0x44, 0x5f, 0x0e, 0x00]),
+        (RequestId::UNKNOWN, ErrorReply::FrameTooLong, &[0x02, 0x06, 0x07, 0x05, 0x02, 0xa9, 0x15, 0x56, 0x97, 0x00]),
         (
             // got 07, supported 02
             RequestId::UNKNOWN,
             ErrorReply::UnsupportedProtocol { got: 7, supported: 2 },
-            &[0x02, 0x05, 0x09, 0x05, 0x03, 0x07, 0x02, 0x90, 0x89, 0xd8, 0x75, 0x00],
+            &[0x02, 0x06, 0x09, 0x05, 0x03, 0x07, 0x02, 0x3e, 0xfb, 0x4c, 0xf3, 0x00],
         ),
         // id 20 | 05 | 04
-        (RequestId(20), ErrorReply::UndecodableRequest, &[0x09, 0x05, 0x14, 0x05, 0x04, 0xde, 0x14, 0xaf, 0x77, 0x00]),
+        (RequestId(20), ErrorReply::UndecodableRequest, &[0x09, 0x06, 0x14, 0x05, 0x04, 0x30, 0xbb, 0x1a, 0x65, 0x00]),
         (
             // id 21 | 05 | 05 | got 02, supported 01
             RequestId(21),
             ErrorReply::ModelVersion { got: 2, supported: 1 },
-            &[0x0b, 0x05, 0x15, 0x05, 0x05, 0x02, 0x01, 0x2f, 0x48, 0x2b, 0x3d, 0x00],
+            &[0x0b, 0x06, 0x15, 0x05, 0x05, 0x02, 0x01, 0x81, 0x3a, 0xbf, 0xbb, 0x00],
         ),
         (
             // id 22 | 05 | 06 | field TorqueLimit 07, fault OutOfRange 01
             RequestId(22),
             ErrorReply::InvalidParam { field: ParamField::TorqueLimit, fault: ParamFault::OutOfRange },
-            &[0x0b, 0x05, 0x16, 0x05, 0x06, 0x02, 0x01, 0xa6, 0x8c, 0xcd, 0x78, 0x00],
+            &[0x0b, 0x06, 0x16, 0x05, 0x06, 0x02, 0x01, 0x08, 0xfe, 0x59, 0xfe, 0x00],
         ),
         (
             // id 23 | 05 | 06 | field SlipStiffness 09 with element 0d, fault NotFinite 00
@@ -452,44 +415,44 @@ fn golden_error_replies() {
                 field: ParamField::Model(ParamName::SlipStiffness(13)),
                 fault: ParamFault::NotFinite,
             },
-            &[0x05, 0x05, 0x17, 0x05, 0x06, 0x03, 0x06, 0x0d, 0x05, 0xa1, 0x15, 0x15, 0xe1, 0x00],
+            &[0x05, 0x06, 0x17, 0x05, 0x06, 0x03, 0x06, 0x0d, 0x05, 0x42, 0x12, 0x9a, 0x6f, 0x00],
         ),
         // id 24 | 05 | 07
-        (RequestId(24), ErrorReply::ModelOverflow, &[0x05, 0x05, 0x18, 0x05, 0x07, 0x04, 0xbc, 0xbc, 0xe7, 0x00]),
+        (RequestId(24), ErrorReply::ModelOverflow, &[0x09, 0x06, 0x18, 0x05, 0x07, 0xee, 0x13, 0x09, 0xf5, 0x00]),
         // id 25 | 05 | 08
-        (RequestId(25), ErrorReply::NoParams, &[0x09, 0x05, 0x19, 0x05, 0x08, 0xa6, 0xcb, 0xc1, 0x76, 0x00]),
+        (RequestId(25), ErrorReply::NoParams, &[0x09, 0x06, 0x19, 0x05, 0x08, 0x48, 0x64, 0x74, 0x64, 0x00]),
         // id 26 | 05 | 09 | Erase 01
         (
             RequestId(26),
             ErrorReply::Storage(StorageError::Erase),
-            &[0x0a, 0x05, 0x1a, 0x05, 0x09, 0x01, 0xa2, 0x86, 0x68, 0x91, 0x00],
+            &[0x0a, 0x06, 0x1a, 0x05, 0x09, 0x01, 0x72, 0xfc, 0xc8, 0xd6, 0x00],
         ),
         // id 27 | 05 | 09 | Verify 03
         (
             RequestId(27),
             ErrorReply::Storage(StorageError::Verify),
-            &[0x0a, 0x05, 0x1b, 0x05, 0x09, 0x03, 0xeb, 0x80, 0xda, 0xc7, 0x00],
+            &[0x0a, 0x06, 0x1b, 0x05, 0x09, 0x03, 0x3b, 0xfa, 0x7a, 0x80, 0x00],
         ),
         // id 28 | 05 | 0a
-        (RequestId(28), ErrorReply::NonFiniteSample, &[0x09, 0x05, 0x1c, 0x05, 0x0a, 0x61, 0x68, 0x04, 0x9e, 0x00]),
+        (RequestId(28), ErrorReply::NonFiniteSample, &[0x09, 0x06, 0x1c, 0x05, 0x0a, 0x8f, 0xc7, 0xb1, 0x8c, 0x00]),
         (
             // id 29 | 05 | 0b | field Period 05, fault NotFinite 00
             RequestId(29),
             ErrorReply::InvalidGain { field: GainField::Period, fault: ParamFault::NotFinite },
-            &[0x06, 0x05, 0x1d, 0x05, 0x0b, 0x05, 0x05, 0xb5, 0x88, 0x83, 0x3f, 0x00],
+            &[0x06, 0x06, 0x1d, 0x05, 0x0b, 0x05, 0x05, 0x1b, 0xfa, 0x17, 0xb9, 0x00],
         ),
         // id 30 | 05 | 0c | OutOfRange 00
         (
             RequestId(30),
             ErrorReply::MotorDrive(DriveErrorKind::OutOfRange),
-            &[0x05, 0x05, 0x1e, 0x05, 0x0c, 0x05, 0x26, 0xd5, 0x7a, 0x14, 0x00],
+            &[0x05, 0x06, 0x1e, 0x05, 0x0c, 0x05, 0xf6, 0xaf, 0xda, 0x53, 0x00],
         ),
         // id 31 | 05 | 0d
-        (RequestId(31), ErrorReply::CommitWhileDriving, &[0x09, 0x05, 0x1f, 0x05, 0x0d, 0x9b, 0x43, 0x26, 0x02, 0x00]),
+        (RequestId(31), ErrorReply::CommitWhileDriving, &[0x09, 0x06, 0x1f, 0x05, 0x0d, 0x75, 0xec, 0x93, 0x10, 0x00]),
         // id 32 | 05 | 0e
-        (RequestId(32), ErrorReply::NotLockstep, &[0x09, 0x05, 0x20, 0x05, 0x0e, 0x8c, 0xb0, 0x18, 0xb4, 0x00]),
+        (RequestId(32), ErrorReply::NotLockstep, &[0x09, 0x06, 0x20, 0x05, 0x0e, 0x62, 0x1f, 0xad, 0xa6, 0x00]),
         // id 33 | 05 | 0f
-        (RequestId(33), ErrorReply::Busy, &[0x09, 0x05, 0x21, 0x05, 0x0f, 0x2d, 0xea, 0xdd, 0xc2, 0x00]),
+        (RequestId(33), ErrorReply::Busy, &[0x09, 0x06, 0x21, 0x05, 0x0f, 0xc3, 0x45, 0x68, 0xd0, 0x00]),
     ];
     covers_every_variant(&cases, error_variant, 16);
     for (id, error, golden) in cases {
@@ -513,12 +476,18 @@ fn golden_enum_indices() {
         ParamName::Beta,
         ParamName::Omega,
         ParamName::SlipStiffness(5),
-        ParamName::SlipMin,
-        ParamName::SlipMax,
+        ParamName::Slip(6),
+        ParamName::Zero,
+        ParamName::Knot(7),
+        ParamName::KnotStiffness(8),
+        ParamName::RangeMin,
+        ParamName::RangeMax,
     ];
     for (index, name) in (0u8..).zip(names) {
         let expected = match name {
-            ParamName::SlipStiffness(i) => vec![0, index, i],
+            ParamName::SlipStiffness(i) | ParamName::Slip(i) | ParamName::Knot(i) | ParamName::KnotStiffness(i) => {
+                vec![0, index, i]
+            }
             _ => vec![0, index],
         };
         assert_eq!(index_of(ParamField::Model(name)), expected, "{name:?}");
@@ -526,11 +495,11 @@ fn golden_enum_indices() {
     for (index, field) in (1u8..).zip([ParamField::GearRatio, ParamField::TorqueLimit, ParamField::DirectionBand]) {
         assert_eq!(index_of(field), [index], "{field:?}");
     }
-    let GearModel::MicroSlip(slip) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
-    let mut buffer = [0u8; 128];
-    let zero = Params { c1: 0.0, c2: 0.0, c3: 0.0, alpha: 0.0, beta: 0.0, omega: 0.0 };
-    assert_eq!(postcard::to_slice(&GearModel::Genetic(zero), &mut buffer).unwrap()[0], 0);
-    assert_eq!(postcard::to_slice(&GearModel::MicroSlip(slip), &mut buffer).unwrap()[0], 1);
+    // The kinds by their index, before their parameters.
+    let mut buffer = [0u8; MAX_FRAME_LEN];
+    for (index, set) in [distinct_params(), distinct_slip_params()].into_iter().enumerate() {
+        assert_eq!(postcard::to_slice(&set.model, &mut buffer).unwrap()[0], index as u8, "{set:?}");
+    }
     assert_eq!(index_of(ParamFault::NotFinite), [0]);
     assert_eq!(index_of(ParamFault::OutOfRange), [1]);
     assert_eq!(index_of(EvalPath::Direct), [0]);
@@ -613,8 +582,8 @@ fn endpoints_pair_each_request_with_its_response() {
     };
     let pairs = [
         round_trip::<GetDeviceInfo>((), info),
-        round_trip::<WriteParams>(PARAMS, ()),
-        round_trip::<ReadParams>((), Some(PARAMS)),
+        round_trip::<WriteParams>(params(), ()),
+        round_trip::<ReadParams>((), Some(params())),
         round_trip::<Commit>((), 7),
         round_trip::<Replay>(sample, feedforward),
         round_trip::<Configure>(DISTINCT_CONFIG, ()),
@@ -624,8 +593,8 @@ fn endpoints_pair_each_request_with_its_response() {
     ];
     let expected = [
         (Request::GetDeviceInfo, Response::DeviceInfo(info)),
-        (Request::WriteParams(PARAMS), Response::ParamsAccepted),
-        (Request::ReadParams, Response::Params(Some(PARAMS))),
+        (Request::WriteParams(params()), Response::ParamsAccepted),
+        (Request::ReadParams, Response::Params(Some(params()))),
         (Request::Commit, Response::Committed(7)),
         (Request::Replay(sample), Response::Feedforward(feedforward)),
         (Request::Configure(DISTINCT_CONFIG), Response::ControlAccepted),
@@ -651,31 +620,26 @@ fn request_ids_skip_the_unknown_id() {
 /// reuse), fits MAX_FRAME_LEN, the buffer both ends encode into and receive with.
 #[test]
 fn the_longest_message_of_each_kind_fits_a_frame() {
+    // Every float at f32::MIN (no zero byte anywhere), 17 knots, 16 elements.
+    let widest_model = |model: GearModel<f32>| {
+        let mut widest = model.map(|_, _| f32::MIN);
+        widest.spring.knots = ([Knot { x: f32::MIN, stiffness: f32::MIN }; model_core::spring::MAX_KNOTS], u8::MAX);
+        widest.spring.knots.1 = model_core::spring::MAX_KNOTS as u8;
+        widest
+    };
     let widest_genetic = JointParams {
         model_version: u16::MAX,
-        model: GearModel::Genetic(Params {
-            c1: f32::MIN,
-            c2: f32::MIN,
-            c3: f32::MIN,
-            alpha: f32::MIN,
-            beta: f32::MIN,
-            omega: f32::MIN,
-        }),
+        model: widest_model(distinct_params().model),
         gear_ratio: f32::MIN,
         torque_limit: f32::MIN,
         direction_band: f32::MIN,
     };
-    let widest = JointParams {
-        model: GearModel::MicroSlip(SlipParams {
-            c1: f32::MIN,
-            c2: f32::MIN,
-            c3: f32::MIN,
-            stiffness: [f32::MIN; SLIP_ELEMENTS],
-            slip_min: f32::MIN,
-            slip_max: f32::MIN,
-        }),
-        ..widest_genetic
-    };
+    let mut slip = widest_model(distinct_slip_params().model);
+    if let model_core::Hysteresis::MicroSlip((elements, count)) = &mut slip.hysteresis {
+        *elements = [SlipElement { slip: f32::MIN, stiffness: f32::MIN }; SLIP_ELEMENTS];
+        *count = SLIP_ELEMENTS as u8;
+    }
+    let widest = JointParams { model: slip, ..widest_genetic };
     let sample = EncoderSample { input_angle: f32::MIN, output_angle: f32::MIN, path: EvalPath::Fast };
     let version = Version { major: u16::MAX, minor: u16::MAX, patch: u16::MAX };
     let feedforward = Feedforward {
@@ -757,10 +721,11 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
     frames.extend(responses.iter().map(encoded));
     let longest = frames.iter().map(Vec::len).max().unwrap();
     // Params(Some(widest)), micro-slip: version 1 + id u32::MAX 5 + variant 1 + Some 1 +
-    // u16::MAX 3 + kind 1 + (3 + 16 + 2 + 3) × f32 96 = 108 bytes, + CRC 4, + 1 COBS code byte
-    // (no zero byte to reuse; under 254 bytes), + the delimiter. A message that grows fails
-    // here first.
-    assert_eq!(longest, 108 + 4 + 1 + 1);
+    // u16::MAX 3 + kind 1 + θ0 4 + spring (3 × 4 + knot count 1 + 17 × 8 + range 8 = 157) +
+    // elements (count 1 + 16 × 8 = 129) + the joint's 3 × 4 = 314 bytes, + CRC 4, + 2 COBS code
+    // bytes (no zero byte to reuse; one per 254 bytes), + the delimiter. A message that grows
+    // fails here first.
+    assert_eq!(longest, 314 + 4 + 2 + 1);
     assert!(longest <= MAX_FRAME_LEN, "{longest} > {MAX_FRAME_LEN}");
     // And a receiver with a MAX_FRAME_LEN buffer takes every one of them.
     let mut reader = FrameReader::<MAX_FRAME_LEN>::new();
@@ -775,8 +740,8 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
 fn every_message_round_trips() {
     let requests = [
         Request::GetDeviceInfo,
-        Request::WriteParams(PARAMS),
-        Request::WriteParams(DISTINCT_SLIP_PARAMS),
+        Request::WriteParams(params()),
+        Request::WriteParams(distinct_slip_params()),
         Request::ReadParams,
         Request::Commit,
         Request::Replay(EncoderSample { input_angle: 12.5, output_angle: 0.125, path: EvalPath::Direct }),
@@ -796,8 +761,8 @@ fn every_message_round_trips() {
             model_version: MODEL_VERSION,
         }),
         Response::ParamsAccepted,
-        Response::Params(Some(PARAMS)),
-        Response::Params(Some(DISTINCT_SLIP_PARAMS)),
+        Response::Params(Some(params())),
+        Response::Params(Some(distinct_slip_params())),
         Response::Params(None),
         Response::Committed(u32::MAX),
         Response::Feedforward(Feedforward {
@@ -828,7 +793,7 @@ fn every_message_round_trips() {
 
 #[test]
 fn any_flipped_bit_is_detected() {
-    let (out, len) = frame_of(&Request::WriteParams(PARAMS));
+    let (out, len) = frame_of(&Request::WriteParams(params()));
     for index in 0..len - 1 {
         for bit in 0..8 {
             let mut corrupted = out[..len].to_vec();
@@ -851,7 +816,7 @@ fn any_flipped_bit_is_detected() {
 
 #[test]
 fn truncated_frames_are_refused() {
-    let (out, len) = frame_of(&Request::WriteParams(PARAMS));
+    let (out, len) = frame_of(&Request::WriteParams(params()));
     for cut in 0..len - 1 {
         let mut truncated = out[..cut].to_vec();
         assert!(decode::<Request>(&mut truncated).is_err(), "cut at {cut}");
@@ -905,80 +870,60 @@ fn reader_splits_a_stream_and_survives_garbage() {
 
 #[test]
 fn validation_names_the_field() {
-    assert_eq!(PARAMS.validate(), Ok(()));
-    let with = |edit: fn(&mut JointParams)| {
-        let mut params = PARAMS;
-        edit(&mut params);
-        params.validate()
-    };
+    assert_eq!(params().validate(), Ok(()));
     let invalid = |field, fault| Err(ErrorReply::InvalidParam { field, fault });
-    fn genetic(p: &mut JointParams) -> &mut Params<f32> {
-        match &mut p.model {
-            GearModel::Genetic(model) => model,
-            GearModel::MicroSlip(_) => unreachable!(),
-        }
-    }
-    assert_eq!(with(|p| genetic(p).c2 = f32::NAN), invalid(ParamField::Model(ParamName::C2), ParamFault::NotFinite));
+    let with = |name: ParamName, value: f32| JointParams { model: params().model.with(name, value), ..params() }.validate();
+    assert_eq!(with(ParamName::C2, f32::NAN), invalid(ParamField::Model(ParamName::C2), ParamFault::NotFinite));
+    assert_eq!(with(ParamName::Beta, f32::INFINITY), invalid(ParamField::Model(ParamName::Beta), ParamFault::NotFinite));
+    assert_eq!(with(ParamName::Omega, 0.0), invalid(ParamField::Model(ParamName::Omega), ParamFault::OutOfRange));
+    let joint = |edit: fn(&mut JointParams)| {
+        let mut p = params();
+        edit(&mut p);
+        p.validate()
+    };
+    assert_eq!(joint(|p| p.gear_ratio = 0.5), invalid(ParamField::GearRatio, ParamFault::OutOfRange));
+    assert_eq!(joint(|p| p.torque_limit = 0.0), invalid(ParamField::TorqueLimit, ParamFault::OutOfRange));
+    assert_eq!(joint(|p| p.direction_band = -1.0), invalid(ParamField::DirectionBand, ParamFault::OutOfRange));
     assert_eq!(
-        with(|p| genetic(p).beta = f32::INFINITY),
-        invalid(ParamField::Model(ParamName::Beta), ParamFault::NotFinite)
-    );
-    assert_eq!(with(|p| genetic(p).omega = 0.0), invalid(ParamField::Model(ParamName::Omega), ParamFault::OutOfRange));
-    assert_eq!(with(|p| p.gear_ratio = 0.5), invalid(ParamField::GearRatio, ParamFault::OutOfRange));
-    assert_eq!(with(|p| p.torque_limit = 0.0), invalid(ParamField::TorqueLimit, ParamFault::OutOfRange));
-    assert_eq!(with(|p| p.direction_band = -1.0), invalid(ParamField::DirectionBand, ParamFault::OutOfRange));
-    assert_eq!(
-        with(|p| p.model_version = MODEL_VERSION + 1),
+        joint(|p| p.model_version = MODEL_VERSION + 1),
         Err(ErrorReply::ModelVersion { got: MODEL_VERSION + 1, supported: MODEL_VERSION })
     );
 }
 
 #[test]
 fn micro_slip_validation_names_the_field() {
-    let with = |edit: fn(&mut SlipParams<f32, SLIP_ELEMENTS>)| {
-        let mut params = DISTINCT_SLIP_PARAMS;
-        let GearModel::MicroSlip(model) = &mut params.model else { unreachable!() };
-        edit(model);
-        params.validate()
-    };
-    let invalid = |field, fault| Err(ErrorReply::InvalidParam { field, fault });
-    assert_eq!(with(|_| ()), Ok(()));
-    assert_eq!(with(|m| m.c1 = f32::NAN), invalid(ParamField::Model(ParamName::C1), ParamFault::NotFinite));
-    assert_eq!(with(|m| m.c3 = f32::NEG_INFINITY), invalid(ParamField::Model(ParamName::C3), ParamFault::NotFinite));
-    assert_eq!(
-        with(|m| m.stiffness[7] = f32::INFINITY),
-        invalid(ParamField::Model(ParamName::SlipStiffness(7)), ParamFault::NotFinite)
-    );
-    assert_eq!(
-        with(|m| m.stiffness[15] = -1.0),
-        invalid(ParamField::Model(ParamName::SlipStiffness(15)), ParamFault::OutOfRange)
-    );
+    let set = JointParams { model_version: MODEL_VERSION, ..distinct_slip_params() };
+    let with = |name: ParamName, value: f32| JointParams { model: set.model.with(name, value), ..set }.validate();
+    let invalid = |name, fault| Err(ErrorReply::InvalidParam { field: ParamField::Model(name), fault });
+    assert_eq!(set.validate(), Ok(()));
+    assert_eq!(with(ParamName::C1, f32::NAN), invalid(ParamName::C1, ParamFault::NotFinite));
+    assert_eq!(with(ParamName::Zero, f32::NEG_INFINITY), invalid(ParamName::Zero, ParamFault::NotFinite));
+    assert_eq!(with(ParamName::SlipStiffness(7), f32::INFINITY), invalid(ParamName::SlipStiffness(7), ParamFault::NotFinite));
+    assert_eq!(with(ParamName::SlipStiffness(15), -1.0), invalid(ParamName::SlipStiffness(15), ParamFault::OutOfRange));
     // k = 0 is an element that is not there: allowed (the fit's non-negative least squares gives it).
-    assert_eq!(with(|m| m.stiffness = [0.0; SLIP_ELEMENTS]), Ok(()));
-    assert_eq!(with(|m| m.slip_min = f32::NAN), invalid(ParamField::Model(ParamName::SlipMin), ParamFault::NotFinite));
-    assert_eq!(
-        with(|m| m.slip_max = f32::INFINITY),
-        invalid(ParamField::Model(ParamName::SlipMax), ParamFault::NotFinite)
-    );
-    assert_eq!(with(|m| m.slip_min = 0.0), invalid(ParamField::Model(ParamName::SlipMin), ParamFault::OutOfRange));
-    assert_eq!(with(|m| m.slip_min = -1.0e-5), invalid(ParamField::Model(ParamName::SlipMin), ParamFault::OutOfRange));
-    assert_eq!(
-        with(|m| m.slip_max = m.slip_min),
-        invalid(ParamField::Model(ParamName::SlipMax), ParamFault::OutOfRange)
-    );
+    assert_eq!(with(ParamName::SlipStiffness(3), 0.0), Ok(()));
+    assert_eq!(with(ParamName::Slip(0), f32::NAN), invalid(ParamName::Slip(0), ParamFault::NotFinite));
+    assert_eq!(with(ParamName::Slip(0), 0.0), invalid(ParamName::Slip(0), ParamFault::OutOfRange));
+    assert_eq!(with(ParamName::Slip(9), 1.0e-6), invalid(ParamName::Slip(9), ParamFault::OutOfRange));
+    assert_eq!(with(ParamName::KnotStiffness(2), -1.0), invalid(ParamName::KnotStiffness(2), ParamFault::OutOfRange));
+    assert_eq!(with(ParamName::Knot(3), -1.0), invalid(ParamName::Knot(3), ParamFault::OutOfRange));
+    assert_eq!(with(ParamName::RangeMin, 1.0e-3), invalid(ParamName::RangeMin, ParamFault::OutOfRange));
+    // An element that could only slip beyond the joint's travel: out of range.
+    assert_eq!(with(ParamName::Slip(15), 1.0), invalid(ParamName::Slip(15), ParamFault::OutOfRange));
     // The joint's own fields as for the genetic kind.
-    let mut params = DISTINCT_SLIP_PARAMS;
-    params.direction_band = 0.5;
-    assert_eq!(params.validate(), invalid(ParamField::DirectionBand, ParamFault::OutOfRange));
+    assert_eq!(JointParams { direction_band: 0.5, ..set }.validate(), invalid_joint(ParamField::DirectionBand));
     // Every set the protocol accepts, model-core accepts too.
-    let GearModel::MicroSlip(model) = DISTINCT_SLIP_PARAMS.model else { unreachable!() };
-    assert_eq!(model.validate(), Ok(()));
+    assert_eq!(set.model.validate(), Ok(()));
     // The error names the element.
     let error = ErrorReply::InvalidParam {
         field: ParamField::Model(ParamName::SlipStiffness(3)),
         fault: ParamFault::OutOfRange,
     };
     assert_eq!(std::format!("{error}"), "parameter stiffness[3] is out of range");
+}
+
+fn invalid_joint(field: ParamField) -> Result<(), ErrorReply> {
+    Err(ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange })
 }
 
 #[test]

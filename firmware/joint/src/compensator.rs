@@ -180,7 +180,10 @@ impl Compensator {
 mod tests {
     extern crate std;
     use super::*;
-    use model_core::{checks::PAPER_TABLE_2, GearModel, Hysteretic, ParamName, Params, SlipParams, MODEL_VERSION};
+    use model_core::memory::slip_grid;
+    use model_core::{
+        checks::PAPER_TABLE_2, GearModel, Hysteretic, Kind, Knot, ParamName, SlipElement, Spring, MODEL_VERSION,
+    };
     use std::vec::Vec;
     use swg_protocol::{ParamFault, ParamField, SLIP_ELEMENTS};
 
@@ -190,7 +193,7 @@ mod tests {
     fn paper() -> JointParams {
         JointParams {
             model_version: MODEL_VERSION,
-            model: GearModel::Genetic(PAPER_TABLE_2.to_f32()),
+            model: GearModel::paper(PAPER_TABLE_2.to_f32()),
             gear_ratio: 100.0,
             torque_limit: 40.0,
             direction_band: BAND,
@@ -200,24 +203,29 @@ mod tests {
     /// A micro-slip gear of about the paper's size: 6000 N·m/rad of spring, 16 elements of
     /// 200 N·m/rad slipping between 20 µrad and 2 mrad.
     fn slip() -> JointParams {
-        JointParams {
-            model: GearModel::MicroSlip(SlipParams {
-                c1: 6000.0,
-                c2: 1.2e10,
-                c3: 0.0,
-                stiffness: [200.0; SLIP_ELEMENTS],
-                slip_min: 2.0e-5,
-                slip_max: 2.0e-3,
-            }),
-            ..paper()
-        }
+        let grid: [f32; SLIP_ELEMENTS] = slip_grid(2.0e-5, 2.0e-3).unwrap();
+        let elements = grid.map(|slip| SlipElement { slip, stiffness: 200.0 });
+        let spring = Spring::polynomial(6000.0, 1.2e10, 0.0);
+        JointParams { model: GearModel::micro_slip(0.0, spring, &elements).unwrap(), ..paper() }
     }
 
-    fn genetic(params: &mut JointParams) -> &mut Params<f32> {
-        match &mut params.model {
-            GearModel::Genetic(model) => model,
-            GearModel::MicroSlip(_) => unreachable!(),
-        }
+    /// A spring on knots, asymmetric, identified over ±1.2 mrad (beyond it, its edge's line), from
+    /// a deflection zero of −0.3 mrad: the paper's hysteresis or the micro-slip set's beside it.
+    fn knotted(base: JointParams) -> JointParams {
+        let knots = [
+            Knot { x: -1.2e-3, stiffness: 3.0e4 },
+            Knot { x: -0.6e-3, stiffness: 1.8e4 },
+            Knot { x: 0.0, stiffness: 1.0e4 },
+            Knot { x: 0.6e-3, stiffness: 1.5e4 },
+            Knot { x: 1.2e-3, stiffness: 2.5e4 },
+        ];
+        let spring = Spring::of_knots(&knots, [-1.2e-3, 1.2e-3]).unwrap();
+        JointParams { model: GearModel { zero: -3.0e-4, spring, ..base.model }, ..base }
+    }
+
+    /// Every set the tests run: both kinds, with the polynomial spring and with knots.
+    fn sets() -> [JointParams; 4] {
+        [paper(), slip(), knotted(paper()), knotted(slip())]
     }
 
     /// model-core's own evaluator of `params`, at rest, in f32 with libm.
@@ -281,7 +289,7 @@ mod tests {
     /// path's error on the fast path), and the memory is reported.
     #[test]
     fn ticks_run_the_stateful_model_from_rest() {
-        for params in [paper(), slip()] {
+        for params in sets() {
             for motion in [biased(1.0e-3, 2000), nested(1.0e-3, 4000)] {
                 for path in [EvalPath::Direct, EvalPath::Fast] {
                     let mut compensator = Compensator::new();
@@ -293,7 +301,7 @@ mod tests {
                         let want = expected.step(out.deflection).unwrap();
                         assert_eq!(out.compensation, Compensation::Active);
                         deepest = deepest.max(out.memory);
-                        if path == EvalPath::Direct || matches!(params.model, GearModel::MicroSlip(_)) {
+                        if path == EvalPath::Direct || params.model.kind() == Kind::MicroSlip {
                             assert_eq!((out.torque, out.stiffness), (want.torque, want.stiffness));
                         } else {
                             assert!(
@@ -331,7 +339,7 @@ mod tests {
     #[test]
     fn the_torque_does_not_step_at_reversals() {
         for band in [0.0, BAND] {
-            for params in [paper(), slip()] {
+            for params in sets() {
                 for motion in [biased(1.0e-3, 2000), nested(1.0e-3, 4000)] {
                     for path in [EvalPath::Direct, EvalPath::Fast] {
                         let mut compensator = Compensator::new();
@@ -356,9 +364,9 @@ mod tests {
                             let by_stiffness = f64::from(a.stiffness.abs().max(b.stiffness.abs()))
                                 * f64::from((b.deflection - a.deflection).abs());
                             let exact_step = (exact_b.torque - exact_a.torque).abs();
-                            let allowed = match params.model {
-                                GearModel::MicroSlip(_) => by_stiffness,
-                                GearModel::Genetic(_) => by_stiffness.max(exact_step),
+                            let allowed = match params.model.kind() {
+                                Kind::MicroSlip => by_stiffness,
+                                Kind::Genetic => by_stiffness.max(exact_step),
                             } + tolerance;
                             assert!(
                                 step <= allowed,
@@ -391,7 +399,7 @@ mod tests {
             // That tick starts from rest with the new set: the evaluator's first step.
             let want = reference(&second).step(out.deflection).unwrap();
             assert_eq!((out.torque, out.stiffness), (want.torque, want.stiffness), "{out:?}");
-            assert!(out.memory == 0 || matches!(second.model, GearModel::MicroSlip(_)), "{out:?}");
+            assert!(out.memory == 0 || second.model.kind() == Kind::MicroSlip, "{out:?}");
             // And the memory builds again from there, as the evaluator's from rest.
             let mut expected = reference(&second);
             expected.step(out.deflection).unwrap();
@@ -412,8 +420,7 @@ mod tests {
             tick_theta(&mut compensator, theta, EvalPath::Fast);
             tick_theta(&mut twin, theta, EvalPath::Fast);
         }
-        let mut bad = paper();
-        genetic(&mut bad).alpha = f32::NAN;
+        let bad = JointParams { model: paper().model.with(ParamName::Alpha, f32::NAN), ..paper() };
         assert!(compensator.stage(bad).is_err());
         for &theta in &motion[500..] {
             assert_eq!(
@@ -470,24 +477,21 @@ mod tests {
         let mut compensator = Compensator::new();
         compensator.stage(paper()).unwrap();
         let before = compensator.tick(10.0, 0.0995, EvalPath::Direct);
-        let mut bad = paper();
-        genetic(&mut bad).alpha = f32::NAN;
+        let bad = JointParams { model: paper().model.with(ParamName::Alpha, f32::NAN), ..paper() };
         assert_eq!(
             compensator.stage(bad),
             Err(ErrorReply::InvalidParam { field: ParamField::Model(ParamName::Alpha), fault: ParamFault::NotFinite })
         );
-        let mut huge = paper();
-        genetic(&mut huge).alpha = f32::MAX;
-        genetic(&mut huge).omega = f32::MIN_POSITIVE;
+        let huge = JointParams {
+            model: paper().model.with(ParamName::Alpha, f32::MAX).with(ParamName::Omega, f32::MIN_POSITIVE),
+            ..paper()
+        };
         // Named by the one parameter whose neutral value (α = 0) would make the set evaluable.
         assert_eq!(
             compensator.stage(huge),
             Err(ErrorReply::InvalidParam { field: ParamField::Model(ParamName::Alpha), fault: ParamFault::OutOfRange })
         );
-        let mut negative = slip();
-        if let GearModel::MicroSlip(model) = &mut negative.model {
-            model.stiffness[4] = -1.0;
-        }
+        let negative = JointParams { model: slip().model.with(ParamName::SlipStiffness(4), -1.0), ..slip() };
         assert_eq!(
             compensator.stage(negative),
             Err(ErrorReply::InvalidParam {
@@ -495,10 +499,7 @@ mod tests {
                 fault: ParamFault::OutOfRange
             })
         );
-        let mut overflowing = slip();
-        if let GearModel::MicroSlip(model) = &mut overflowing.model {
-            model.c3 = f32::MAX;
-        }
+        let overflowing = JointParams { model: slip().model.with(ParamName::C3, f32::MAX), ..slip() };
         assert_eq!(
             compensator.stage(overflowing),
             Err(ErrorReply::InvalidParam { field: ParamField::Model(ParamName::C3), fault: ParamFault::OutOfRange })
@@ -524,19 +525,20 @@ mod tests {
     #[test]
     fn a_set_that_overflows_anywhere_in_range_is_refused() {
         let mut cases: Vec<(JointParams, ParamField)> = Vec::new();
-        for base in [paper(), slip()] {
+        for base in sets() {
             for name in names(&base.model) {
                 let huge = match name {
                     ParamName::Omega => 1.0e-38,
-                    // Below it, the other end of the range is the culprit (below).
-                    ParamName::SlipMin => continue,
+                    // A knot's or an element's x out of order names the next one (the checks of
+                    // the spring and the kind); the last element's is beyond the travel.
+                    ParamName::Knot(_) => continue,
+                    ParamName::Slip(i) if usize::from(i) + 1 < base.model.slip_elements().len() => continue,
+                    ParamName::RangeMin => -1.0e38,
                     _ => 1.0e38,
                 };
                 cases.push((JointParams { model: base.model.with(name, huge), ..base }, ParamField::Model(name)));
             }
         }
-        let both_ends = slip().model.with(ParamName::SlipMin, 1.0e37).with(ParamName::SlipMax, 1.0e38);
-        cases.push((JointParams { model: both_ends, ..slip() }, ParamField::Model(ParamName::SlipMin)));
         for (bad, field) in cases {
             let mut compensator = Compensator::new();
             compensator.stage(paper()).unwrap();
@@ -575,14 +577,14 @@ mod tests {
         let evaluate = |params: JointParams| {
             for path in [EvalPath::Direct, EvalPath::Fast] {
                 let mut compensator = Compensator::new();
-                compensator.stage(params).unwrap();
+                compensator.stage(params).unwrap_or_else(|e| panic!("{params:?}: {e:?}"));
                 for theta in full_range(400) {
                     let out = compensator.tick(100.0 * theta, 0.0, path);
                     assert_ne!(out.compensation, Compensation::Off, "{params:?} {path:?} {theta}: {out:?}");
                 }
             }
         };
-        for base in [paper(), slip()] {
+        for base in sets() {
             let limit = JointParams { torque_limit: f32::MAX, ..base };
             for name in names(&base.model) {
                 let push = |value: f32, scale: f32| match name {
@@ -591,9 +593,7 @@ mod tests {
                     ParamName::C3 if value == 0.0 => 1.0e10 * scale,
                     _ => value * scale,
                 };
-                if matches!(name, ParamName::SlipMin | ParamName::SlipMax) {
-                    continue;
-                }
+
                 let mut last = None;
                 for decade in 0..90 {
                     let scale = libm::powf(10.0, decade as f32);
@@ -614,9 +614,8 @@ mod tests {
         let mut compensator = Compensator::new();
         compensator.stage(paper()).unwrap();
         compensator.tick(10.0, 0.0995, EvalPath::Fast);
-        let mut stiffer = paper();
-        genetic(&mut stiffer).c1 *= 2.0;
-        stiffer.gear_ratio = 50.0;
+        let c1 = PAPER_TABLE_2.c1 as f32;
+        let stiffer = JointParams { model: paper().model.with(ParamName::C1, 2.0 * c1), gear_ratio: 50.0, ..paper() };
         compensator.stage(stiffer).unwrap();
         assert_eq!(compensator.params(), Some(stiffer), "read-back shows the staged set");
         // Same deflection as before only under the new ratio: both fields changed together.

@@ -212,7 +212,7 @@ fn clamp(value: f32, bound: f32) -> (f32, bool) {
 mod tests {
     extern crate std;
     use super::*;
-    use model_core::{checks::MICRO_SLIP_SET, Hysteretic, MODEL_VERSION};
+    use model_core::{checks::micro_slip_set, Hysteretic, MODEL_VERSION};
     use swg_protocol::{GearModel, JointParams};
 
     const RATIO: f32 = 50.0;
@@ -221,7 +221,7 @@ mod tests {
     fn slip() -> JointParams {
         JointParams {
             model_version: MODEL_VERSION,
-            model: GearModel::MicroSlip(MICRO_SLIP_SET.to_f32()),
+            model: micro_slip_set().unwrap().map(|_, v| v as f32),
             gear_ratio: RATIO,
             torque_limit: 60.0,
             direction_band: 0.0,
@@ -260,7 +260,7 @@ mod tests {
         reference: f32,
         ticks: usize,
     ) -> std::vec::Vec<(f64, ControlOutput)> {
-        let mut gear = model_core::MicroSlip::new(MICRO_SLIP_SET).unwrap();
+        let mut gear = micro_slip_set().unwrap().evaluator(0.0).unwrap();
         let (inertia, friction, ratio) = (1.0e-4f64, 0.02f64, f64::from(RATIO));
         let (mut angle, mut velocity, mut command, mut torque) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
         let mut out = std::vec::Vec::new();

@@ -205,16 +205,18 @@ mod tests {
     use std::vec::Vec;
     use swg_protocol::{
         encode_with_version, Compensation, ControlSample, DriveErrorKind, EncoderSample, EvalPath, GainField,
-        GearModel, ParamFault, ParamField, ParamName, SlipParams, StorageError, SLIP_ELEMENTS,
+        GearModel, ParamFault, ParamField, ParamName, SlipElement, Spring, StorageError, SLIP_ELEMENTS,
     };
 
-    const PARAMS: JointParams = JointParams {
-        model_version: MODEL_VERSION,
-        model: GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
-        gear_ratio: 100.0,
-        torque_limit: 50.0,
-        direction_band: 2.0e-6,
-    };
+    fn params() -> JointParams {
+        JointParams {
+            model_version: MODEL_VERSION,
+            model: GearModel::paper(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
+            gear_ratio: 100.0,
+            torque_limit: 50.0,
+            direction_band: 2.0e-6,
+        }
+    }
 
     const CONFIG: ControllerConfig = ControllerConfig {
         mode: ControlMode::OpenLoop,
@@ -301,11 +303,11 @@ mod tests {
         let mut device = device();
         assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(None));
         assert_eq!(request(&mut device, &Request::Commit), Response::Error(ErrorReply::NoParams));
-        assert_eq!(request(&mut device, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
-        assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(Some(PARAMS)));
+        assert_eq!(request(&mut device, &Request::WriteParams(params())), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(Some(params())));
         assert_eq!(request(&mut device, &Request::Commit), Response::Committed(1));
         let mut rebooted = Device::new(device.into_store(), NoDrive);
-        assert_eq!(request(&mut rebooted, &Request::ReadParams), Response::Params(Some(PARAMS)));
+        assert_eq!(request(&mut rebooted, &Request::ReadParams), Response::Params(Some(params())));
         let Response::Feedforward(out) = replay(&mut rebooted) else { panic!() };
         assert_eq!(out.compensation, Compensation::Active);
     }
@@ -313,18 +315,18 @@ mod tests {
     #[test]
     fn a_micro_slip_set_is_written_committed_and_survives_a_reboot() {
         let slip = JointParams {
-            model: GearModel::MicroSlip(SlipParams {
-                c1: 6.0e3,
-                c2: 1.2e10,
-                c3: 0.0,
-                stiffness: [150.0; SLIP_ELEMENTS],
-                slip_min: 2.0e-5,
-                slip_max: 2.0e-3,
-            }),
-            ..PARAMS
+            model: GearModel::micro_slip(
+                0.0,
+                Spring::polynomial(6.0e3, 1.2e10, 0.0),
+                &model_core::memory::slip_grid::<f32, SLIP_ELEMENTS>(2.0e-5, 2.0e-3)
+                    .unwrap()
+                    .map(|slip| SlipElement { slip, stiffness: 150.0 }),
+            )
+            .unwrap(),
+            ..params()
         };
         let mut device = device();
-        assert_eq!(request(&mut device, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &Request::WriteParams(params())), Response::ParamsAccepted);
         assert_eq!(request(&mut device, &Request::Commit), Response::Committed(1));
         assert_eq!(request(&mut device, &Request::WriteParams(slip)), Response::ParamsAccepted);
         assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(Some(slip)));
@@ -342,23 +344,20 @@ mod tests {
     #[test]
     fn bad_traffic_gets_a_reason_and_changes_nothing() {
         let mut device = device();
-        request(&mut device, &Request::WriteParams(PARAMS));
+        request(&mut device, &Request::WriteParams(params()));
         let before = replay(&mut device);
 
-        let mut nan = PARAMS;
-        if let GearModel::Genetic(model) = &mut nan.model {
-            model.c1 = f32::NAN;
-        }
-        let mut huge_band = PARAMS;
+        let nan = JointParams { model: params().model.with(ParamName::C1, f32::NAN), ..params() };
+        let mut huge_band = params();
         huge_band.direction_band = 1.0;
         let good = frame(RequestId(41), &Request::WriteParams(huge_band));
         let mut corrupted = good.clone();
-        corrupted[10] ^= 0x40;
+        corrupted[swg_protocol::payload_index(&good, 10).unwrap()] ^= 0x40;
         let truncated = [&good[..good.len() / 2], &[0u8][..]].concat();
         let mut other_version = [0u8; MAX_FRAME_LEN];
         let len =
             encode_with_version(PROTOCOL_VERSION + 1, RequestId(43), &Request::Commit, &mut other_version).unwrap();
-        let too_long = [&[0x55u8; 300][..], &[0u8][..]].concat();
+        let too_long = [&[0x55u8; MAX_FRAME_LEN + 100][..], &[0u8][..]].concat();
         // A response where a request belongs: intact, so its id is read.
         let mut not_a_request = [0u8; MAX_FRAME_LEN];
         let not_a_request_len = encode(RequestId(44), &Response::ParamsAccepted, &mut not_a_request).unwrap();
@@ -387,7 +386,7 @@ mod tests {
         ];
         for (bytes, id, reason) in cases {
             assert_eq!(exchange(&mut device, &bytes), [(id, Response::Error(reason))]);
-            assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(Some(PARAMS)));
+            assert_eq!(request(&mut device, &Request::ReadParams), Response::Params(Some(params())));
         }
         let nan_sample = EncoderSample { input_angle: f32::NAN, output_angle: 0.0, path: EvalPath::Direct };
         assert_eq!(request(&mut device, &Request::Replay(nan_sample)), Response::Error(ErrorReply::NonFiniteSample));
@@ -403,9 +402,9 @@ mod tests {
         let Response::Control(out) = request(&mut device, &Request::Control(sample)) else { panic!() };
         assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));
         assert_eq!(request(&mut device, &Request::Configure(CONFIG)), Response::ControlAccepted);
-        assert_eq!(request(&mut device, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &Request::WriteParams(params())), Response::ParamsAccepted);
         let Response::Control(out) = request(&mut device, &Request::Control(sample)) else { panic!() };
-        assert_eq!((out.command, out.mode), (10.0 / PARAMS.gear_ratio, ControlMode::OpenLoop));
+        assert_eq!((out.command, out.mode), (10.0 / params().gear_ratio, ControlMode::OpenLoop));
         assert_eq!(device.drive().applied, [0.0, 0.1]);
         // Bad requests change nothing.
         let bad = ControllerConfig { period: 0.0, ..CONFIG };
@@ -434,7 +433,7 @@ mod tests {
     #[test]
     fn no_commit_while_the_controller_drives() {
         let mut device = device();
-        assert_eq!(request(&mut device, &Request::WriteParams(PARAMS)), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &Request::WriteParams(params())), Response::ParamsAccepted);
         assert_eq!(request(&mut device, &Request::Configure(CONFIG)), Response::ControlAccepted);
         assert_eq!(request(&mut device, &Request::Commit), Response::Error(ErrorReply::CommitWhileDriving));
         let off = ControllerConfig { mode: ControlMode::Off, ..CONFIG };
@@ -472,7 +471,7 @@ mod tests {
         let mut device = Device::new(ParamStore::new(NoErase(RamFlash::new())).unwrap(), NoDrive);
         let mut out = [0u8; MAX_FRAME_LEN];
         let mut reply = None;
-        for request in [Request::WriteParams(PARAMS), Request::Commit] {
+        for request in [Request::WriteParams(params()), Request::Commit] {
             for byte in frame(RequestId(9), &request) {
                 if let Some(len) = device.receive(byte, &mut out) {
                     reply = Some(decode::<Response>(&mut out[..len - 1]).unwrap().message);

@@ -11,34 +11,42 @@
 //! | --- | --- |
 //! | 0..4 | magic `SWGP` |
 //! | 4..8 | sequence number, u32 LE |
-//! | 8..10 | payload length n, u16 LE (≤ 128) |
+//! | 8..10 | payload length n, u16 LE (≤ 384) |
 //! | 10 | record format, [`RECORD_FORMAT`] |
 //! | 11 | reserved, 0xFF |
-//! | 12..12 + n | the parameter set, postcard-encoded (format 2: [`JointParams`] as on the link of protocol 2) |
+//! | 12..12 + n | the parameter set, postcard-encoded (format 3: [`JointParams`] as on the link of protocol 6) |
 //! | then | 0xFF up to a multiple of 8 bytes, then the CRC-32 (ISO-HDLC, LE) of bytes 0..12 + n, in an 8-byte block |
 //!
 //! The formats this firmware reads:
 //!
-//! - **2** (written now): the payload is [`JointParams`] with the model's kind
-//!   ([`swg_protocol::GearModel`], genetic or micro-slip). The longest, a micro-slip set, is
-//!   100 bytes at most (98 with model version 1): a record of 120 bytes with its CRC block.
+//! - **3** (written now): the payload is [`JointParams`] of model version 2 (θ0, the free-form
+//!   spring, the kind's hysteresis: [`swg_protocol::GearModel`]). The longest, a micro-slip set
+//!   with 17 knots and 16 elements, is 306 bytes at most: a record of 328 bytes with its CRC
+//!   block.
+//! - **2**: the payload is protocol 2–5's [`JointParams`] of model version 1 (the odd polynomial
+//!   spring, the genetic kind or the micro-slip kind on a log grid: [`LegacyJointParamsV2`]); it
+//!   loads as today's model with the same torque (model-core's `legacy` upgrade).
 //! - **1**, and **0xFF** (firmware 0.1.0 wrote no format byte: it left byte 10, reserved then,
 //!   erased, in the layout that became format 1): the payload is protocol 1's parameter set,
-//!   genetic only ([`LegacyJointParams`]); it loads as [`GearModel::Genetic`] with the same
-//!   numbers, so parameters stored before an update survive it. The next commit writes
-//!   format 2.
+//!   genetic only ([`LegacyJointParams`]); it loads as the paper's model with the same
+//!   numbers.
+//!
+//! So parameters stored before an update survive it; the next commit writes format 3.
 //!
 //! A slot whose format byte is another value is not read ([`SlotFault::UnknownFormat`]).
 use embedded_storage::nor_flash::NorFlash;
+use model_core::legacy::GearModelV1;
 use model_core::Params;
 use serde::Deserialize;
-use swg_protocol::{ErrorReply, GearModel, JointParams};
+use swg_protocol::{ErrorReply, GearModel, JointParams, MODEL_VERSION};
 
 const MAGIC: [u8; 4] = *b"SWGP";
 /// The record format this firmware writes (header byte 10). A change of the record's layout
 /// or of the payload's encoding takes the next number; the loader then refuses records of
 /// formats it does not know instead of misreading them.
-pub const RECORD_FORMAT: u8 = 2;
+pub const RECORD_FORMAT: u8 = 3;
+/// Records of model version 1's parameter sets, either kind ([`LegacyJointParamsV2`]).
+pub const FORMAT_2: u8 = 2;
 /// Records of protocol 1's parameter set, genetic only ([`LegacyJointParams`]).
 pub const LEGACY_FORMAT: u8 = 1;
 /// Header byte 10 of records written before the format byte existed: read as format 1.
@@ -48,9 +56,10 @@ const HEADER_LEN: usize = 12;
 const FORMAT_AT: usize = 10;
 /// Writes are padded to this; every supported flash's WRITE_SIZE divides it.
 const ALIGN: usize = 8;
-/// Room for the longest payload of every format (100 bytes: a micro-slip set with a
-/// three-byte model version) and some growth. Changing it changes no record's bytes.
-const MAX_PAYLOAD_LEN: usize = 128;
+/// Room for the longest payload of every format (306 bytes: a micro-slip set with 17 knots, 16
+/// elements and a three-byte model version) and some growth. Changing it changes no record's
+/// bytes.
+const MAX_PAYLOAD_LEN: usize = 384;
 const MAX_BODY_LEN: usize = (HEADER_LEN + MAX_PAYLOAD_LEN).div_ceil(ALIGN) * ALIGN;
 /// The longest record: body and CRC block.
 const RECORD_LEN: usize = MAX_BODY_LEN + ALIGN;
@@ -103,16 +112,26 @@ pub struct LegacyJointParams {
     pub direction_band: f32,
 }
 
-impl From<LegacyJointParams> for JointParams {
-    fn from(legacy: LegacyJointParams) -> Self {
-        JointParams {
-            model_version: legacy.model_version,
-            model: GearModel::Genetic(legacy.model),
-            gear_ratio: legacy.gear_ratio,
-            torque_limit: legacy.torque_limit,
-            direction_band: legacy.direction_band,
-        }
+/// The parameter set of record format 2 (protocol 2–5's `JointParams`): model version 1 of
+/// either kind. Kept to read records stored by firmware before format 3; never written.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+pub struct LegacyJointParamsV2 {
+    pub model_version: u16,
+    pub model: GearModelV1<f32>,
+    pub gear_ratio: f32,
+    pub torque_limit: f32,
+    pub direction_band: f32,
+}
+
+/// A stored set of model version 1 as today's (the same torque), if it was of that version.
+fn upgrade(model_version: u16, model: GearModelV1<f32>, joint: [f32; 3]) -> Result<JointParams, SlotFault> {
+    const VERSION_1: u16 = 1;
+    if model_version != VERSION_1 {
+        return Err(SlotFault::Invalid(ErrorReply::ModelVersion { got: model_version, supported: MODEL_VERSION }));
     }
+    let model: GearModel<f32> = model.upgrade().map_err(|_| SlotFault::Encoding)?;
+    let [gear_ratio, torque_limit, direction_band] = joint;
+    Ok(JointParams { model_version: MODEL_VERSION, model, gear_ratio, torque_limit, direction_band })
 }
 
 /// A stored set and its sequence number.
@@ -229,7 +248,7 @@ fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
     }
     // Before anything else of the layout: another format may place it differently.
     let format = match header.get(FORMAT_AT).copied() {
-        Some(format @ (RECORD_FORMAT | LEGACY_FORMAT | UNVERSIONED_FORMAT)) => format,
+        Some(format @ (RECORD_FORMAT | FORMAT_2 | LEGACY_FORMAT | UNVERSIONED_FORMAT)) => format,
         Some(format) => return Err(SlotFault::UnknownFormat(format)),
         None => return Err(SlotFault::Corrupt),
     };
@@ -246,10 +265,17 @@ fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
         return Err(SlotFault::Corrupt);
     }
     let payload = rest.get(..payload_len).ok_or(SlotFault::Corrupt)?;
-    let params: JointParams = if format == RECORD_FORMAT {
-        postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?
-    } else {
-        postcard::from_bytes::<LegacyJointParams>(payload).map_err(|_| SlotFault::Encoding)?.into()
+    let params: JointParams = match format {
+        RECORD_FORMAT => postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?,
+        FORMAT_2 => {
+            let v2: LegacyJointParamsV2 = postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?;
+            upgrade(v2.model_version, v2.model, [v2.gear_ratio, v2.torque_limit, v2.direction_band])?
+        }
+        _ => {
+            let v1: LegacyJointParams = postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?;
+            let model = GearModelV1::Genetic(v1.model);
+            upgrade(v1.model_version, model, [v1.gear_ratio, v1.torque_limit, v1.direction_band])?
+        }
     };
     params.validate().map_err(SlotFault::Invalid)?;
     Ok(Stored { params, sequence })

@@ -1,16 +1,31 @@
 extern crate std;
 use super::*;
-use crate::checks::{MICRO_SLIP_SET, PAPER_TABLE_2, SEED_TABLE_FIT};
+use crate::checks::{micro_slip_set, MICRO_SLIP_V1, PAPER_TABLE_2, SEED_TABLE_FIT};
+use crate::legacy::GearModelV1;
+use crate::spring::Knot;
 use std::string::ToString;
 use std::vec::Vec;
 
-fn both() -> [GearModel<f64>; 2] {
-    [GearModel::Genetic(SEED_TABLE_FIT), GearModel::MicroSlip(MICRO_SLIP_SET)]
+/// An asymmetric spring on knots, θ0 off zero, with the micro-slip set's elements.
+fn knotted() -> GearModel<f64> {
+    let knots = [
+        Knot { x: -1.2e-3, stiffness: 2.6e4 },
+        Knot { x: -0.6e-3, stiffness: 1.4e4 },
+        Knot { x: 0.0, stiffness: 8.0e3 },
+        Knot { x: 0.7e-3, stiffness: 1.1e4 },
+        Knot { x: 1.4e-3, stiffness: 1.9e4 },
+    ];
+    let spring = Spring::of_knots(&knots, [-1.2e-3, 1.4e-3]).unwrap();
+    GearModel::micro_slip(-8.4e-3, spring, micro_slip_set().unwrap().slip_elements()).unwrap()
+}
+
+fn all() -> [GearModel<f64>; 3] {
+    [GearModel::paper(SEED_TABLE_FIT), micro_slip_set().unwrap(), knotted()]
 }
 
 #[test]
 fn every_kind_is_named_as_its_serde_form_names_it() {
-    for model in both() {
+    for model in all() {
         let json: serde_json::Value = serde_json::to_value(model).unwrap();
         assert_eq!(json["model"], model.kind().name(), "{json}");
         assert_eq!(Kind::from_name(model.kind().name()), Some(model.kind()));
@@ -21,7 +36,7 @@ fn every_kind_is_named_as_its_serde_form_names_it() {
 
 #[test]
 fn files_and_the_wire_round_trip_exactly() {
-    for model in both() {
+    for model in all() {
         let text = serde_json::to_string_pretty(&model).unwrap();
         assert_eq!(serde_json::from_str::<GearModel<f64>>(&text).unwrap(), model, "{text}");
         let narrow = model.map(|_, v| v as f32);
@@ -29,22 +44,48 @@ fn files_and_the_wire_round_trip_exactly() {
         assert_eq!(postcard::from_bytes::<GearModel<f32>>(&bytes).unwrap(), narrow);
     }
     // The two fields in either order, other fields ignored (a fit report is a params file).
-    let text = r#"{"params": {"c1": 1, "c2": 2, "c3": 3, "alpha": 4, "beta": 5, "omega": 6}, "rss": 1,
-                   "model": "genetic-hysteresis"}"#;
-    let GearModel::Genetic(p) = serde_json::from_str::<GearModel<f64>>(text).unwrap() else { panic!() };
-    assert_eq!((p.c1, p.omega), (1.0, 6.0));
+    let text = r#"{"params": {"zero": 0, "spring": {"c1": 1, "c2": 2, "c3": 3, "knots": [], "range": [-1, 1]},
+                   "alpha": 4, "beta": 5, "omega": 6}, "rss": 1, "model": "genetic-hysteresis"}"#;
+    let model = serde_json::from_str::<GearModel<f64>>(text).unwrap();
+    assert_eq!(model.paper_params(), Some(Params { c1: 1.0, c2: 2.0, c3: 3.0, alpha: 4.0, beta: 5.0, omega: 6.0 }));
+}
+
+/// Files and flash records of model version 1 load as today's model with the same torque.
+#[test]
+fn version_1_sets_upgrade_with_the_same_torque() {
+    let v1 = r#"{"model": "micro-slip", "params": {"c1": 6000, "c2": 1.2e10, "c3": 0,
+                 "stiffness": [120, 135, 150, 165, 180, 195, 210, 225, 240, 255, 270, 285, 300, 315, 330, 345],
+                 "slip_min": 1e-5, "slip_max": 2e-3}}"#;
+    let old = serde_json::from_str::<GearModelV1<f64>>(v1).unwrap();
+    assert_eq!(old, GearModelV1::MicroSlip(MICRO_SLIP_V1));
+    let upgraded = old.upgrade().unwrap();
+    let genetic = GearModelV1::Genetic(PAPER_TABLE_2).upgrade().unwrap();
+    assert_eq!(genetic, GearModel::paper(PAPER_TABLE_2));
+    // The same torque as version 1's equations: the polynomial plus the grid's elements.
+    let grid: [f64; 16] = crate::memory::slip_grid(1e-5, 2e-3).unwrap();
+    let mut unit = crate::SlipElements::<f64, 16>::new(grid).unwrap();
+    let mut evaluator = upgraded.evaluator(0.0).unwrap();
+    let poly = crate::Polynomial::new(6000.0, 1.2e10, 0.0).unwrap();
+    for i in 0..2000 {
+        let theta = 1.5e-3 * (f64::from(i) * 0.013).sin() * (1.0 - f64::from(i) / 4000.0);
+        unit.step(theta).unwrap();
+        let want = poly.evaluate(theta).torque
+            + MICRO_SLIP_V1.stiffness.iter().zip(unit.elastic()).map(|(k, e)| k * e).sum::<f64>();
+        let got = evaluator.step(theta).unwrap().torque;
+        assert!((got - want).abs() <= 1e-12 * want.abs().max(1.0), "{i}: {got} vs {want}");
+    }
+    // Postcard: version 1's wire bytes (the kind's index, then its fields) read the same.
+    let bytes = [&[1u8][..], &postcard::to_stdvec(&MICRO_SLIP_V1).unwrap()].concat();
+    assert_eq!(postcard::from_bytes::<GearModelV1<f64>>(&bytes).unwrap(), GearModelV1::MicroSlip(MICRO_SLIP_V1));
 }
 
 #[test]
-fn a_micro_slip_set_needs_every_element() {
-    let mut json = serde_json::to_value(GearModel::MicroSlip(MICRO_SLIP_SET)).unwrap();
-    let elements = json["params"]["stiffness"].as_array_mut().unwrap();
-    elements.pop();
-    let error = serde_json::from_value::<GearModel<f64>>(json.clone()).unwrap_err().to_string();
-    assert!(error.contains("invalid length 15, expected a list of 16 numbers"), "{error}");
-    json["params"]["stiffness"].as_array_mut().unwrap().extend([1.0.into(), 2.0.into()]);
+fn a_micro_slip_set_holds_at_most_16_elements() {
+    let mut json = serde_json::to_value(micro_slip_set().unwrap()).unwrap();
+    let elements = json["params"]["elements"].as_array_mut().unwrap();
+    elements.push(elements[0].clone());
     let error = serde_json::from_value::<GearModel<f64>>(json).unwrap_err().to_string();
-    assert!(error.contains("invalid length 17"), "{error}");
+    assert!(error.contains("invalid length 17, expected a list of at most 16 entries"), "{error}");
 }
 
 #[test]
@@ -57,77 +98,78 @@ fn a_failed_conversion_names_the_parameter() {
             Err(name)
         }
     };
-    let mut slip = MICRO_SLIP_SET;
-    slip.stiffness[5] = 1.0e300;
-    assert_eq!(GearModel::MicroSlip(slip).try_map(narrow), Err(ParamName::SlipStiffness(5)));
-    let genetic = GearModel::Genetic(PAPER_TABLE_2).with(ParamName::Beta, -1.0e300);
+    let slip = micro_slip_set().unwrap().with(ParamName::SlipStiffness(5), 1.0e300);
+    assert_eq!(slip.try_map(narrow), Err(ParamName::SlipStiffness(5)));
+    let genetic = GearModel::paper(PAPER_TABLE_2).with(ParamName::Beta, -1.0e300);
     assert_eq!(genetic.try_map(narrow), Err(ParamName::Beta));
+    let knots = knotted().with(ParamName::KnotStiffness(3), 1.0e300);
+    assert_eq!(knots.try_map(narrow), Err(ParamName::KnotStiffness(3)));
     assert_eq!(ParamName::SlipStiffness(5).to_string(), "stiffness[5]");
-    let text = GearModel::MicroSlip(MICRO_SLIP_SET).to_string();
-    assert!(text.starts_with("micro-slip c1=6e3 c2=1.2e10 c3=0e0 stiffness[0]=1.2e2 "), "{text}");
-    assert!(text.ends_with("stiffness[15]=3.45e2 slip_min=1e-5 slip_max=2e-3"), "{text}");
+    let text = micro_slip_set().unwrap().to_string();
+    assert!(text.starts_with("micro-slip zero=0e0 c1=6e3 c2=1.2e10 c3=0e0 range_min=-1e0 range_max=1e0 slip[0]=1e-5 stiffness[0]=1.2e2 "), "{text}");
 }
 
 #[test]
 fn check_names_the_first_bad_parameter() {
-    let genetic = GearModel::Genetic(PAPER_TABLE_2);
-    let slip = GearModel::MicroSlip(MICRO_SLIP_SET);
-    assert_eq!(genetic.check(), Ok(()));
-    assert_eq!(slip.check(), Ok(()));
+    let genetic = GearModel::paper(PAPER_TABLE_2);
+    let slip = micro_slip_set().unwrap();
+    for model in all() {
+        assert_eq!(model.check(), Ok(()), "{model:?}");
+    }
     let cases = [
         (genetic.with(ParamName::C3, f64::NAN), (ParamName::C3, ParamFault::NotFinite)),
         (genetic.with(ParamName::Omega, 0.0), (ParamName::Omega, ParamFault::OutOfRange)),
+        (genetic.with(ParamName::Zero, f64::INFINITY), (ParamName::Zero, ParamFault::NotFinite)),
         (slip.with(ParamName::SlipStiffness(7), f64::INFINITY), (ParamName::SlipStiffness(7), ParamFault::NotFinite)),
         (slip.with(ParamName::SlipStiffness(2), -1.0), (ParamName::SlipStiffness(2), ParamFault::OutOfRange)),
-        (slip.with(ParamName::SlipMin, 0.0), (ParamName::SlipMin, ParamFault::OutOfRange)),
-        (slip.with(ParamName::SlipMax, 1.0e-6), (ParamName::SlipMax, ParamFault::OutOfRange)),
+        (slip.with(ParamName::Slip(0), 0.0), (ParamName::Slip(0), ParamFault::OutOfRange)),
+        (slip.with(ParamName::Slip(4), 1.0), (ParamName::Slip(5), ParamFault::OutOfRange)),
+        (knotted().with(ParamName::KnotStiffness(1), -1.0), (ParamName::KnotStiffness(1), ParamFault::OutOfRange)),
     ];
     for (model, fault) in cases {
         assert_eq!(model.check(), Err(fault), "{model:?}");
-        assert!(model.validate().is_err(), "{model:?}");
+        assert_eq!(model.validate(), Err(Error::InvalidParameter(fault.0)), "{model:?}");
     }
-    // A name the kind does not have changes nothing.
-    assert_eq!(genetic.with(ParamName::SlipMin, 5.0), genetic);
+    // A name the model does not have changes nothing.
+    assert_eq!(genetic.with(ParamName::Slip(0), 5.0), genetic);
 }
 
+/// The evaluator is the spring at x = θ − θ0 plus the kind's own memory at x.
 #[test]
-fn the_evaluator_is_the_kinds_own() {
+fn the_evaluator_is_the_spring_plus_the_kinds_own_memory() {
     let motion: Vec<f64> =
         (0..3000).map(|i| 1.2e-3 * (f64::from(i) * 0.01).sin() * (1.0 + f64::from(i % 7) * 0.05)).collect();
-    for model in both() {
+    for model in all() {
         let mut evaluator = model.evaluator(1.0e-7).unwrap();
+        let mut spring = model.spring.prepare().unwrap();
         let mut deepest = 0;
-        match model {
-            GearModel::Genetic(p) => {
-                let mut own = GeneticMemory::<f64, TURNING_POINTS>::new(Model::new(p).unwrap(), 1.0e-7);
-                for &theta in &motion {
-                    assert_eq!(evaluator.step(theta), own.step(theta));
-                    assert_eq!(evaluator.memory(), Memory { direction: own.direction(), depth: own.depth() });
-                    deepest = deepest.max(own.depth());
-                }
-            }
-            GearModel::MicroSlip(p) => {
-                let mut own = MicroSlip::<f64, SLIP_ELEMENTS>::new(p).unwrap();
-                for &theta in &motion {
-                    assert_eq!(evaluator.step(theta), own.step(theta));
-                    assert_eq!(evaluator.memory(), Memory { direction: None, depth: own.slipping() });
-                    deepest = deepest.max(own.slipping());
-                }
-            }
+        let mut own: std::boxed::Box<dyn Hysteretic<f64>> = match &model.hysteresis {
+            Hysteresis::Genetic(g) => std::boxed::Box::new(GeneticMemory::<f64, TURNING_POINTS>::new(g.model().unwrap(), 1.0e-7)),
+            Hysteresis::MicroSlip(_) => std::boxed::Box::new(MicroSlip::<f64, SLIP_ELEMENTS>::new(model.slip_elements()).unwrap()),
+        };
+        for &theta in &motion {
+            let theta = theta + model.zero;
+            let x = theta - model.zero;
+            let want = spring.evaluate(x).plus(own.step(x).unwrap());
+            assert_eq!(evaluator.step(theta), Ok(want));
+            deepest = deepest.max(evaluator.memory().depth);
         }
         assert!(deepest > 1, "{model:?}: the motion leaves memory behind");
         evaluator.reset();
-        assert_eq!(evaluator, model.evaluator(1.0e-7).unwrap());
+        assert_eq!(evaluator.memory(), Memory::default());
     }
 }
 
 #[test]
-fn only_the_genetic_kind_has_a_stateless_loop() {
-    let [genetic, slip] = both();
-    assert_eq!(genetic.symmetric_model(), Ok(Some(Model::new(SEED_TABLE_FIT).unwrap())));
+fn the_papers_form_is_told_apart() {
+    let [genetic, slip, knots] = all();
+    assert_eq!(genetic.paper_params(), Some(SEED_TABLE_FIT));
     assert!(genetic.kind().has_symmetric_loop());
-    assert_eq!(slip.symmetric_model(), Ok(None));
+    assert_eq!(slip.paper_params(), None);
     assert!(!slip.kind().has_symmetric_loop());
+    assert_eq!(knots.paper_params(), None);
     assert_eq!(genetic.linear_stiffness(), SEED_TABLE_FIT.c1);
-    assert_eq!(slip.linear_stiffness(), MICRO_SLIP_SET.c1);
+    assert_eq!(slip.linear_stiffness(), MICRO_SLIP_V1.c1);
+    assert_eq!(knots.linear_stiffness(), 8.0e3);
+    assert_eq!(knots.range(), [-8.4e-3 - 1.2e-3, -8.4e-3 + 1.4e-3]);
 }

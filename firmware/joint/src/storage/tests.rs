@@ -2,15 +2,16 @@ extern crate std;
 use super::*;
 use crate::flash::RamFlash;
 use embedded_storage::nor_flash::{ErrorType, NorFlashErrorKind, ReadNorFlash};
-use model_core::{Params, MODEL_VERSION};
-use swg_protocol::{GearModel, SlipParams, SLIP_ELEMENTS};
+use model_core::legacy::{GearModelV1, SlipParamsV1};
+use model_core::{Knot, Params, SlipElement, Spring, MODEL_VERSION};
+use swg_protocol::{GearModel, SLIP_ELEMENTS};
 
 type Flash = RamFlash<4096>;
 
 fn params(c1: f32) -> JointParams {
     JointParams {
         model_version: MODEL_VERSION,
-        model: GearModel::Genetic(Params { c1, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.3, omega: 1.0 }),
+        model: GearModel::paper(Params { c1, c2: 1.2e10, c3: 0.0, alpha: 2.0, beta: -2.3, omega: 1.0 }),
         gear_ratio: 100.0,
         torque_limit: 50.0,
         direction_band: 2.0e-5,
@@ -157,7 +158,7 @@ fn sequence_numbers_wrap_around() {
     let mut store = ParamStore::new(flash).unwrap();
     store.save(&params(1.0e3)).unwrap();
     let mut flash = store.into_flash();
-    let mut record = [0u8; 64];
+    let mut record = [0u8; 128];
     flash.read(0, &mut record).unwrap();
     record[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
     let payload_len = u16::from_le_bytes([record[8], record[9]]) as usize;
@@ -213,24 +214,20 @@ fn too_small_a_flash_is_refused() {
     assert!(matches!(ParamStore::new(RamFlash::<1024>::new()), Err(StorageError::Geometry)));
 }
 
-/// Every field a different value, so that a record with two fields swapped (say gear ratio
-/// and torque limit) differs from the golden bytes.
+/// The genetic set of the old golden records (formats 1 and 2, model version 1), every field a
+/// different value, as it loads today: the paper's model with the same numbers.
 fn golden_params() -> JointParams {
     JointParams {
         model_version: MODEL_VERSION,
-        model: GearModel::Genetic(Params {
-            c1: 2.5e4,
-            c2: 1.5e9,
-            c3: -1.25e14,
-            alpha: 2.75e6,
-            beta: -420.5,
-            omega: -225.25,
-        }),
+        model: GearModel::paper(GOLDEN_GENETIC_V1),
         gear_ratio: 80.0,
         torque_limit: 35.5,
         direction_band: 2.5e-6,
     }
 }
+
+const GOLDEN_GENETIC_V1: Params<f32> =
+    Params { c1: 2.5e4, c2: 1.5e9, c3: -1.25e14, alpha: 2.75e6, beta: -420.5, omega: -225.25 };
 
 /// The record of [`golden_params`] as firmware of record format 1 (protocol 1) wrote it into
 /// slot 0 with its first save, CRC block included: a real old record, which must keep loading.
@@ -275,40 +272,66 @@ fn flash_with(slot_0: &[u8]) -> Flash {
 
 #[test]
 fn golden_params_have_distinct_fields() {
-    let p = golden_params();
-    let GearModel::Genetic(m) = p.model else { unreachable!() };
-    let fields = [m.c1, m.c2, m.c3, m.alpha, m.beta, m.omega, p.gear_ratio, p.torque_limit, p.direction_band];
-    for (i, a) in fields.iter().enumerate() {
-        for b in &fields[i + 1..] {
-            assert_ne!(a, b, "{fields:?}");
+    for p in [golden_params(), golden_slip_params(), golden_params_3()] {
+        let mut fields = std::vec::Vec::new();
+        p.model.map(|_, v| {
+            fields.push(v);
+            v
+        });
+        fields.extend([p.gear_ratio, p.torque_limit, p.direction_band]);
+        // θ0 = 0, no polynomial term, and the polynomial springs' unbounded ranges (±1 rad) may
+        // repeat.
+        fields.retain(|v| v.abs() != 1.0 && *v != 0.0);
+        for (i, a) in fields.iter().enumerate() {
+            for b in &fields[i + 1..] {
+                assert_ne!(a, b, "{fields:?}");
+            }
         }
     }
-    assert_eq!(MODEL_VERSION, 1, "the golden record holds model version 1");
 }
 
-/// A micro-slip set with every field different.
-fn golden_slip_params() -> JointParams {
+/// The micro-slip set of the old golden record (format 2, model version 1), every field
+/// different.
+fn golden_slip_v1() -> SlipParamsV1<f32> {
     let mut stiffness = [0.0f32; SLIP_ELEMENTS];
     for (i, k) in stiffness.iter_mut().enumerate() {
         *k = 50.0 * (i + 1) as f32 + 0.5;
     }
+    SlipParamsV1 { c1: 7.5e3, c2: 3.0e9, c3: -6.25e13, stiffness, slip_min: 1.0 / 32768.0, slip_max: 1.0 / 256.0 }
+}
+
+/// [`golden_slip_v1`] as it loads today: the same torque (model-core's `legacy` upgrade).
+fn golden_slip_params() -> JointParams {
     JointParams {
         model_version: MODEL_VERSION,
-        model: GearModel::MicroSlip(SlipParams {
-            c1: 7.5e3,
-            c2: 3.0e9,
-            c3: -6.25e13,
-            stiffness,
-            slip_min: 1.0 / 32768.0,
-            slip_max: 1.0 / 256.0,
-        }),
+        model: GearModelV1::MicroSlip(golden_slip_v1()).upgrade().unwrap(),
         gear_ratio: 120.0,
         torque_limit: 42.25,
         direction_band: 1.25e-6,
     }
 }
 
-/// The record of [`golden_params`] in format 2, as the first save writes it into slot 0.
+/// A set of today's model with every field different: θ0, a spring on three knots (exact in
+/// f32), the genetic kind.
+fn golden_params_3() -> JointParams {
+    let knots = [
+        Knot { x: -0.75e-3, stiffness: 1.25e4 },
+        Knot { x: 0.0, stiffness: 0.75e4 },
+        Knot { x: 0.5e-3, stiffness: 1.125e4 },
+    ];
+    let spring = Spring::of_knots(&knots, [-1.0e-3, 0.625e-3]).unwrap();
+    let genetic = GearModel::paper(Params { c1: 0.0, c2: 0.0, c3: 0.0, alpha: 2.625, beta: -1.5, omega: 1.0 });
+    JointParams {
+        model_version: MODEL_VERSION,
+        model: GearModel { zero: -8.5e-3, spring, ..genetic },
+        gear_ratio: 60.0,
+        torque_limit: 24.5,
+        direction_band: 3.5e-6,
+    }
+}
+
+/// The record of [`golden_params`] in format 2, as firmware of protocols 2–5 wrote it into slot 0
+/// with its first save: an old record, which must keep loading.
 #[rustfmt::skip]
 const GOLDEN_RECORD_2: [u8; 64] = [
     b'S', b'W', b'G', b'P', // magic
@@ -332,15 +355,15 @@ const GOLDEN_RECORD_2: [u8; 64] = [
 ];
 
 #[test]
-fn a_saved_record_matches_the_golden_bytes() {
-    let mut store = ParamStore::new(Flash::new()).unwrap();
-    assert_eq!(store.save(&golden_params()), Ok(1));
-    let mut record = [0u8; 64];
-    store.into_flash().read(0, &mut record).unwrap();
-    assert_eq!(record, GOLDEN_RECORD_2);
+fn format_2_records_load_with_the_same_torque() {
+    let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD_2)).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_params(), sequence: 1 }));
+    let mut store = ParamStore::new(flash_with(&GOLDEN_SLIP_RECORD)).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_slip_params(), sequence: 1 }));
 }
 
-/// The record of [`golden_slip_params`], as the first save writes it into slot 0.
+/// The record of [`golden_slip_v1`] in format 2, as firmware of protocols 2–5 wrote it into
+/// slot 0 with its first save: an old record, which must keep loading.
 #[rustfmt::skip]
 const GOLDEN_SLIP_RECORD: [u8; 120] = [
     b'S', b'W', b'G', b'P', // magic
@@ -378,15 +401,42 @@ const GOLDEN_SLIP_RECORD: [u8; 120] = [
     0x09, 0xAD, 0x77, 0x0D, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..110, LE
 ];
 
+/// The record of [`golden_params_3`] in format 3, as the first save writes it into slot 0.
+#[rustfmt::skip]
+const GOLDEN_RECORD_3: [u8; 96] = [
+    b'S', b'W', b'G', b'P', // magic
+    0x01, 0x00, 0x00, 0x00, // sequence 1
+    0x4B, 0x00, // payload length 75
+    0x03, // format 3
+    0xFF, // reserved
+    0x02, // model_version 2 (postcard varint)
+    0x00, // the genetic kind
+    0x96, 0x43, 0x0B, 0xBC, // zero -8.5e-3 (f32 LE)
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, // spring: c1, c2, c3 = 0
+    0x03, // three knots
+    0xA6, 0x9B, 0x44, 0xBA, 0x00, 0x50, 0x43, 0x46, // x -7.5e-4, stiffness 1.25e4
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x60, 0xEA, 0x45, // x 0, stiffness 7.5e3
+    0x6F, 0x12, 0x03, 0x3A, 0x00, 0xC8, 0x2F, 0x46, // x 5e-4, stiffness 1.125e4
+    0x6F, 0x12, 0x83, 0xBA, 0x0A, 0xD7, 0x23, 0x3A, // range -1e-3 … 6.25e-4
+    0x00, 0x00, 0x28, 0x40, // alpha 2.625
+    0x00, 0x00, 0xC0, 0xBF, // beta -1.5
+    0x00, 0x00, 0x80, 0x3F, // omega 1
+    0x00, 0x00, 0x70, 0x42, // gear_ratio 60
+    0x00, 0x00, 0xC4, 0x41, // torque_limit 24.5
+    0x8B, 0xE1, 0x6A, 0x36, // direction_band 3.5e-6
+    0xFF, // padding to 88 bytes
+    0x4A, 0x24, 0x28, 0x0D, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..87, LE
+];
+
 #[test]
-fn a_saved_micro_slip_record_matches_the_golden_bytes() {
+fn a_saved_record_matches_the_golden_bytes() {
     let mut store = ParamStore::new(Flash::new()).unwrap();
-    assert_eq!(store.save(&golden_slip_params()), Ok(1));
-    let mut record = [0u8; 120];
+    assert_eq!(store.save(&golden_params_3()), Ok(1));
+    let mut record = [0u8; 96];
     store.into_flash().read(0, &mut record).unwrap();
-    assert_eq!(record, GOLDEN_SLIP_RECORD);
-    let mut store = ParamStore::new(flash_with(&GOLDEN_SLIP_RECORD)).unwrap();
-    assert_eq!(store.load(), Some(Stored { params: golden_slip_params(), sequence: 1 }));
+    assert_eq!(record, GOLDEN_RECORD_3);
+    let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD_3)).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_params_3(), sequence: 1 }));
 }
 
 #[test]
@@ -409,12 +459,12 @@ fn a_record_without_the_format_byte_reads_as_format_1() {
 }
 
 #[test]
-fn format_1_records_load_as_the_genetic_kind_and_the_next_commit_writes_format_2() {
+fn format_1_records_load_as_the_genetic_kind_and_the_next_commit_writes_format_3() {
     let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD)).unwrap();
     let loaded = store.load().unwrap();
     assert_eq!(loaded, Stored { params: golden_params(), sequence: 1 });
-    assert!(matches!(loaded.params.model, GearModel::Genetic(_)));
-    // A micro-slip set goes to slot 1 in format 2; the format-1 record stays the fallback.
+    assert_eq!(loaded.params.model.paper_params(), Some(GOLDEN_GENETIC_V1));
+    // A micro-slip set goes to slot 1 in format 3; the format-1 record stays the fallback.
     assert_eq!(store.save(&golden_slip_params()), Ok(2));
     let mut flash = store.into_flash();
     let mut header = [0u8; HEADER_LEN];
@@ -428,12 +478,17 @@ fn format_1_records_load_as_the_genetic_kind_and_the_next_commit_writes_format_2
 
 #[test]
 fn the_largest_record_fits_its_buffer() {
-    // A micro-slip set with a three-byte model version: 100 bytes of payload.
+    // A micro-slip set with 17 knots, 16 elements and a three-byte model version: 306 bytes of
+    // payload.
     let mut widest = golden_slip_params();
     widest.model_version = u16::MAX;
+    let mut spring = widest.model.spring;
+    spring.knots = ([Knot { x: 1.0, stiffness: 1.0 }; model_core::spring::MAX_KNOTS], 17);
+    let elements = [SlipElement { slip: 1.0, stiffness: 1.0 }; SLIP_ELEMENTS];
+    widest.model = GearModel::micro_slip(widest.model.zero, spring, &elements).unwrap();
     let mut payload = [0u8; MAX_PAYLOAD_LEN];
     let len = postcard::to_slice(&widest, &mut payload).unwrap().len();
-    assert_eq!(len, 100);
+    assert_eq!(len, 306);
     assert!(RECORD_LEN >= (HEADER_LEN + len).div_ceil(ALIGN) * ALIGN + ALIGN);
     // Two records fit the smallest flash the store accepts (two 1 KiB slots).
     const { assert!(RECORD_LEN <= 1024) };
@@ -452,7 +507,7 @@ fn with_format(record: [u8; 64], format: u8) -> [u8; 64] {
 fn a_record_of_an_unknown_format_is_ignored() {
     assert_eq!(with_format(GOLDEN_RECORD, LEGACY_FORMAT), GOLDEN_RECORD);
     assert_eq!(with_format(GOLDEN_RECORD, 0xFF), LEGACY_RECORD);
-    for format in [0u8, 3, 0x7F, 0xFE] {
+    for format in [0u8, 4, 0x7F, 0xFE] {
         let newer = with_format(GOLDEN_RECORD, format);
         let mut store = ParamStore::new(flash_with(&newer)).unwrap();
         assert_eq!(store.slots()[0], Err(SlotFault::UnknownFormat(format)));
@@ -478,10 +533,12 @@ fn slots_say_why_a_record_is_not_used() {
     assert_eq!(store.slots(), [Err(SlotFault::Corrupt), Err(SlotFault::Empty)]);
 
     // Forge the stored model version (payload byte 0, one varint byte) and fix the CRC.
-    let mut record = GOLDEN_RECORD;
+    let mut record = GOLDEN_RECORD_3;
     record[12] = (MODEL_VERSION + 1) as u8;
-    let crc = swg_protocol::crc32(&record[..HEADER_LEN + 37]);
-    record[56..60].copy_from_slice(&crc.to_le_bytes());
+    let payload = usize::from(u16::from_le_bytes([record[8], record[9]]));
+    let crc_at = (HEADER_LEN + payload).div_ceil(ALIGN) * ALIGN;
+    let crc = swg_protocol::crc32(&record[..HEADER_LEN + payload]);
+    record[crc_at..crc_at + 4].copy_from_slice(&crc.to_le_bytes());
     let mut store = ParamStore::new(flash_with(&record)).unwrap();
     assert_eq!(
         store.slots()[0],

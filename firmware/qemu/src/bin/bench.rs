@@ -11,7 +11,8 @@ use core::hint::black_box;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use model_core::checks::{MICRO_SLIP_SET, SEED_TABLE_FIT};
+use model_core::checks::{micro_slip_set, SEED_TABLE_FIT};
+use model_core::{Knot, Spring};
 use model_core::{Direction, Model};
 use swg_joint::budget::{self, CONTROL_TICK_INSTRUCTIONS};
 use swg_joint::{Compensator, Controller, FastModel};
@@ -230,14 +231,26 @@ fn main() -> ! {
 
     let params = SEED_TABLE_FIT.to_f32();
     let (Ok(model), Ok(fast)) = (Model::new(params), FastModel::new(&params)) else { swg_firmware_qemu::exit(false) };
+    // The sets a fit writes: θ0 off zero and a spring of the most knots (17, over ±1.2·A, its
+    // stiffness rising away from 0, the + side softer), then the kind's hysteresis.
+    let mut knots = [Knot::default(); 17];
+    for (j, knot) in knots.iter_mut().enumerate() {
+        let u = j as f32 / 8.0 - 1.0;
+        let stiffness = 9.0e3 * (1.0 + 2.0 * u * u) * if u > 0.0 { 0.8 } else { 1.0 };
+        *knot = Knot { x: 1.2 * AMPLITUDE * u, stiffness };
+    }
+    let Ok(spring) = Spring::of_knots(&knots, [-1.2 * AMPLITUDE, 1.2 * AMPLITUDE]) else { swg_firmware_qemu::exit(false) };
+    let hysteresis = GearModel::paper(model_core::Params { c1: 0.0, c2: 0.0, c3: 0.0, ..params });
     let genetic = JointParams {
         model_version: MODEL_VERSION,
-        model: GearModel::Genetic(params),
+        model: GearModel { zero: 1.0e-4, spring, ..hysteresis },
         gear_ratio: RATIO,
         torque_limit: 100.0,
         direction_band: 1.0e-6,
     };
-    let slip = JointParams { model: GearModel::MicroSlip(MICRO_SLIP_SET.to_f32()), ..genetic };
+    let Ok(slip_set) = micro_slip_set() else { swg_firmware_qemu::exit(false) };
+    let slip_hysteresis = slip_set.map(|_, v| v as f32);
+    let slip = JointParams { model: GearModel { zero: 1.0e-4, spring, ..slip_hysteresis }, ..genetic };
 
     // The loop and the black boxes alone, subtracted from every measurement.
     let baseline = ticks(|| {
