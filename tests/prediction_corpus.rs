@@ -33,7 +33,7 @@ pub fn motion(name: &str) -> Motion {
 
 pub fn simulation(noisy: bool) -> Simulation {
     Simulation {
-        params: GearModel::Genetic(genetic_gear()),
+        params: GearModel::paper(genetic_gear()),
         amplitude_rad: 1.168e-3,
         frequencies_hz: vec![0.5],
         cycles: 4,

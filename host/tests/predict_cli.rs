@@ -38,7 +38,7 @@ fn auto_picks_micro_slip_for_a_micro_slip_gear_and_predicts_other_motions() {
     let candidates = report["candidates"].as_array().unwrap();
     assert_eq!(candidates.len(), 2);
     assert!(report["held_out"]["samples"].as_u64().unwrap() > 0);
-    assert_eq!(report["params"]["stiffness"].as_array().unwrap().len(), 16);
+    assert!(!report["params"]["elements"].as_array().unwrap().is_empty());
 
     let other = simulate(dir.path(), "nested.csv", "micro-slip", "nested");
     let pred = dir.path().join("pred.csv");

@@ -261,8 +261,8 @@ impl<F: Real> GearModel<F> {
     /// (rad; negative or NaN counts as 0); the micro-slip kind needs none (noise only makes tiny
     /// reversible loops).
     pub fn evaluator(&self, band: F) -> Result<Evaluator<F>, Error> {
-        if let Err((name, _)) = self.check() {
-            return Err(Error::InvalidParameter(name));
+        if let Err((name, fault)) = self.check() {
+            return Err(Error::InvalidParameter(name, fault));
         }
         let hysteresis = match &self.hysteresis {
             Hysteresis::Genetic(g) => HysteresisState::Genetic(GeneticMemory::new(g.model()?, band)),

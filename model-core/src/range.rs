@@ -115,7 +115,8 @@ impl Wide {
         let knots_k = self
             .all()
             .iter()
-            .filter_map(|(name, _)| matches!(name, ParamName::KnotStiffness(_)).then(|| value(*name).abs()))
+            .filter(|(name, _)| matches!(name, ParamName::KnotStiffness(_)))
+            .map(|(name, _)| value(*name).abs())
             .fold(0.0, f64::max);
         torque += knots_k * d_spring;
         stiffness += knots_k;
@@ -179,7 +180,7 @@ pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culp
     let wide = Wide::of(model);
     // θ0 is a deflection the encoders read: within the joint's plausible range (so that x stays
     // within twice it, where the evaluators are bounded).
-    if !(wide.get(ParamName::Zero).abs() <= d) {
+    if !matches!(wide.get(ParamName::Zero).abs().partial_cmp(&d), Some(Ordering::Less | Ordering::Equal)) {
         return Err(Culprit::Param(ParamName::Zero));
     }
     if let Hysteresis::MicroSlip(_) = model.hysteresis {

@@ -141,14 +141,14 @@ pub struct MotionOutcome {
 #[derive(Clone, Debug)]
 pub enum Identified {
     Loop(Fit),
-    Motion(MotionOutcome),
+    Motion(Box<MotionOutcome>),
 }
 
 impl Identified {
     /// The model a params file holds.
     pub fn model(&self) -> GearModel<f64> {
         match self {
-            Identified::Loop(fit) => GearModel::Genetic(fit.params),
+            Identified::Loop(fit) => GearModel::paper(fit.params),
             Identified::Motion(outcome) => outcome.chosen.model,
         }
     }
@@ -227,7 +227,7 @@ pub fn fit_dataset(
                 .min_by(|a, b| a.held_out_rms.unwrap_or(a.rms).total_cmp(&b.held_out_rms.unwrap_or(b.rms)))
                 .cloned()
                 .ok_or(FitError::Degenerate)?;
-            Identified::Motion(MotionOutcome {
+            Identified::Motion(Box::new(MotionOutcome {
                 chosen,
                 candidates,
                 held_out: n - training,
@@ -239,7 +239,7 @@ pub fn fit_dataset(
                         fitted.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
                     (hi - lo) / 2.0
                 },
-            })
+            }))
         }
     };
     let lines = lines_per_branch(&data.theta, &data.torque, &prepared.branch);
@@ -251,7 +251,7 @@ pub fn fit_dataset(
             // A loop table's samples are on one symmetric loop: a model that has the loop's
             // stateless form is evaluated on it, any other run along the samples.
             let on_loop = match &identified {
-                Identified::Loop(_) => model.symmetric_model(),
+                Identified::Loop(_) => model.paper_params().map(Model::new).transpose(),
                 Identified::Motion(_) => Ok(None),
             };
             match on_loop {

@@ -16,8 +16,8 @@ use crate::numeric::linalg::Cholesky;
 use crate::numeric::nnls::nnls_normal;
 use crate::numeric::optimize::{brent, pso, PsoOptions};
 use crate::prepare::NoiseModel;
-use model_core::memory::{slip_grid, GeneticMemory, Hysteretic, SlipElements, SlipParams};
-use model_core::{GearModel, Identifiable, Kind, Model, Params, SLIP_ELEMENTS, TURNING_POINTS};
+use model_core::memory::{slip_grid, GeneticMemory, Hysteretic, SlipElements};
+use model_core::{GearModel, Identifiable, Kind, Model, Params, SlipElement, Spring, SLIP_ELEMENTS, TURNING_POINTS};
 
 /// The swarm runs the genetic kind on at most this many samples of the motion.
 const SWARM_SAMPLES: usize = 4096;
@@ -219,7 +219,7 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
     let mut params = None;
     for _ in 0..rounds {
         if let (Some(noise), Some(params)) = (&motion.noise, params) {
-            weights = Some(motion.weights(&GearModel::Genetic(params), noise)?);
+            weights = Some(motion.weights(&GearModel::paper(params), noise)?);
         }
         let objective = |s: f64| {
             genetic_at(motion.theta, motion.torque, motion.training, weights.as_deref(), scale, s.sinh(), motion.band)
@@ -236,7 +236,7 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
         );
     }
     let params = params.ok_or(FitError::Degenerate)?;
-    motion.score(GearModel::Genetic(params), evaluations)
+    motion.score(GearModel::paper(params), evaluations)
 }
 
 /// The slip grid for `motion`: from 3σ of the deflection noise (at least 10⁻³ of the range) to
@@ -368,29 +368,24 @@ pub fn fit_micro_slip(motion: &Motion, _options: &FitOptions) -> Result<MotionFi
     let scale = motion.scale();
     let (slip_min, slip_max) = slip_range(motion);
     let run = ElementRun::new(slip_min, slip_max)?;
-    let solve = |weights: Option<&[f64]>| -> Result<SlipParams<f64, SLIP_ELEMENTS>, FitError> {
+    let grid = slip_grid::<f64, SLIP_ELEMENTS>(slip_min, slip_max)?;
+    let solve = |weights: Option<&[f64]>| -> Result<GearModel<f64>, FitError> {
         let coef = slip_coefficients(motion, scale, &run, weights, &[])?;
-        let mut stiffness = [0.0; SLIP_ELEMENTS];
-        for (k, c) in stiffness.iter_mut().zip(&coef[3..]) {
-            *k = c / scale;
+        let mut elements = [SlipElement::default(); SLIP_ELEMENTS];
+        for ((element, c), slip) in elements.iter_mut().zip(&coef[3..]).zip(grid) {
+            *element = SlipElement { slip, stiffness: c / scale };
         }
-        Ok(SlipParams {
-            c1: coef[0] / scale,
-            c2: coef[1] / scale.powi(3),
-            c3: coef[2] / scale.powi(5),
-            stiffness,
-            slip_min,
-            slip_max,
-        })
+        let spring = Spring::polynomial(coef[0] / scale, coef[1] / scale.powi(3), coef[2] / scale.powi(5));
+        Ok(GearModel::micro_slip(0.0, spring, &elements)?)
     };
-    let mut params = solve(None)?;
+    let mut model = solve(None)?;
     if let Some(noise) = &motion.noise {
         for _ in 0..REWEIGHTINGS {
-            let weights = motion.weights(&GearModel::MicroSlip(params), noise)?;
-            params = solve(Some(&weights))?;
+            let weights = motion.weights(&model, noise)?;
+            model = solve(Some(&weights))?;
         }
     }
-    motion.score(GearModel::MicroSlip(params), 1 + REWEIGHTINGS)
+    motion.score(model, 1 + REWEIGHTINGS)
 }
 
 #[cfg(test)]
@@ -418,9 +413,11 @@ mod tests {
         for (i, k) in stiffness.iter_mut().enumerate() {
             *k = if i % 3 == 0 { 400.0 + 50.0 * i as f64 } else { 0.0 };
         }
-        let truth = SlipParams { c1: 8000.0, c2: 1.0e10, c3: 0.0, stiffness, slip_min, slip_max };
-        let torque: Vec<f64> =
-            run(&GearModel::MicroSlip(truth), &theta, 0.0).unwrap().iter().map(|e| e.torque).collect();
+        let grid = slip_grid::<f64, SLIP_ELEMENTS>(slip_min, slip_max).unwrap();
+        let elements: Vec<SlipElement<f64>> =
+            grid.iter().zip(stiffness).map(|(&slip, stiffness)| SlipElement { slip, stiffness }).collect();
+        let truth = GearModel::micro_slip(0.0, Spring::polynomial(8000.0, 1.0e10, 0.0), &elements).unwrap();
+        let torque: Vec<f64> = run(&truth, &theta, 0.0).unwrap().iter().map(|e| e.torque).collect();
         let motion = Motion { theta: &theta, torque: &torque, training: theta.len(), noise: None, band: 0.0 };
         let fitted = fit_micro_slip(&motion, &FitOptions::default()).unwrap();
         let scale = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
@@ -431,7 +428,7 @@ mod tests {
     fn genetic_recovers_its_own_gear_on_nested_motion() {
         let theta = nested(6000, 1.2e-3);
         let truth = Params::from_identifiable(2.2e4, 4.0e9, 0.0, Identifiable { h: 1.5, r: 1.2 }, 1.2e-3).unwrap();
-        let torque: Vec<f64> = run(&GearModel::Genetic(truth), &theta, 0.0).unwrap().iter().map(|e| e.torque).collect();
+        let torque: Vec<f64> = run(&GearModel::paper(truth), &theta, 0.0).unwrap().iter().map(|e| e.torque).collect();
         let motion = Motion { theta: &theta, torque: &torque, training: theta.len(), noise: None, band: 0.0 };
         let fitted = fit_genetic(&motion, &FitOptions::default()).unwrap();
         let scale = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));

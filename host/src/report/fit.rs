@@ -164,7 +164,7 @@ impl FitReport {
             model: model_core::MODEL_NAME,
             model_version: MODEL_VERSION,
             input,
-            params: GearModel::Genetic(fit.params),
+            params: GearModel::paper(fit.params),
             identifiable: Some(IdentifiableReport {
                 h: fit.identifiable.h,
                 r: fit.identifiable.r,
@@ -269,7 +269,7 @@ fn write_parameters(s: &mut String, model: &GearModel<f64>) {
     });
     for (name, values) in lines {
         let _ = match values.as_slice() {
-            [value] => writeln!(s, "  {:<8} = {value:>12.5e} {}", name.as_str(), name.unit()),
+            [value] => writeln!(s, "  {:<9} = {value:>12.5e} {}", name.as_str(), name.unit()),
             many => {
                 let total: f64 = many.iter().sum();
                 let listed: Vec<String> = many.iter().map(|v| format!("{v:.3e}")).collect();

@@ -128,7 +128,7 @@ fn check_names_the_first_bad_parameter() {
     ];
     for (model, fault) in cases {
         assert_eq!(model.check(), Err(fault), "{model:?}");
-        assert_eq!(model.validate(), Err(Error::InvalidParameter(fault.0)), "{model:?}");
+        assert_eq!(model.validate(), Err(Error::InvalidParameter(fault.0, fault.1)), "{model:?}");
     }
     // A name the model does not have changes nothing.
     assert_eq!(genetic.with(ParamName::Slip(0), 5.0), genetic);
