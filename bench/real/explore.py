@@ -536,6 +536,17 @@ def section_data(p: Protocol) -> None:
               f'| {x.min():.2f} … {x.max():.2f} | {r.torque.min():.2f} … {r.torque.max():.2f} '
               f'| {end_theta:.2f} | {r.torque[-10:].mean():+.3f} | {gap} |')
         previous_end = end_theta
+    print('\nThe motor enabling, in the runs whose log starts ≥ 0.5 s before it (torque above half '
+          'its rest-window mean), across the step: mean over the rest window after it minus before:')
+    for r in p.runs:
+        rest = np.flatnonzero(r.rest)
+        step = rest[np.argmax(r.torque[rest] > 0.5 * r.torque_rest)]
+        if r.torque_rest > 0.05 and r.t[step] >= 0.5:
+            after = rest[rest > step + 10]
+            d_torque = r.torque[after].mean() - r.torque[:step].mean()
+            d_theta = r.theta[after].mean() - r.theta[:step].mean()
+            print(f'- {r.key}: at {r.t[step]:.2f} s, ΔT {d_torque:+.3f} N·m, Δθ {d_theta * 1e3:+.3f} mrad, '
+                  f'ΔT/Δθ {d_torque / d_theta:.0f} N·m/rad')
     steps = np.concatenate([np.diff(np.unique(np.round(r.theta, 12))) for r in p.runs])
     print(f'\nSmallest deflection step: {steps[steps > 1e-9].min() * 1e6:.2f} µrad. '
           f'Rest-window deflection sd {np.mean([r.theta[r.rest].std() for r in p.runs]) * 1e3:.3f} mrad '
