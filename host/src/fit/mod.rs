@@ -12,6 +12,7 @@
 pub mod baselines;
 pub mod basis;
 pub mod motion;
+pub mod spring;
 
 use crate::gear::reversal_band;
 use crate::input::Dataset;
