@@ -1,8 +1,10 @@
 //! The `predict` pipeline: a fitted model run along a recording's deflection from rest, with
-//! hysteresis memory (model-core's stateful evaluator), as the joint's firmware runs it.
-use crate::gear::{reversal_band, run};
+//! hysteresis memory (model-core's stateful evaluator), following the recording's reversals as
+//! `fit` does: found offline over the whole recording ([`crate::gear::step_offline`]), or, with
+//! a band, causally as the joint's firmware finds them.
+use crate::gear::{run, run_offline};
 use crate::input::Recording;
-use crate::prepare::deflection_noise;
+use crate::prepare::OfflineRun;
 use model_core::GearModel;
 
 /// The model's torque and stiffness at every sample of a recording.
@@ -14,22 +16,32 @@ pub struct Prediction {
     pub torque: Vec<f64>,
     /// Predicted stiffness dT/dθ, N·m/rad.
     pub stiffness: Vec<f64>,
-    /// The reversal band the evaluator used, rad.
-    pub band_rad: f64,
+    /// The causal reversal band the evaluator used, rad; `None`: the offline reversals.
+    pub band_rad: Option<f64>,
+    /// The first sample scored: the ones before came before the motion's extremes wiped out an
+    /// unknown start state (0 for a recording that starts at rest), as `fit` counts them.
+    pub scored_from: usize,
 }
 
 /// How far a prediction is from the recording, and how smooth it is.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct PredictionSummary {
+    /// Samples predicted.
     pub n: usize,
-    /// Σ (measured − predicted)², (N·m)².
+    /// Samples before the motion had visited both its extremes, in a recording that does not
+    /// say it starts at rest: the model ran through them, but they are not scored.
+    pub start_state_samples: usize,
+    /// Σ (measured − predicted)² over the scored samples, (N·m)².
     pub rss: f64,
-    /// RMS of measured − predicted, N·m.
+    /// RMS of measured − predicted over the scored samples, N·m.
     pub rms: f64,
     /// Largest change of the predicted torque between consecutive samples, N·m.
     pub max_step_nm: f64,
-    /// The reversal band, rad.
-    pub band_rad: f64,
+    /// How the reversals were found: `offline` (over the whole recording) or `band`.
+    pub reversals: &'static str,
+    /// The causal reversal band, rad (with `band`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub band_rad: Option<f64>,
 }
 
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -41,41 +53,53 @@ pub enum PredictError {
     Band(f64),
 }
 
-/// Runs `model` along `recording` from rest. `band` is the smallest reversal
-/// the evaluator follows, rad; `None` takes [`reversal_band`] of the recording's deflection noise, as `fit` does.
+/// Runs `model` along `recording` from rest. Without `band` it follows the reversals found
+/// offline over the whole recording (as `fit`); with one, it follows them causally, taking
+/// reversals smaller than `band` (rad) for noise, as the joint does.
 pub fn predict(model: &GearModel<f64>, recording: &Recording, band: Option<f64>) -> Result<Prediction, PredictError> {
-    let band = match band {
-        Some(band) if band.is_finite() && band >= 0.0 => band,
+    let offline = OfflineRun::of(recording);
+    let deflection = &recording.deflection;
+    let evaluations = match band {
+        None => run_offline(model, deflection, &offline.reversals),
+        Some(band) if band.is_finite() && band >= 0.0 => run(model, deflection, band),
         Some(band) => return Err(PredictError::Band(band)),
-        None => reversal_band(deflection_noise(&recording.deflection)),
-    };
-    let evaluations = run(model, &recording.deflection, band).map_err(|(index, source)| PredictError::Evaluation {
+    }
+    .map_err(|(index, source)| PredictError::Evaluation {
         index,
         time: recording.time[index],
-        deflection: recording.deflection[index],
+        deflection: deflection[index],
         source,
     })?;
     let (torque, stiffness) = evaluations.iter().map(|e| (e.torque, e.stiffness)).unzip();
     Ok(Prediction {
         time: recording.time.clone(),
-        deflection: recording.deflection.clone(),
+        deflection: deflection.clone(),
         torque,
         stiffness,
         band_rad: band,
+        scored_from: offline.scored_from,
     })
 }
 
 impl Prediction {
-    /// The prediction against the measured torque of the same samples.
+    /// Whether sample `index` is scored.
+    pub fn is_scored(&self, index: usize) -> bool {
+        index >= self.scored_from
+    }
+
+    /// The prediction against the measured torque of the same samples, over the scored ones.
     pub fn summary(&self, measured: &[f64]) -> PredictionSummary {
-        let rss: f64 = measured.iter().zip(&self.torque).map(|(m, p)| (m - p) * (m - p)).sum();
+        let scored = self.scored_from.min(self.torque.len());
+        let rss: f64 = measured.iter().zip(&self.torque).skip(scored).map(|(m, p)| (m - p) * (m - p)).sum();
         let n = self.torque.len();
         let max_step_nm = self.torque.windows(2).map(|w| (w[1] - w[0]).abs()).fold(0.0, f64::max);
         PredictionSummary {
             n,
+            start_state_samples: scored,
             rss,
-            rms: if n == 0 { 0.0 } else { (rss / n as f64).sqrt() },
+            rms: if n > scored { (rss / (n - scored) as f64).sqrt() } else { 0.0 },
             max_step_nm,
+            reversals: if self.band_rad.is_some() { "band" } else { "offline" },
             band_rad: self.band_rad,
         }
     }

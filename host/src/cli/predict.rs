@@ -1,4 +1,5 @@
-//! `swg-host predict`: run fitted parameters along a recording from rest.
+//! `swg-host predict`: run fitted parameters along a recording from rest, following its
+//! reversals as `fit` does.
 use super::InputOptions;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -16,13 +17,15 @@ pub struct PredictArgs {
     params: PathBuf,
     /// Bench recording (`# swg-recording v1`) whose deflection the model follows.
     recording: PathBuf,
-    /// Write the prediction (time_s,deflection_rad,torque_nm,stiffness_nm_per_rad) to this CSV file.
+    /// Write the prediction (time_s,deflection_rad,torque_nm,stiffness_nm_per_rad,scored) to this
+    /// CSV file; `scored` is 0 before the motion's extremes wiped out an unknown start state.
     #[arg(long, value_name = "PRED.csv")]
     out: Option<PathBuf>,
-    /// Print the summary (n, rss, rms, max_step_nm, band_rad) as JSON.
+    /// Print the summary (n, start_state_samples, rss, rms, max_step_nm, reversals) as JSON.
     #[arg(long)]
     json: bool,
-    /// Smallest reversal the model follows, rad (default: 3× the recording's deflection noise).
+    /// Follow the reversals causally, taking those smaller than RAD for noise, as the joint
+    /// does (default: the turning points found offline over the whole recording, as `fit`).
     #[arg(long, value_name = "RAD")]
     band: Option<f64>,
     #[command(flatten)]
@@ -47,14 +50,29 @@ pub fn run(args: PredictArgs) -> Result<()> {
     if args.json {
         println!("{json}");
     } else {
+        let reversals = match summary.band_rad {
+            Some(band) => format!("reversals followed causally, band {band:.3e} rad"),
+            None => "reversals found offline over the whole recording".to_string(),
+        };
         println!(
-            "{}: {} samples predicted from rest with {} (reversal band {:.3e} rad)",
+            "{}: {} samples predicted from rest with {} ({reversals})",
             args.recording.display(),
             summary.n,
             args.params.display(),
-            summary.band_rad
         );
-        println!("  against the recorded torque: RSS {:.5} (N·m)², RMS {:.4} N·m", summary.rss, summary.rms);
+        if summary.start_state_samples > 0 {
+            println!(
+                "  {} samples before the motion's extremes wiped out the unknown start state: run through, not scored \
+                 (the recording does not say `# start: rest`)",
+                summary.start_state_samples
+            );
+        }
+        println!(
+            "  against the recorded torque ({} samples): RSS {:.5} (N·m)², RMS {:.4} N·m",
+            summary.n - summary.start_state_samples,
+            summary.rss,
+            summary.rms
+        );
         println!("  largest change of the predicted torque between samples: {:.4} N·m", summary.max_step_nm);
         if let Some(out) = &args.out {
             println!("wrote {}", out.display());
