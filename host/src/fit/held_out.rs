@@ -8,7 +8,8 @@
 //!   or the smallest amplitude: the fit must span the amplitudes it is judged on.
 //! - **One or two runs**: interleaved cycles. Each run's cycles run from one maximum (turning
 //!   point) to the next; every fourth cycle, the 2nd, 6th, 10th, …, is held out, so the held-out
-//!   samples are spread over the whole run.
+//!   samples are spread over the whole run. A run of fewer than two whole cycles holds out its
+//!   legs (turning point to turning point) by the same rule.
 use super::motion::Span;
 use crate::gear::Reversals;
 
@@ -46,7 +47,8 @@ impl HeldOutRule {
                                      smallest"
                 .to_string(),
             HeldOutRule::Cycles => format!(
-                "interleaved cycles: cycle {} of every {CYCLE_PERIOD} between consecutive maxima of each run",
+                "interleaved cycles: cycle {} of every {CYCLE_PERIOD} between consecutive maxima of each run (legs \
+                 between turning points in a run of fewer than two cycles)",
                 CYCLE_HELD_OUT + 1
             ),
         }
@@ -92,10 +94,22 @@ fn held_out_runs(runs: &[RunShape<'_>]) -> Vec<usize> {
     chosen
 }
 
-/// A run's scored samples split at its maxima, every [`CYCLE_PERIOD`]th cycle held out.
+/// A run's scored samples split at its maxima, every [`CYCLE_PERIOD`]th cycle held out; split
+/// at every turning point (legs) when that holds out nothing.
 fn held_out_cycles(run: &RunShape<'_>) -> Vec<Span> {
-    let n = run.theta.len();
     let maxima: Vec<usize> = run.reversals.maxima().collect();
+    let spans = every_fourth(run, &maxima);
+    if spans.iter().any(|s| s.held_out) {
+        spans
+    } else {
+        every_fourth(run, &run.reversals.indices)
+    }
+}
+
+/// A run's scored samples split at `bounds` (increasing), every [`CYCLE_PERIOD`]th piece
+/// between two of them held out.
+fn every_fourth(run: &RunShape<'_>, bounds: &[usize]) -> Vec<Span> {
+    let n = run.theta.len();
     let mut spans = Vec::new();
     let mut push = |range: std::ops::Range<usize>, held_out: bool| {
         let range = range.start.max(run.scored_from)..range.end;
@@ -109,11 +123,11 @@ fn held_out_cycles(run: &RunShape<'_>) -> Vec<Span> {
             _ => spans.push(Span { range, held_out }),
         }
     };
-    push(0..maxima.first().copied().unwrap_or(n), false);
-    for (k, pair) in maxima.windows(2).enumerate() {
+    push(0..bounds.first().copied().unwrap_or(n), false);
+    for (k, pair) in bounds.windows(2).enumerate() {
         push(pair[0]..pair[1], k % CYCLE_PERIOD == CYCLE_HELD_OUT);
     }
-    push(maxima.last().copied().unwrap_or(n)..n, false);
+    push(bounds.last().copied().unwrap_or(n)..n, false);
     spans
 }
 
@@ -177,6 +191,18 @@ mod tests {
                 assert_eq!(run[0].held_out, held.contains(&k));
             }
         }
+    }
+
+    #[test]
+    fn a_run_of_fewer_than_two_cycles_holds_out_a_leg() {
+        // 1.5 cycles: maxima at 250 and 1250, one whole cycle between them.
+        let theta: Vec<f64> = (0..1500).map(|i| (std::f64::consts::TAU * i as f64 / 1000.0).sin()).collect();
+        let reversals = crate::prepare::reversals(&theta);
+        let (spans, _) = hold_out(&[shape(&theta, &reversals)]);
+        let held: Vec<&Span> = spans[0].iter().filter(|s| s.held_out).collect();
+        // Turning points at 250, 750, 1250: the second leg, 750..1250.
+        assert_eq!(held.len(), 1, "{spans:?}");
+        assert_eq!(held[0].range, 750..1250);
     }
 
     #[test]

@@ -35,11 +35,14 @@ pub struct FitOptions {
     pub max_iterations: usize,
     /// Weight residuals by total noise; `None` fits plain least squares (loop tables).
     pub noise: Option<NoiseModel>,
+    /// A model of the same kind fitted to part of the same data, whose searched parameters the
+    /// search may start from instead of searching globally (the refit on every sample).
+    pub start: Option<GearModel<f64>>,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None }
+        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None, start: None }
     }
 }
 
@@ -383,7 +386,8 @@ fn fit_recordings(
             // The written parameters use every sample.
             let kind = best.model.kind();
             progress(Stage::Refit { kind });
-            let chosen = motion::fit_kind(kind, &all_fitted, &options)?;
+            let refit = FitOptions { start: Some(best.model), ..options };
+            let chosen = motion::fit_kind(kind, &all_fitted, &refit)?;
             held_out_spans = Some(spans);
             (None, Identified::Motion(motion_outcome(chosen, candidates, Some(rule))))
         }

@@ -38,6 +38,10 @@ const SWARM_SAMPLES: usize = 4096;
 /// The searches that only set weights or pick r (the genetic kind's polish, the micro-slip
 /// kind's reweighting rounds before the last) run on at most this many samples.
 const POLISH_SAMPLES: usize = 1 << 17;
+/// The polish's tolerance in s = asinh(r).
+const POLISH_TOLERANCE: f64 = 1e-8;
+/// The polish's half-width in s around the r of a fit it starts from (`FitOptions::start`).
+const START_HALF_WIDTH: f64 = 0.05;
 /// Reweighting rounds for the total-noise weights.
 const REWEIGHTINGS: usize = 2;
 /// The smallest slip deflection of the micro-slip grid, in deflection-noise standard
@@ -174,12 +178,26 @@ impl Iterator for RunSamples<'_> {
     }
 }
 
-/// A strided subsample of every run (turning points kept, stepped but not counted), with the
-/// weights of the model it was made with.
+/// A strided subsample of every run (turning points kept, stepped but not counted), each
+/// sample with its weight ([`Subsample::reweigh`]).
 struct Subsample {
     runs: Vec<Vec<Sample>>,
     /// Whether it holds every sample.
     whole: bool,
+}
+
+impl Subsample {
+    /// Stores each sample's weight by `weighting`, its model stepped along the subsample alone:
+    /// at the samples kept, the same state as along every sample.
+    fn reweigh(&mut self, weighting: Weighting<'_>) -> Result<(), FitError> {
+        self.runs.par_iter_mut().try_for_each(|run| -> Result<(), FitError> {
+            let mut weigher = weighting.start()?;
+            for sample in run.iter_mut() {
+                sample.weight = weigher.weight(sample)?;
+            }
+            Ok(())
+        })
+    }
 }
 
 /// The samples a pass steps through.
@@ -411,20 +429,18 @@ impl<'a> Motion<'a> {
     }
 
     /// Every `stride`-th sample of each run from its first (fitted or held out as it is), and
-    /// the turning points between them (stepped, not counted), weighted by `weighting`; every
-    /// sample when the motion has at most `most`.
-    fn subsample(&self, most: usize, weighting: Weighting<'_>) -> Result<Subsample, FitError> {
+    /// the turning points between them (stepped, not counted), of weight 1; every sample when
+    /// the motion has at most `most`.
+    fn subsample(&self, most: usize) -> Subsample {
         let total: usize = self.runs.iter().map(|run| run.theta.len()).sum();
         let stride = total.div_ceil(most.max(1)).max(1);
         let runs = self
             .runs
             .par_iter()
-            .map(|run| -> Result<Vec<Sample>, FitError> {
+            .map(|run| {
                 let mut turns = run.reversals.indices.iter().copied().peekable();
-                let mut weigher = weighting.start()?;
                 let mut kept = Vec::with_capacity(run.theta.len().div_ceil(stride));
                 for mut sample in run.samples() {
-                    sample.weight = weigher.weight(&sample)?;
                     let on_grid = sample.index % stride == 0;
                     let turning = turns.next_if_eq(&sample.index).is_some();
                     if on_grid || turning {
@@ -434,10 +450,10 @@ impl<'a> Motion<'a> {
                         kept.push(sample);
                     }
                 }
-                Ok(kept)
+                kept
             })
-            .collect::<Result<_, _>>()?;
-        Ok(Subsample { runs, whole: stride == 1 })
+            .collect();
+        Subsample { runs, whole: stride == 1 }
     }
 
     /// Errors of `model` run along every run from rest, summed as the evaluator steps.
@@ -525,41 +541,44 @@ fn genetic_at(
 /// The genetic kind's identifiable parameters: c1, c2, c3, h and r.
 const GENETIC_PARAMETERS: usize = 5;
 
-/// Fits the genetic kind with Madelung's rules to `motion`.
+/// Fits the genetic kind with Madelung's rules to `motion`: r by the swarm, or near the r of
+/// `options.start` (a refit), then polished.
 pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {
     motion.check()?;
     let scale = motion.scale();
     let s_limit = R_LIMIT.asinh();
-    // The swarm on a strided subsample: the same states at the samples it keeps.
-    let coarse = motion.subsample(SWARM_SAMPLES, Weighting::Carried)?;
-    let objective = |source: Source<'_>, weighting: Weighting<'_>, s: f64| {
-        genetic_at(source, weighting, scale, s.sinh()).map_or(f64::INFINITY, |(_, rss)| rss)
+    let objective = |sub: &Subsample, s: f64| {
+        genetic_at(Source::Stored(sub), Weighting::Carried, scale, s.sinh()).map_or(f64::INFINITY, |(_, rss)| rss)
     };
-    let swarm = pso(
-        |x| objective(Source::Stored(&coarse), Weighting::Carried, x[0]),
-        &[(-s_limit, s_limit)],
-        &PsoOptions {
-            particles: options.particles,
-            max_iterations: options.max_iterations,
-            stall_iterations: 12,
-            seed: options.seed,
-        },
-        |_, _| {},
-    );
-    drop(coarse);
-    let mut evaluations = swarm.evaluations;
-    let mut s = swarm.best[0];
-    let mut half_width = (3.0 * swarm.spread[0]).clamp(0.02, 0.1);
+    let start = options.start.as_ref().and_then(|model| model.identifiable(1.0)).map(|id| id.r.asinh());
+    let (mut s, mut half_width, mut evaluations) = match start {
+        Some(s) => (s, START_HALF_WIDTH, 0),
+        None => {
+            // The swarm on a strided subsample: the same states at the samples it keeps.
+            let coarse = motion.subsample(SWARM_SAMPLES);
+            let swarm = pso(
+                |x| objective(&coarse, x[0]),
+                &[(-s_limit, s_limit)],
+                &PsoOptions {
+                    particles: options.particles,
+                    max_iterations: options.max_iterations,
+                    stall_iterations: 12,
+                    seed: options.seed,
+                },
+                |_, _| {},
+            );
+            (swarm.best[0], (3.0 * swarm.spread[0]).clamp(0.02, 0.1), swarm.evaluations)
+        }
+    };
     let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
+    let mut polish = motion.subsample(POLISH_SAMPLES);
     // The model whose weights the last round used, and that round's parameters.
     let (mut weighed_by, mut params): (Option<GearModel<f64>>, Option<Params<f64>>) = (None, None);
-    let mut whole = false;
     for _ in 0..rounds {
         let previous = params.map(GearModel::Genetic);
-        let polish = motion.subsample(POLISH_SAMPLES, motion.weighting(previous.as_ref()))?;
-        whole = polish.whole;
+        polish.reweigh(motion.weighting(previous.as_ref()))?;
         let (lo, hi) = ((s - half_width).max(-s_limit), (s + half_width).min(s_limit));
-        let (polished, _, used) = brent(|s| objective(Source::Stored(&polish), Weighting::Carried, s), lo, hi, 1e-8);
+        let (polished, _, used) = brent(|s| objective(&polish, s), lo, hi, POLISH_TOLERANCE);
         evaluations += used;
         s = polished;
         half_width = 0.05;
@@ -567,7 +586,7 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
         weighed_by = previous;
     }
     let mut params = params.ok_or(FitError::Degenerate)?;
-    if !whole {
+    if !polish.whole {
         // The linear parameters at the polished r on every sample, with the same weights.
         params = genetic_at(Source::Full(motion), motion.weighting(weighed_by.as_ref()), scale, s.sinh())?.0;
     }
@@ -692,13 +711,14 @@ pub fn fit_micro_slip(motion: &Motion, _options: &FitOptions) -> Result<MotionFi
         })
     };
     let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
+    let mut sub = motion.subsample(POLISH_SAMPLES);
     let mut model: Option<GearModel<f64>> = None;
     for round in 1..=rounds {
         let weighting = motion.weighting(model.as_ref());
         let coef = if round == rounds {
             slip_coefficients(Source::Full(motion), scale, &grid, weighting, &[])?
         } else {
-            let sub = motion.subsample(POLISH_SAMPLES, weighting)?;
+            sub.reweigh(weighting)?;
             slip_coefficients(Source::Stored(&sub), scale, &grid, Weighting::Carried, &[])?
         };
         model = Some(params(coef));
