@@ -47,9 +47,9 @@ impl HeldOutRule {
                                      smallest"
                 .to_string(),
             HeldOutRule::Cycles => format!(
-                "interleaved cycles: cycle {} of every {CYCLE_PERIOD} between consecutive maxima of each run (legs \
-                 between turning points in a run of fewer than two cycles)",
-                CYCLE_HELD_OUT + 1
+                "interleaved cycles: the {} of every {CYCLE_PERIOD} between consecutive maxima of each run, or of \
+                 its legs in a run of fewer than two cycles",
+                ["1st", "2nd", "3rd", "4th"][CYCLE_HELD_OUT]
             ),
         }
     }
