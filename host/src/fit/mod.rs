@@ -472,22 +472,26 @@ fn concatenated_loop_data(recordings: &[Recording]) -> Result<Prepared, FitDatas
     all.ok_or(FitDatasetError::NoInput)
 }
 
-/// The baselines on every sample of the recordings, each sample on the branch of its leg.
+/// The baselines on the scored samples of the recordings (as the fit's RSS), each sample on
+/// the branch of its leg.
 fn recording_baselines(recordings: &[Recording], offline: &[OfflineRun]) -> (Vec<BranchLine>, Option<ThreeSegment>) {
     let branch: Vec<Branch> = recordings
         .iter()
         .zip(offline)
         .flat_map(|(r, o)| {
-            o.reversals
-                .project(&r.deflection)
-                .zip(o.reversals.directions(r.deflection.len()))
-                .map(|(p, d)| Branch::of(d, p.theta_m + p.offset))
+            let along = o.reversals.project(&r.deflection).zip(o.reversals.directions(r.deflection.len()));
+            along.skip(o.scored_from).map(|(p, d)| Branch::of(d, p.theta_m + p.offset))
         })
         .collect();
+    fn scored<'r>(column: fn(&Recording) -> &[f64], recording: &'r Recording, run: &OfflineRun) -> &'r [f64] {
+        column(recording).get(run.scored_from..).unwrap_or(&[])
+    }
     let joined = |column: fn(&Recording) -> &[f64]| -> std::borrow::Cow<'_, [f64]> {
-        match recordings {
-            [one] => std::borrow::Cow::Borrowed(column(one)),
-            many => std::borrow::Cow::Owned(many.iter().flat_map(column).copied().collect()),
+        match (recordings, offline) {
+            ([one], [run]) => std::borrow::Cow::Borrowed(scored(column, one, run)),
+            _ => std::borrow::Cow::Owned(
+                recordings.iter().zip(offline).flat_map(|(r, o)| scored(column, r, o)).copied().collect(),
+            ),
         }
     };
     let (theta, torque) = (joined(|r| &r.deflection), joined(|r| &r.torque));

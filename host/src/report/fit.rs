@@ -241,7 +241,8 @@ impl FitReport {
     /// The summary printed for a person.
     pub fn human(&self) -> String {
         let mut s = String::new();
-        let _ = write!(s, "{} ({}, {} samples", self.input.path, self.input.kind.replace('_', " "), self.n);
+        let samples = if self.runs.is_empty() { self.n } else { self.runs.iter().map(|r| r.samples).sum() };
+        let _ = write!(s, "{} ({}, {samples} samples", self.input.path, self.input.kind.replace('_', " "));
         if let Some(tp) = self.input.turning_points {
             let _ = write!(s, ", {tp} turning points");
         }
