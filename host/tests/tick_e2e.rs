@@ -11,8 +11,8 @@ use model_core::checks::micro_slip_set;
 use swg_host::link::{Discarded, Link, LinkError};
 use swg_protocol::endpoint::{Configure, Control, GetDeviceInfo, GetStatus, WriteParams};
 use swg_protocol::{
-    ControlMode, ControlOutput, ControlSample, ControllerConfig, ErrorReply, JointParams, ParamFault,
-    ParamField, ParamName, RequestId, TickStatus, MODEL_VERSION,
+    ControlMode, ControlOutput, ControlSample, ControllerConfig, ErrorReply, JointParams, ParamFault, ParamField,
+    ParamName, RequestId, TickStatus, MODEL_VERSION,
 };
 
 const TICKS: usize = 1_000;

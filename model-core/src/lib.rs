@@ -154,11 +154,9 @@ impl ParamName {
             ParamName::C3 => "N·m/rad⁵",
             ParamName::Alpha => "N·m/rad per unit of ω",
             ParamName::Beta | ParamName::Omega => "1/s",
-            ParamName::Slip(_)
-            | ParamName::Zero
-            | ParamName::Knot(_)
-            | ParamName::RangeMin
-            | ParamName::RangeMax => "rad",
+            ParamName::Slip(_) | ParamName::Zero | ParamName::Knot(_) | ParamName::RangeMin | ParamName::RangeMax => {
+                "rad"
+            }
         }
     }
 }
@@ -217,7 +215,9 @@ impl fmt::Display for Error {
             Error::InvalidSlipRange => {
                 f.write_str("micro-slip deflections must satisfy 0 < d_min < d_max, both finite rad")
             }
-            Error::InvalidParameter(name, ParamFault::NotFinite) => write!(f, "parameter {name} is not a finite number"),
+            Error::InvalidParameter(name, ParamFault::NotFinite) => {
+                write!(f, "parameter {name} is not a finite number")
+            }
             Error::InvalidParameter(name, ParamFault::OutOfRange) => {
                 write!(f, "parameter {name} is out of range: {}", name.range())
             }

@@ -69,7 +69,11 @@ struct Wide {
 
 impl Wide {
     fn of<F: Real>(model: &GearModel<F>) -> Wide {
-        let mut wide = Wide { values: [(ParamName::Zero, 0.0); 2 * crate::spring::MAX_KNOTS + 3 * crate::gear::SLIP_ELEMENTS + 8], count: 0, kind: model.kind() };
+        let mut wide = Wide {
+            values: [(ParamName::Zero, 0.0); 2 * crate::spring::MAX_KNOTS + 3 * crate::gear::SLIP_ELEMENTS + 8],
+            count: 0,
+            kind: model.kind(),
+        };
         model.map(|name, value| {
             if let Some(slot) = wide.values.get_mut(wide.count) {
                 *slot = (name, f64_of(value));
@@ -133,7 +137,9 @@ impl Wide {
         }
         let width = 2.0 * d;
         let (t, k) = match self.kind {
-            crate::Kind::Genetic => genetic_bound(value(ParamName::Alpha), value(ParamName::Beta), value(ParamName::Omega), width),
+            crate::Kind::Genetic => {
+                genetic_bound(value(ParamName::Alpha), value(ParamName::Beta), value(ParamName::Omega), width)
+            }
             crate::Kind::MicroSlip => {
                 let mut bound = (0.0, 0.0);
                 for (name, _) in self.all() {
@@ -208,9 +214,10 @@ pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culp
         ParamName::Beta,
         ParamName::Omega,
     ];
-    let rest = wide.all().iter().map(|(name, _)| *name).filter(|name| {
-        matches!(name, ParamName::KnotStiffness(_) | ParamName::SlipStiffness(_) | ParamName::Alpha)
-    });
+    let rest =
+        wide.all().iter().map(|(name, _)| *name).filter(|name| {
+            matches!(name, ParamName::KnotStiffness(_) | ParamName::SlipStiffness(_) | ParamName::Alpha)
+        });
     first
         .into_iter()
         .chain(rest)

@@ -1,6 +1,5 @@
-//! The spring's part of a fit: where its knots go, the columns they give the linear solves, the
-//! spring a solve's weights make; and the deflection's zero θ0 with the torque sensor's offset,
-//! read from a recording's rest window.
+//! The spring's part of a fit: where its knots go, the columns they give the linear solves, and
+//! the spring a solve's weights make.
 //!
 //! **The knot rule.** Per side of x = θ − θ0, E = that side's largest |x| in the fitted samples,
 //! n = min(8, ⌊E / (10·σθ)⌋) knots at E·j/n (j = 1 … n), plus one at x = 0: up to 17 knots, the
@@ -15,7 +14,7 @@
 //! - 8 a side: the seed gear's quintic spring is then within 0.006 % of its peak torque.
 //! - Separate sides: the spring's asymmetry. K ≥ 0 at every knot (the solves ask it) keeps the
 //!   spring monotone, as the physics asks.
-use crate::numeric::mean;
+use crate::gear::Projected;
 use model_core::spring::MAX_KNOTS;
 use model_core::{Knot, Spring};
 
@@ -76,6 +75,17 @@ impl SpringBasis {
         model_core::spring::basis(&self.knots, x, torque, &mut stiffness);
     }
 
+    /// The columns as the offline model takes them (`crate::gear::step_offline`): at x_m,
+    /// carried to x along their slopes, B_j(x_m) + h_j(x_m)·(x − x_m), each divided by `scale`.
+    #[inline]
+    pub fn row(&self, at: Projected, scale: f64, out: &mut [f64]) {
+        let (mut torque, mut stiffness) = ([0.0; MAX_KNOTS], [0.0; MAX_KNOTS]);
+        model_core::spring::basis(&self.knots, at.theta_m, &mut torque, &mut stiffness);
+        for ((value, b), h) in out.iter_mut().zip(torque).zip(stiffness) {
+            *value = (b + h * at.offset) / scale;
+        }
+    }
+
     /// The spring of the knots' stiffnesses `weights` (N·m/rad, one per knot), over the fitted
     /// range. A weight that the solve left a hair below 0 is 0.
     pub fn spring(&self, weights: &[f64]) -> Result<Spring<f64>, model_core::Error> {
@@ -83,56 +93,6 @@ impl SpringBasis {
             self.knots.iter().zip(weights).map(|(&x, &k)| Knot { x, stiffness: k.max(0.0) }).collect();
         Spring::of_knots(&knots, self.range)
     }
-}
-
-/// The samples at a recording's start during which the gear stands still, and what they read.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct RestWindow {
-    /// Samples from the first.
-    pub samples: usize,
-    /// How long it lasts, s.
-    pub seconds: f64,
-    /// The mean deflection, rad: θ0 for a gear at rest.
-    pub deflection_rad: f64,
-    /// Its standard error, rad: the deflection noise over √samples.
-    pub deflection_se_rad: f64,
-    /// The mean torque, N·m: the torque sensor's offset for a gear at rest.
-    pub torque_nm: f64,
-}
-
-/// Band around the first sample's deflection within which the gear counts as still, in σθ:
-/// wider than noise ever spans at these sample counts, and wider than one encoder step
-/// (σθ ≥ step/√12).
-const REST_BAND_IN_NOISE: f64 = 4.0;
-/// Fewest samples of a rest window the recording does not declare (`# start: rest`): fewer say
-/// nothing about θ0 that the fit would not see better.
-const MIN_UNDECLARED_REST: usize = 20;
-/// An undeclared rest window's torque is at most this fraction of the recording's torque range:
-/// a gear held still under load is not at rest.
-const REST_TORQUE_FRACTION: f64 = 0.05;
-
-/// The leading samples whose deflection stays within 4σθ of the first's, when they make a rest
-/// window: any number when the recording says it starts at rest (`declared`), otherwise at
-/// least 20 at a torque within 5 % of the recording's torque range.
-pub fn rest_window(time: &[f64], deflection: &[f64], torque: &[f64], noise: f64, declared: bool) -> Option<RestWindow> {
-    let first = *deflection.first()?;
-    let band = REST_BAND_IN_NOISE * noise;
-    let samples = deflection.iter().take_while(|&&theta| (theta - first).abs() <= band).count();
-    let still = deflection.get(..samples)?;
-    let torque_still = torque.get(..samples)?;
-    let window = RestWindow {
-        samples,
-        seconds: time.get(samples - 1).zip(time.first()).map_or(0.0, |(end, start)| end - start),
-        deflection_rad: mean(still),
-        deflection_se_rad: noise / (samples as f64).sqrt(),
-        torque_nm: mean(torque_still),
-    };
-    if declared {
-        return Some(window);
-    }
-    let (lo, hi) = torque.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
-    let at_rest = window.torque_nm.abs() <= REST_TORQUE_FRACTION * (hi - lo);
-    (samples >= MIN_UNDECLARED_REST && at_rest).then_some(window)
 }
 
 #[cfg(test)]

@@ -138,7 +138,8 @@ impl Link {
         self.send(&frame)?;
         match self.reply_to(id)? {
             Response::Error(reason) => Err(LinkError::Refused(reason)),
-            response => E::response(response).map_err(|response| LinkError::Unexpected { request: E::NAME, response: Box::new(response) }),
+            response => E::response(response)
+                .map_err(|response| LinkError::Unexpected { request: E::NAME, response: Box::new(response) }),
         }
     }
 

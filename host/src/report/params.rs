@@ -26,7 +26,9 @@ pub enum ParamsFileError {
     WrongModel { path: PathBuf, found: &'static str },
     #[error("{path}: {source}")]
     Invalid { path: PathBuf, source: model_core::Error },
-    #[error("{path}: model_version {found} is not one this tool reads (1 to {MODEL_VERSION}): a newer swg-host wrote it")]
+    #[error(
+        "{path}: model_version {found} is not one this tool reads (1 to {MODEL_VERSION}): a newer swg-host wrote it"
+    )]
     UnknownVersion { path: PathBuf, found: u16 },
 }
 
@@ -83,12 +85,17 @@ pub fn parse_model(path: &Path, text: &str) -> Result<GearModel<f64>, ParamsFile
         Some(name) if !Kind::ALL.iter().any(|kind| kind.name() == name) => {
             return Err(ParamsFileError::UnknownModel { path: path.to_owned(), found: name.to_owned() })
         }
-        Some(_) if version_1 => serde_json::from_str::<GearModelV1<f64>>(text).map_err(syntax)?.upgrade().map_err(invalid)?,
+        Some(_) if version_1 => {
+            serde_json::from_str::<GearModelV1<f64>>(text).map_err(syntax)?.upgrade().map_err(invalid)?
+        }
         Some(_) if header.model_version == Some(MODEL_VERSION) => {
             serde_json::from_str::<GearModel<f64>>(text).map_err(syntax)?
         }
         Some(_) => {
-            return Err(ParamsFileError::UnknownVersion { path: path.to_owned(), found: header.model_version.unwrap_or(0) })
+            return Err(ParamsFileError::UnknownVersion {
+                path: path.to_owned(),
+                found: header.model_version.unwrap_or(0),
+            })
         }
     };
     model.validate().map_err(invalid)?;
