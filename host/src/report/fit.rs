@@ -1,7 +1,7 @@
 //! What `fit` reports: the JSON document (also the parameter file) and the human summary.
 use crate::fit::baselines::{BranchLine, ThreeSegment};
 use crate::fit::{Fit, Identified, MotionFit, RunOutcome, SearchSummary};
-use crate::prepare::NoiseModel;
+use crate::prepare::{NoiseModel, OriginSource, RunOrigin};
 use model_core::{GearModel, ParamName, MODEL_VERSION};
 use serde::Serialize;
 use std::fmt::Write;
@@ -97,6 +97,9 @@ pub struct RunReport {
     pub role: &'static str,
     /// Its samples held out of those fits (a run's interleaved cycles, or all of a run held out).
     pub held_out_samples: usize,
+    /// Its θ0 and torque offset, and how they were found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub origin: Option<RunOrigin>,
 }
 
 impl RunReport {
@@ -109,6 +112,7 @@ impl RunReport {
             start_state_samples: run.offline.unscored(),
             role: if run.held_out { "held out" } else { "training" },
             held_out_samples: run.held_out_samples,
+            origin: None,
         }
     }
 }
@@ -164,6 +168,11 @@ impl FitReport {
         match identified {
             Identified::Loop(fit) => FitReport { runs, ..FitReport::of_loop(input, fit, baselines, compared) },
             Identified::Motion(outcome) => {
+                let runs = runs
+                    .into_iter()
+                    .zip(outcome.origins.iter().map(Some).chain(std::iter::repeat(None)))
+                    .map(|(run, origin)| RunReport { origin: origin.copied(), ..run })
+                    .collect();
                 let chosen = &outcome.chosen;
                 let model = chosen.model;
                 let identifiable = model.identifiable(outcome.reference_amplitude).map(|id| IdentifiableReport {
@@ -297,6 +306,23 @@ impl FitReport {
                     "  {}: {} samples, {} turning points, {held}",
                     run.path, run.samples, run.turning_points
                 );
+                if let Some(origin) = &run.origin {
+                    let se = origin.zero_se_rad.map_or(String::new(), |se| format!(" ± {:.4}", se * 1e3));
+                    let _ = match origin.source {
+                        OriginSource::RestWindow => writeln!(
+                            s,
+                            "    θ0 {:.4}{se} mrad and torque offset {:.4} N·m, read at rest at its start",
+                            origin.zero_rad * 1e3,
+                            origin.torque_offset_nm
+                        ),
+                        OriginSource::Fitted => writeln!(
+                            s,
+                            "    θ0 {:.4}{se} mrad fitted (where the spring's torque is 0; no rest at its start), torque \
+                             offset taken as 0",
+                            origin.zero_rad * 1e3
+                        ),
+                    };
+                }
                 if run.start_state_samples > 0 {
                     let _ = writeln!(
                         s,
@@ -353,32 +379,78 @@ impl FitReport {
     }
 }
 
-/// One line per parameter of `model` with its unit; the elements of a family (the micro-slip
-/// stiffnesses) on one line.
+/// `model`'s parameters with their units: θ0, the spring (its range and a table of its knots),
+/// then the hysteresis (the micro-slip elements as a table).
 fn write_parameters(s: &mut String, model: &GearModel<f64>) {
-    let mut lines: Vec<(ParamName, Vec<f64>)> = Vec::new();
+    let spring = &model.spring;
+    let _ = writeln!(s, "  θ0        = {:>12.5e} rad (the deflection's zero; per run below)", model.zero);
+    let [lo, hi] = spring.range;
+    let _ = writeln!(
+        s,
+        "  spring over x = θ − θ0 in [{:.4}, {:.4}] mrad; beyond, the line of its stiffness at the edge",
+        lo * 1e3,
+        hi * 1e3
+    );
+    if [spring.c1, spring.c2, spring.c3].iter().any(|c| *c != 0.0) {
+        let _ = writeln!(
+            s,
+            "    c1 = {:.5e} N·m/rad, c2 = {:.5e} N·m/rad³, c3 = {:.5e} N·m/rad⁵",
+            spring.c1, spring.c2, spring.c3
+        );
+    }
+    let knots = spring.knots();
+    if !knots.is_empty() {
+        let row = |f: &dyn Fn(&model_core::Knot<f64>) -> String| knots.iter().map(f).collect::<Vec<_>>().join(" ");
+        let _ = writeln!(s, "    knot x, mrad       {}", row(&|k| format!("{:>7.3}", k.x * 1e3)));
+        let _ = writeln!(s, "    stiffness, N·m/rad {}", row(&|k| format!("{:>7}", Compact(k.stiffness))));
+    }
+    let elements = model.slip_elements();
+    if !elements.is_empty() {
+        let row = |f: &dyn Fn(&model_core::SlipElement<f64>) -> String| {
+            elements.iter().map(f).collect::<Vec<_>>().join(" ")
+        };
+        let total: f64 = elements.iter().map(|e| e.stiffness).sum();
+        let _ = writeln!(s, "  {} slip elements, Σ stiffness {total:.5e} N·m/rad", elements.len());
+        let _ = writeln!(s, "    slip, mrad         {}", row(&|e| format!("{:>7.4}", e.slip * 1e3)));
+        let _ = writeln!(s, "    stiffness, N·m/rad {}", row(&|e| format!("{:>7}", Compact(e.stiffness))));
+    }
+    let mut lines: Vec<(ParamName, f64)> = Vec::new();
     model.map(|name, value| {
-        match lines.last_mut() {
-            Some((last, values)) if last.as_str() == name.as_str() => values.push(value),
-            _ => lines.push((name, vec![value])),
+        let spring_part = matches!(
+            name,
+            ParamName::Zero
+                | ParamName::C1
+                | ParamName::C2
+                | ParamName::C3
+                | ParamName::Knot(_)
+                | ParamName::KnotStiffness(_)
+                | ParamName::RangeMin
+                | ParamName::RangeMax
+                | ParamName::Slip(_)
+                | ParamName::SlipStiffness(_)
+        );
+        if !spring_part {
+            lines.push((name, value));
         }
         value
     });
-    for (name, values) in lines {
-        let _ = match values.as_slice() {
-            [value] => writeln!(s, "  {:<9} = {value:>12.5e} {}", name.as_str(), name.unit()),
-            many => {
-                let total: f64 = many.iter().sum();
-                let listed: Vec<String> = many.iter().map(|v| format!("{v:.3e}")).collect();
-                writeln!(
-                    s,
-                    "  {} ({} elements, Σ = {total:.5e}) = [{}] {}",
-                    name.as_str(),
-                    many.len(),
-                    listed.join(", "),
-                    name.unit()
-                )
-            }
+    for (name, value) in lines {
+        let _ = writeln!(s, "  {:<9} = {value:>12.5e} {}", name.as_str(), name.unit());
+    }
+}
+
+/// A stiffness in 7 columns: 4 significant digits, with k/M suffixes.
+struct Compact(f64);
+
+impl std::fmt::Display for Compact {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let v = self.0;
+        let text = match v.abs() {
+            a if a >= 1e6 => format!("{:.3}M", v / 1e6),
+            a if a >= 1e4 => format!("{:.2}k", v / 1e3),
+            a if a >= 1e3 => format!("{:.3}k", v / 1e3),
+            _ => format!("{v:.1}"),
         };
+        f.pad(&text)
     }
 }
