@@ -6,7 +6,8 @@
 //!   through (remanence), and each run is fitted from its own rest.
 //! - **A run that does not**: θ0 and a torque offset cannot both be told from the data where the
 //!   spring is nearly linear (k·(θ − θ0) + c). The offset is taken as 0 and θ0, shared by every
-//!   such run, is fitted: starting from the encoder's zero, the kind is fitted with a free
+//!   such run, is fitted: starting from the encoder's zero or the middle of the runs' deflection
+//!   range, whichever fits better, the kind is fitted with a free
 //!   constant c, θ0 moves to where the fitted spring's torque plus c is zero, and the kind is
 //!   fitted there without c; that repeats while the move is significant and lowers the misfit.
 use super::motion::{fit_kind, FreeOffset, Motion, MotionFit};
@@ -58,11 +59,21 @@ pub fn fit_with_zero(
     }
     let tolerance = ZERO_TOLERANCE_IN_NOISE * motion.noise.map_or(0.0, |n| n.deflection_rad);
     let mut options = options.clone();
-    // θ0 starts where the encoder reads zero and moves only while a move is significant and
-    // lowers the misfit: a Masing loop is infinitely stiff at its tips, so a θ0 a few nrad off
-    // a symmetric recording's centre changes the fit more than the constant can tell.
-    let (mut zero, mut se) = (0.0, None);
-    let mut best = fit_kind(kind, &placed(zero), &options)?;
+    // θ0 starts at the better of the encoder's zero and the centre of the runs' deflection
+    // range (a Masing loop's centre, where its virgin curve starts; the free constant alone does
+    // not find it from afar: 0.5 A off, it moved θ0 the wrong way), and moves only while a
+    // move is significant and lowers the misfit: a Masing loop is infinitely stiff at its
+    // tips, so a θ0 a few nrad off a symmetric recording's centre changes the fit more than
+    // the constant can tell.
+    let mut se = None;
+    let (mut zero, mut best) = (0.0, fit_kind(kind, &placed(0.0), &options)?);
+    let centre = range_centre(motion, origins);
+    if centre != 0.0 {
+        let centred = fit_kind(kind, &placed(centre), &options)?;
+        if centred.rss < best.rss {
+            (zero, best) = (centre, centred);
+        }
+    }
     for _ in 0..ZERO_ROUNDS {
         options.start = Some(best.model);
         let free = fit_kind(kind, &Motion { free_offset: true, ..placed(zero) }, &options)?;
@@ -81,6 +92,19 @@ pub fn fit_with_zero(
         (zero, best) = (zero + shift, moved);
     }
     Ok((best, resolved(zero, se)))
+}
+
+/// The middle of the scored deflections of the runs without a rest window, rad.
+fn range_centre(motion: &Motion, origins: &[Option<RunOrigin>]) -> f64 {
+    let scored = motion.runs.iter().zip(origins).filter(|(_, origin)| origin.is_none()).flat_map(|(run, _)| {
+        run.spans.iter().flat_map(|span| span.range.clone().filter_map(|i| run.theta.get(i).copied()))
+    });
+    let (lo, hi) = scored.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), theta| (lo.min(theta), hi.max(theta)));
+    if lo <= hi {
+        0.5 * (lo + hi)
+    } else {
+        0.0
+    }
 }
 
 /// Where the spring of `model` plus `offset` (N·m) has zero torque, as a shift of x from 0, and

@@ -406,9 +406,8 @@ fn write_parameters(s: &mut String, model: &GearModel<f64>) {
     }
     let elements = model.slip_elements();
     if !elements.is_empty() {
-        let row = |f: &dyn Fn(&model_core::SlipElement<f64>) -> String| {
-            elements.iter().map(f).collect::<Vec<_>>().join(" ")
-        };
+        let row =
+            |f: &dyn Fn(&model_core::SlipElement<f64>) -> String| elements.iter().map(f).collect::<Vec<_>>().join(" ");
         let total: f64 = elements.iter().map(|e| e.stiffness).sum();
         let _ = writeln!(s, "  {} slip elements, Σ stiffness {total:.5e} N·m/rad", elements.len());
         let _ = writeln!(s, "    slip, mrad         {}", row(&|e| format!("{:>7.4}", e.slip * 1e3)));
