@@ -347,6 +347,7 @@ fn fit_recordings(
             .collect(),
         noise: Some(noise),
         free_offset: false,
+        rest_jitter: rest_jitter(&offline),
     };
     let at_rest: Vec<Option<RunOrigin>> = offline.iter().map(RunOrigin::at_rest).collect();
     // The model's θ0 is the first run's (the others' rest points differ by the remanence of the
@@ -396,18 +397,23 @@ fn fit_recordings(
                 .enumerate()
                 .map(|(k, &kind)| {
                     progress(Stage::Kind { kind, index: k + 1, of: Kind::ALL.len() });
-                    fit_with_zero(kind, &training, &at_rest, &options).map(with_zero).map(|(fit, _)| fit)
+                    fit_with_zero(kind, &training, &at_rest, &options).map(with_zero)
                 })
                 .collect::<Result<Vec<_>, _>>()?;
-            let best = candidates
+            let (best, best_origins) = candidates
                 .iter()
-                .min_by(|a, b| a.held_out_rms.unwrap_or(a.rms).total_cmp(&b.held_out_rms.unwrap_or(b.rms)))
+                .min_by(|(a, _), (b, _)| {
+                    a.held_out_rms.unwrap_or(a.rms).total_cmp(&b.held_out_rms.unwrap_or(b.rms))
+                })
                 .ok_or(FitError::Degenerate)?;
-            // The written parameters use every sample.
+            // The written parameters use every sample; θ0 is the one the chosen kind's fit found
+            // on the training samples (its search is the costly part of a fit without rest).
             let kind = best.model.kind();
             progress(Stage::Refit { kind });
             let refit = FitOptions { start: Some(best.model), ..options };
-            let (chosen, origins) = with_zero(fit_with_zero(kind, &all_fitted, &at_rest, &refit)?);
+            let known: Vec<Option<RunOrigin>> = best_origins.iter().copied().map(Some).collect();
+            let (chosen, origins) = with_zero(fit_with_zero(kind, &all_fitted, &known, &refit)?);
+            let candidates = candidates.into_iter().map(|(fit, _)| fit).collect();
             held_out_spans = Some(spans);
             (None, Identified::Motion(Box::new(motion_outcome(chosen, candidates, Some(rule), origins))))
         }
@@ -461,6 +467,17 @@ fn fit_recordings(
 }
 
 /// The noise of several runs: each standard deviation the RMS over the runs, by sample count.
+/// The deflection's standard deviation in the runs' rest windows, pooled (RMS), rad; 0 where no
+/// run has a rest window long enough to tell.
+fn rest_jitter(offline: &[OfflineRun]) -> f64 {
+    let spreads: Vec<f64> = offline.iter().filter_map(|run| run.rest.and_then(|rest| rest.deflection_sd_rad)).collect();
+    if spreads.is_empty() {
+        0.0
+    } else {
+        (spreads.iter().map(|sd| sd * sd).sum::<f64>() / spreads.len() as f64).sqrt()
+    }
+}
+
 fn pooled_noise(recordings: &[Recording], offline: &[OfflineRun]) -> NoiseModel {
     let total: usize = recordings.iter().map(|r| r.deflection.len()).sum();
     let pooled = |sigma: &dyn Fn(&NoiseModel) -> f64| {

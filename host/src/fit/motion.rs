@@ -139,6 +139,9 @@ pub struct Motion<'a> {
     /// Whether the fits add a constant torque, free, to every run ([`MotionFit::offset_nm`]):
     /// where no rest window gave θ0, the spring's zero torque moves θ0 to where the data put it.
     pub free_offset: bool,
+    /// The deflection's spread at rest, pooled over the runs' rest windows, rad (0 without):
+    /// the knot rule's σθ where it exceeds the noise ([`super::spring`]).
+    pub rest_jitter: f64,
 }
 
 /// A sample as a pass over a motion sees it.
@@ -441,6 +444,7 @@ impl<'a> Motion<'a> {
             runs: vec![Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0 }],
             noise,
             free_offset: false,
+            rest_jitter: 0.0,
         }
     }
 
@@ -477,7 +481,8 @@ impl<'a> Motion<'a> {
 
     /// The spring's columns of a fit to this motion: knots by the knot rule over the fitted range.
     pub fn spring_basis(&self) -> SpringBasis {
-        SpringBasis::new(self.fitted_range(), self.noise.map_or(0.0, |n| n.deflection_rad))
+        let noise = self.noise.map_or(0.0, |n| n.deflection_rad);
+        SpringBasis::new(self.fitted_range(), noise.max(self.rest_jitter))
     }
 
     fn check(&self) -> Result<(), FitError> {
@@ -1043,6 +1048,7 @@ mod tests {
             ],
             noise: None,
             free_offset: false,
+            rest_jitter: 0.0,
         };
         let fitted = fit_micro_slip(&motion, &FitOptions::default()).unwrap();
         assert_eq!(fitted.n, first.len() + second.len());

@@ -68,7 +68,8 @@ pub fn fit_with_zero(
     let mut se = None;
     let (mut zero, mut best) = (0.0, fit_kind(kind, &placed(0.0), &options)?);
     let centre = range_centre(motion, origins);
-    if centre != 0.0 {
+    // Within the deflection noise of the encoder's zero, the rounds below find it as well.
+    if centre.abs() > motion.noise.map_or(0.0, |n| n.deflection_rad) {
         let centred = fit_kind(kind, &placed(centre), &options)?;
         if centred.rss < best.rss {
             (zero, best) = (centre, centred);

@@ -16,6 +16,9 @@ pub struct RestWindow {
     pub deflection_rad: f64,
     /// Its standard error, rad: the deflection noise over √samples.
     pub deflection_se_rad: f64,
+    /// The deflection's standard deviation there, rad: how much the encoders jitter at rest
+    /// (none in a window too short to tell).
+    pub deflection_sd_rad: Option<f64>,
     /// The mean torque, N·m: the torque sensor's offset for a gear at rest. None in a window
     /// too short to read it (a declared rest the motion leaves at once).
     pub torque_nm: Option<f64>,
@@ -47,15 +50,25 @@ pub fn rest_window(time: &[f64], deflection: &[f64], torque: &[f64], noise: f64,
     let torque_still = torque.get(..samples)?;
     let seconds = time.get(samples - 1).zip(time.first()).map_or(0.0, |(end, start)| end - start);
     if samples < MIN_REST {
-        let first = RestWindow { samples, seconds, deflection_rad: first, deflection_se_rad: noise, torque_nm: None };
+        let first = RestWindow {
+            samples,
+            seconds,
+            deflection_rad: first,
+            deflection_se_rad: noise,
+            deflection_sd_rad: None,
+            torque_nm: None,
+        };
         return declared.then_some(first);
     }
     let torque_nm = mean(torque_still);
+    let deflection_rad = mean(still);
+    let variance = still.iter().map(|theta| (theta - deflection_rad).powi(2)).sum::<f64>() / (samples - 1) as f64;
     let window = RestWindow {
         samples,
         seconds,
-        deflection_rad: mean(still),
+        deflection_rad,
         deflection_se_rad: noise / (samples as f64).sqrt(),
+        deflection_sd_rad: Some(variance.sqrt()),
         torque_nm: Some(torque_nm),
     };
     let (lo, hi) = torque.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
