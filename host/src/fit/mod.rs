@@ -402,9 +402,7 @@ fn fit_recordings(
                 .collect::<Result<Vec<_>, _>>()?;
             let (best, best_origins) = candidates
                 .iter()
-                .min_by(|(a, _), (b, _)| {
-                    a.held_out_rms.unwrap_or(a.rms).total_cmp(&b.held_out_rms.unwrap_or(b.rms))
-                })
+                .min_by(|(a, _), (b, _)| a.held_out_rms.unwrap_or(a.rms).total_cmp(&b.held_out_rms.unwrap_or(b.rms)))
                 .ok_or(FitError::Degenerate)?;
             // The written parameters use every sample; θ0 is the one the chosen kind's fit found
             // on the training samples (its search is the costly part of a fit without rest).

@@ -1,10 +1,11 @@
 //! The spring's part of a fit: where its knots go, the columns they give the linear solves, and
 //! the spring a solve's weights make.
 //!
-//! **The knot rule** (`bench/real/FINDINGS.md` §3). Per side of x = θ − θ0, E = that side's
-//! largest |x| in the fitted samples, n = min(8, ⌊E / (10·σθ)⌋ − 1) knots at E·j/(n + 1)
-//! (j = 1 … n), plus one at x = 0: up to 17 knots; the stiffness is constant from the outermost
-//! knot on, to the range's edge and beyond. σθ is the larger of the deflection noise and the
+//! **The knot rule.** Per side of x = θ − θ0, E = that side's largest |x| in the fitted samples,
+//! n = min(8, ⌊E / (10·σθ)⌋) knots at E·j/n (j = 1 … n), plus one at x = 0: up to 17 knots, the
+//! outermost ones at the range's edges. (`bench/real/FINDINGS.md` §3 places ⌊E/10σθ⌋ − 1 at
+//! E·j/(n + 1), the stiffness constant over the last segment: on the simulator's stiffening
+//! springs that lost their last ninth, 0.12 % of peak on the seed gear's loop.) σθ is the larger of the deflection noise and the
 //! deflection's spread at rest (the runs' rest windows, pooled): on the measured spring the
 //! second differences see a fraction of the 0.030 mrad the encoder jitters by at rest. Why:
 //! - The stiffness beyond the range is the outermost segment's (model-core's edge rule), so that
@@ -33,11 +34,11 @@ pub fn knot_rule(lo: f64, hi: f64, noise: f64) -> Vec<f64> {
         if !(extent > 0.0) {
             return 0;
         }
-        let limit = if noise > 0.0 { (extent / (KNOT_SPACING_IN_NOISE * noise)).floor() - 1.0 } else { f64::INFINITY };
+        let limit = if noise > 0.0 { (extent / (KNOT_SPACING_IN_NOISE * noise)).floor() } else { f64::INFINITY };
         (limit.max(0.0) as usize).min(KNOTS_PER_SIDE)
     };
     let (minus, plus) = (per_side(-lo), per_side(hi));
-    let at = |extent: f64, j: usize, n: usize| extent * j as f64 / (n + 1) as f64;
+    let at = |extent: f64, j: usize, n: usize| extent * j as f64 / n as f64;
     let mut knots: Vec<f64> = (1..=minus).rev().map(|j| at(lo, j, minus)).collect();
     knots.push(0.0);
     knots.extend((1..=plus).map(|j| at(hi, j, plus)));
@@ -105,14 +106,14 @@ mod tests {
 
     #[test]
     fn the_knot_rule_spaces_knots_by_ten_noise_sigmas_and_caps_each_side_at_eight() {
-        // Wide sides: 8 each at E·j/9, x = 0 always.
+        // Wide sides: 8 each, the outermost at the edges, x = 0 always.
         let knots = knot_rule(-2.0e-3, 4.0e-3, 1.0e-6);
         assert_eq!(knots.len(), 17);
-        assert_eq!((knots[0], knots[8], knots[16]), (-2.0e-3 * 8.0 / 9.0, 0.0, 4.0e-3 * 8.0 / 9.0));
+        assert_eq!((knots[0], knots[8], knots[16]), (-2.0e-3, 0.0, 4.0e-3));
         assert!(knots.windows(2).all(|w| w[1] > w[0]));
-        // A side gets ⌊E / 10σ⌋ − 1 knots: segments of at least 10σ.
-        assert_eq!(knot_rule(-3.5e-4, 1.0e-3, 3.0e-5), [0.0, 1.0e-3 / 3.0, 2.0e-3 / 3.0]);
-        assert_eq!(knot_rule(-6.5e-4, 0.0, 3.0e-5), [-6.5e-4 / 2.0, 0.0]);
+        // A short side gets ⌊E / 10σ⌋ knots, none below 10σ.
+        assert_eq!(knot_rule(-3.5e-4, 1.0e-3, 3.0e-5), [-3.5e-4, 0.0, 1.0e-3 / 3.0, 2.0e-3 / 3.0, 1.0e-3]);
+        assert_eq!(knot_rule(-2.9e-4, 0.0, 3.0e-5), [0.0]);
         // Without noise (a loop table) the cap alone.
         assert_eq!(knot_rule(-1.0, 1.0, 0.0).len(), 17);
     }
