@@ -21,11 +21,8 @@ impl Installed {
     /// One sample (the same state whichever `path` runs it) and the memory then.
     #[inline(always)]
     fn step(&mut self, theta: f32, path: EvalPath) -> (Option<Evaluation<f32>>, Memory) {
-        let (evaluation, memory) = if self.fast && path == EvalPath::Fast {
-            self.evaluator.step_reporting::<FastMath>(theta)
-        } else {
-            self.evaluator.step_reporting::<Libm>(theta)
-        };
+        let fast = self.fast && path == EvalPath::Fast;
+        let (evaluation, memory) = self.evaluator.step_reporting_either::<FastMath, Libm>(theta, fast);
         (evaluation.ok(), memory)
     }
 }
