@@ -261,6 +261,15 @@ impl<F: Real> GearModel<F> {
     /// (rad; negative or NaN counts as 0); the micro-slip kind needs none (noise only makes tiny
     /// reversible loops).
     pub fn evaluator(&self, band: F) -> Result<Evaluator<F>, Error> {
+        let mut evaluator = None;
+        self.evaluator_into(band, &mut evaluator)?;
+        evaluator.ok_or(Error::Overflow)
+    }
+
+    /// [`GearModel::evaluator`] written into `evaluator`, in place (`None` there on error): a
+    /// joint prepares its next set in its slot, not on its stack and then copied.
+    pub fn evaluator_into(&self, band: F, evaluator: &mut Option<Evaluator<F>>) -> Result<(), Error> {
+        *evaluator = None;
         if let Err((name, _)) = self.check() {
             return Err(Error::InvalidParameter(name));
         }
@@ -268,7 +277,12 @@ impl<F: Real> GearModel<F> {
             Hysteresis::Genetic(g) => HysteresisState::Genetic(GeneticMemory::new(g.model()?, band)),
             Hysteresis::MicroSlip(_) => HysteresisState::MicroSlip(MicroSlip::new(self.slip_elements())?),
         };
-        Ok(Evaluator { zero: self.zero, spring: self.spring.prepare()?, hysteresis })
+        let prepared = evaluator.insert(Evaluator { zero: self.zero, spring: PreparedSpring::empty(), hysteresis });
+        let spring = self.spring.prepare_into(&mut prepared.spring);
+        if spring.is_err() {
+            *evaluator = None;
+        }
+        spring
     }
 
     /// Whether the model can be evaluated in `F` for every |θ| ≤ `max_deflection` and every

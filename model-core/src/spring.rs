@@ -130,6 +130,13 @@ impl<F: Real> Spring<F> {
     /// The spring ready to evaluate: per segment of the knots' part its quadratic in x and where
     /// it starts and ends, and the polynomial's values at the range's edges.
     pub fn prepare(&self) -> Result<PreparedSpring<F>, Error> {
+        let mut prepared = PreparedSpring::empty();
+        self.prepare_into(&mut prepared)?;
+        Ok(prepared)
+    }
+
+    /// [`Spring::prepare`] written over `prepared`, in place (unspecified where it fails).
+    pub(crate) fn prepare_into(&self, prepared: &mut PreparedSpring<F>) -> Result<(), Error> {
         self.check().map_err(|_| Error::InvalidSpring)?;
         let polynomial = Polynomial::new(self.c1, self.c2, self.c3)?;
         let knots = self.knots();
@@ -138,11 +145,8 @@ impl<F: Real> Spring<F> {
         // (P_j from knot 0, shifted below so that P(0) = 0); left of knot 0 and right of the last,
         // the end knot's stiffness. Each piece as a + b·x + c·x², from the previous knot (−∞
         // for the first) to the next (+∞ for the last). Without knots, one piece of 0 everywhere.
-        let unused = Segment { start: F::infinity(), end: F::infinity(), ..Segment::default() };
-        let mut segments = [unused; MAX_KNOTS + 1];
-        if let Some(only) = segments.first_mut() {
-            *only = Segment { start: F::neg_infinity(), ..unused };
-        }
+        *prepared = PreparedSpring::empty();
+        let segments = &mut prepared.segments;
         let mut torque = F::zero();
         for (j, knot) in knots.iter().enumerate() {
             let next = knots.get(j + 1);
@@ -164,13 +168,8 @@ impl<F: Real> Spring<F> {
                 torque = torque + (knot.stiffness + next.stiffness) * half * (next.x - knot.x);
             }
         }
-        let mut prepared = PreparedSpring {
-            polynomial: self.has_polynomial().then_some(polynomial),
-            segments,
-            range: self.range,
-            at_range: [Evaluation::default(); 2],
-            cursor: 0,
-        };
+        prepared.polynomial = self.has_polynomial().then_some(polynomial);
+        prepared.range = self.range;
         // P(0) = 0. The cursor stays at x = 0, where an evaluator starts from rest.
         let at_zero = prepared.knots_part(F::zero());
         for segment in prepared.segments.iter_mut().take(knots.len() + 1) {
@@ -183,7 +182,7 @@ impl<F: Real> Spring<F> {
         if !prepared.at_range.iter().all(finite) || !segments_finite {
             return Err(Error::Overflow);
         }
-        Ok(prepared)
+        Ok(())
     }
 
     /// Whether the odd polynomial is there (not c1 = c2 = c3 = 0).
@@ -224,6 +223,19 @@ pub struct PreparedSpring<F> {
     /// The polynomial and its stiffness at the range's two edges.
     at_range: [Evaluation<F>; 2],
     cursor: usize,
+}
+
+impl<F: Real> PreparedSpring<F> {
+    /// No knots, no polynomial: S = 0 everywhere (what [`Spring::prepare_into`] starts from).
+    pub(crate) fn empty() -> Self {
+        let unused = Segment { start: F::infinity(), end: F::infinity(), ..Segment::default() };
+        let mut segments = [unused; MAX_KNOTS + 1];
+        if let Some(only) = segments.first_mut() {
+            *only = Segment { start: F::neg_infinity(), ..unused };
+        }
+        let zero = F::zero();
+        PreparedSpring { polynomial: None, segments, range: [zero, zero], at_range: [Evaluation::default(); 2], cursor: 0 }
+    }
 }
 
 impl<F: PartialEq> PartialEq for PreparedSpring<F> {

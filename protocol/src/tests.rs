@@ -868,6 +868,26 @@ fn reader_splits_a_stream_and_survives_garbage() {
     assert_eq!(results, vec![Err(FrameError::TooLong), Ok(Ok(Request::Commit)), Ok(Ok(Request::ReadParams))]);
 }
 
+/// The reader's buffer is lent between frames only (a reply encoded there is overwritten by
+/// the next frame, never a frame being collected).
+#[test]
+fn the_buffer_is_spare_between_frames_only() {
+    let mut reader = FrameReader::<32>::new();
+    assert!(reader.spare().is_some());
+    reader.push(0x11);
+    assert!(reader.spare().is_none(), "a frame is being collected");
+    assert!(reader.push(0).is_some());
+    let spare = reader.spare().unwrap();
+    assert_eq!(spare[0], 0x11, "the frame just read");
+    spare[..3].copy_from_slice(&[1, 2, 3]);
+    for byte in [0x55u8; 40] {
+        reader.push(byte);
+    }
+    assert!(reader.spare().is_none(), "an overlong frame is being skipped");
+    assert_eq!(reader.push(0), Some(Err(FrameError::TooLong)));
+    assert!(reader.spare().is_some());
+}
+
 #[test]
 fn validation_names_the_field() {
     assert_eq!(params().validate(), Ok(()));
