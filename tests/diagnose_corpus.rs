@@ -57,8 +57,7 @@ struct Setting {
 
 /// The genetic truth every corpus case simulates.
 fn genetic(sim: &Simulation) -> Params<f64> {
-    let GearModel::Genetic(params) = sim.params else { unreachable!("the corpus simulates the genetic kind") };
-    params
+    sim.params.paper_params().expect("the corpus simulates the paper's genetic model")
 }
 
 /// RMS of the true model's residual on a recording: the noise (torque and errors in θ) as
@@ -103,7 +102,7 @@ fn make_case(name: &str, effects: &[Effect], setting: Setting, seed: u64) -> Cas
     let base = rng.random_range(0.2..0.5);
     let frequencies: Vec<f64> = (0..setting.frequencies).map(|k| base * (1.0 + k as f64)).collect();
     let mut simulation = Simulation {
-        params: GearModel::Genetic(params),
+        params: GearModel::paper(params),
         amplitude_rad: amplitude,
         cycles: if frequencies.len() > 1 { 3 } else { 5 },
         frequencies_hz: frequencies,
@@ -160,7 +159,7 @@ fn other_physics_case(
 ) -> Case {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let simulation = Simulation {
-        params: GearModel::Genetic(
+        params: GearModel::paper(
             Params::from_identifiable(2.0e4, 4.0e9, 0.0, Identifiable { h: 1.5, r: 1.2 }, 1.2e-3).unwrap(),
         ),
         amplitude_rad: rng.random_range(1.0e-3..1.3e-3),
@@ -275,7 +274,7 @@ fn corpus(base_seed: u64) -> Vec<Case> {
         let mut case = make_case("none, active loop", &[], Setting { frequencies, ..plain }, next());
         let p = genetic(&case.simulation);
         let id = p.identifiable(case.simulation.amplitude_rad).unwrap();
-        case.simulation.params = GearModel::Genetic(
+        case.simulation.params = GearModel::paper(
             Params::from_identifiable(
                 p.c1,
                 p.c2,
@@ -491,7 +490,7 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
 fn damping_on_a_linear_gear_is_not_told_from_a_channel_delay() {
     let amplitude = 1.2e-3;
     let simulation = Simulation {
-        params: GearModel::Genetic(
+        params: GearModel::paper(
             Params::from_identifiable(2.0e4, 0.0, 0.0, Identifiable { h: -0.3, r: 1.0 }, amplitude).unwrap(),
         ),
         amplitude_rad: amplitude,

@@ -12,8 +12,8 @@ use swg_host::simulate::{MicroSlip, Physics};
 fn ratios(physics: &Physics, trained_on: &'static str, predicted: &'static str) -> [f64; 3] {
     let fitted = fit_all(&case(physics, trained_on).measured);
     let target = case(physics, predicted);
-    let floor = rms(&target.floor, &target.truth);
-    predictions(&fitted, &target).map(|p| rms(&p, &target.truth) / floor)
+    let floor = target.rms(&target.floor, &target.truth);
+    predictions(&fitted, &target).map(|p| target.rms(&p, &target.truth) / floor)
 }
 
 #[test]

@@ -40,9 +40,9 @@ fn main() {
             for case in cases.iter().filter(|c| c.motion != trained_on) {
                 let (m, measured, truth, floor) = (&case.motion, &case.measured, &case.truth, &case.floor);
                 let predictions = predictions(&fitted, case);
-                let floor_rms = rms(floor, truth);
+                let floor_rms = case.rms(floor, truth);
                 let floor_step = max_step(floor);
-                let ratios: Vec<f64> = predictions.iter().map(|p| rms(p, truth) / floor_rms).collect();
+                let ratios: Vec<f64> = predictions.iter().map(|p| case.rms(p, truth) / floor_rms).collect();
                 let steps: Vec<f64> = predictions.iter().map(|p| max_step(p) / floor_step).collect();
                 worst_symmetric = worst_symmetric.max(ratios[0]);
                 worst_genetic = worst_genetic.max(ratios[1]);

@@ -3,12 +3,11 @@
 //! physics recorded under five motions, the models fitted on one motion, run along another.
 // The benchmark and the test each use their own part of it.
 #![allow(dead_code)]
-use model_core::{GearModel, Identifiable, Model, Params};
-use swg_host::fit::motion::{fit_genetic, fit_micro_slip, Motion as FitMotion};
-use swg_host::fit::{fit, FitOptions};
-use swg_host::gear::{reversal_band, run};
+use model_core::{GearModel, Identifiable, Kind, Model, Params};
+use swg_host::fit::{fit, fit_input, FitInput, FitOptions, ModelChoice};
 use swg_host::input::Recording;
-use swg_host::prepare::{deflection_noise, from_recording};
+use swg_host::predict::{predict, Zeroing};
+use swg_host::prepare::{from_recording, OfflineRun};
 use swg_host::simulate::{simulate_experiment, Experiment, Motion, Physics, Simulation, Trajectory};
 
 pub const MOTIONS: [&str; 5] = ["sine", "biased", "nested", "random", "hold"];
@@ -33,7 +32,7 @@ pub fn motion(name: &str) -> Motion {
 
 pub fn simulation(noisy: bool) -> Simulation {
     Simulation {
-        params: GearModel::Genetic(genetic_gear()),
+        params: GearModel::paper(genetic_gear()),
         amplitude_rad: 1.168e-3,
         frequencies_hz: vec![0.5],
         cycles: 4,
@@ -78,19 +77,12 @@ pub fn fit_all(recording: &Recording) -> Fitted {
     let prepared = from_recording(recording).expect("segmentation");
     let options = FitOptions { noise: prepared.noise, ..FitOptions::default() };
     let symmetric = fit(&prepared.data, &options, |_| {}).expect("symmetric fit").params;
-    let band = reversal_band(prepared.noise.map_or(0.0, |n| n.deflection_rad));
-    let motion = FitMotion {
-        theta: &recording.deflection,
-        torque: &recording.torque,
-        training: recording.deflection.len(),
-        noise: prepared.noise,
-        band,
+    // The stateful kinds as `fit --model KIND` fits them.
+    let stateful = |kind: Kind| {
+        let input = FitInput::Recordings(std::slice::from_ref(recording));
+        fit_input(input, ModelChoice::Kind(kind), &[], options.seed, |_| {}).expect("fit").identified.model()
     };
-    Fitted {
-        symmetric,
-        genetic: fit_genetic(&motion, &options).expect("genetic fit").model,
-        micro_slip: fit_micro_slip(&motion, &options).expect("micro-slip fit").model,
-    }
+    Fitted { symmetric, genetic: stateful(Kind::Genetic), micro_slip: stateful(Kind::MicroSlip) }
 }
 
 /// Torque of the symmetric rule along a recording: each sample on the loop of its leg.
@@ -107,6 +99,16 @@ pub struct Case {
     pub measured: Recording,
     pub truth: Vec<f64>,
     pub floor: Vec<f64>,
+    /// The first sample scored: `predict`'s start rule (the sine of the genetic gear starts on
+    /// its loop, not at rest).
+    pub scored_from: usize,
+}
+
+impl Case {
+    /// RMS of a − b over the scored samples.
+    pub fn rms(&self, a: &[f64], b: &[f64]) -> f64 {
+        rms(&a[self.scored_from..], &b[self.scored_from..])
+    }
 }
 
 pub fn case(physics: &Physics, name: &'static str) -> Case {
@@ -115,15 +117,15 @@ pub fn case(physics: &Physics, name: &'static str) -> Case {
     let trajectory =
         Trajectory::new("measured angles", measured.time.clone(), measured.deflection.clone()).expect("a trajectory");
     let floor = record(physics, Motion::File(trajectory), false).torque;
-    Case { motion: name, measured, truth, floor }
+    let scored_from = OfflineRun::of(&measured).scored_from;
+    Case { motion: name, measured, truth, floor, scored_from }
 }
 
 /// The torque of the symmetric rule, the genetic and the micro-slip model along `case`.
 pub fn predictions(fitted: &Fitted, case: &Case) -> [Vec<f64>; 3] {
     let measured = &case.measured;
-    let band = reversal_band(deflection_noise(&measured.deflection));
     let stateful = |model: &GearModel<f64>| -> Vec<f64> {
-        run(model, &measured.deflection, band).expect("runs").iter().map(|e| e.torque).collect()
+        predict(model, measured, None, Zeroing::RestWindow).expect("runs").torque
     };
     [symmetric_prediction(&fitted.symmetric, measured), stateful(&fitted.genetic), stateful(&fitted.micro_slip)]
 }

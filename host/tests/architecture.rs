@@ -8,7 +8,7 @@ use std::path::Path;
 const ALLOWED: &[(&str, &[&str], &[&str])] = &[
     ("numeric", &[], &[]),
     ("input", &[], &[]),
-    ("prepare", &["input", "numeric"], &[]),
+    ("prepare", &["gear", "input", "numeric"], &[]),
     ("fit", &["gear", "prepare", "input", "numeric"], &[]),
     ("diagnose", &["fit", "gear", "prepare", "input", "numeric"], &[]),
     ("gear", &[], &[]),

@@ -9,7 +9,8 @@ use qemu::Qemu;
 
 use common::{swg_host_echoed as swg_host, write_params_file};
 use model_core::checks::{SEED_AMPLITUDE, SEED_TABLE_FIT as SEED};
-use model_core::{GearModel, ParamName, Params, SlipParams, MODEL_VERSION, SLIP_ELEMENTS};
+use model_core::legacy::{GearModelV1, SlipParamsV1};
+use model_core::{GearModel, ParamName, Params, MODEL_VERSION, SLIP_ELEMENTS};
 use std::net::TcpListener;
 use swg_host::link::push::{joint_params, push, JointSettings};
 use swg_host::link::replay::{device_model, replay, samples};
@@ -28,7 +29,7 @@ const SETTINGS: JointSettings = JointSettings { gear_ratio: RATIO, torque_limit:
 /// Two loops at 1 Hz of the seed model through 20-bit encoders, 1 kHz.
 fn recording() -> swg_host::input::Recording {
     simulate(&Simulation {
-        params: GearModel::Genetic(SEED),
+        params: GearModel::paper(SEED),
         amplitude_rad: SEED_AMPLITUDE,
         frequencies_hz: vec![1.0],
         cycles: 2,
@@ -76,7 +77,7 @@ fn push_read_back_and_replay_match_the_host_model() {
 
     // Read back what the device holds: exactly the f32 set the host computed.
     let mut link = firmware.ready_link();
-    let expected = joint_params(&GearModel::Genetic(SEED), &SETTINGS).unwrap();
+    let expected = joint_params(&GearModel::paper(SEED), &SETTINGS).unwrap();
     assert_eq!(link.call::<endpoint::ReadParams>(&()).unwrap(), Some(expected));
     drop(link);
 
@@ -99,18 +100,24 @@ fn push_read_back_and_replay_match_the_host_model() {
         assert!(report.reversals >= 3, "{report}");
         // Against the f64 model of the file (not rounded to f32): still within tolerance.
         link.call::<endpoint::WriteParams>(&expected).unwrap();
-        let report = replay(&mut link, &expected, &GearModel::Genetic(SEED), &samples, path).unwrap();
+        let report = replay(&mut link, &expected, &GearModel::paper(SEED), &samples, path).unwrap();
         assert!(report.passed(), "{path:?} against the file's f64 parameters: {report}");
     }
 }
 
-/// A micro-slip gear of the seed's size: 16 elements, log grid 10 µrad … 2 mrad.
-fn slip_model() -> GearModel<f64> {
+/// A micro-slip gear of the seed's size as model version 1 wrote it: 16 elements, log grid
+/// 10 µrad … 2 mrad.
+fn slip_v1() -> SlipParamsV1<f64> {
     let mut stiffness = [0.0; SLIP_ELEMENTS];
     for (i, k) in stiffness.iter_mut().enumerate() {
         *k = 120.0 + 15.0 * i as f64;
     }
-    GearModel::MicroSlip(SlipParams { c1: 6.0e3, c2: 1.2e10, c3: 0.0, stiffness, slip_min: 1.0e-5, slip_max: 2.0e-3 })
+    SlipParamsV1 { c1: 6.0e3, c2: 1.2e10, c3: 0.0, stiffness, slip_min: 1.0e-5, slip_max: 2.0e-3 }
+}
+
+/// [`slip_v1`] as today's model.
+fn slip_model() -> GearModel<f64> {
+    GearModelV1::MicroSlip(slip_v1()).upgrade().unwrap()
 }
 
 /// Arbitrary motion from rest, as the encoders of a 1:50 gear with the output at rest, in f32:
@@ -139,8 +146,9 @@ fn arbitrary_motions() -> [(&'static str, Vec<(f32, f32)>); 2] {
 fn both_kinds_follow_arbitrary_motion_as_the_host_model_does() {
     let mut firmware = Qemu::boot();
     let dir = tempfile::tempdir().unwrap();
-    // The micro-slip kind through the CLI: a params file as `fit --model micro-slip` writes.
-    let GearModel::MicroSlip(slip) = slip_model() else { unreachable!() };
+    // The micro-slip kind through the CLI: a params file as `fit --model micro-slip` of model
+    // version 1 wrote it, which loads as today's model.
+    let slip = slip_v1();
     let slip_file = dir.path().join("slip.json");
     let json = serde_json::json!({ "model": "micro-slip", "params": {
         "c1": slip.c1, "c2": slip.c2, "c3": slip.c3, "stiffness": slip.stiffness.to_vec(),
@@ -151,13 +159,13 @@ fn both_kinds_follow_arbitrary_motion_as_the_host_model_does() {
     let pushed =
         swg_host(&["push", slip_file.to_str().unwrap(), "--port", &port, "--ratio", "50", "--torque-limit", "100"]);
     assert!(pushed.status.success());
-    assert!(String::from_utf8_lossy(&pushed.stdout).contains("micro-slip c1=6e3"), "{pushed:?}");
+    assert!(String::from_utf8_lossy(&pushed.stdout).contains("micro-slip zero=0e0 c1=6e3"), "{pushed:?}");
 
     let mut link = firmware.ready_link();
     let expected = joint_params(&slip_model(), &SETTINGS).unwrap();
     assert_eq!(link.call::<endpoint::ReadParams>(&()).unwrap(), Some(expected));
-    assert!(matches!(expected.model, GearModel::MicroSlip(_)));
-    for model in [slip_model(), GearModel::Genetic(SEED)] {
+    assert_eq!(expected.model.kind(), model_core::Kind::MicroSlip);
+    for model in [slip_model(), GearModel::paper(SEED)] {
         let joint = joint_params(&model, &SETTINGS).unwrap();
         push(&mut link, &joint).unwrap();
         for (name, samples) in arbitrary_motions() {
@@ -190,8 +198,7 @@ fn refused(reply: Result<Envelope<Response>, LinkError>) -> (RequestId, ErrorRep
 fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
     let mut firmware = Qemu::boot();
     let mut link = firmware.ready_link();
-    let good = joint_params(&GearModel::Genetic(SEED), &SETTINGS).unwrap();
-    let GearModel::Genetic(good_model) = good.model else { unreachable!() };
+    let good = joint_params(&GearModel::paper(SEED), &SETTINGS).unwrap();
     push(&mut link, &good).unwrap();
 
     let frame = encode_to_vec(RequestId(1), &Request::WriteParams(JointParams { torque_limit: 5.0, ..good })).unwrap();
@@ -201,21 +208,17 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
     let mut other_version = [0u8; MAX_FRAME_LEN];
     let len =
         encode_with_version(PROTOCOL_VERSION + 1, RequestId(2), &Request::ReadParams, &mut other_version).unwrap();
-    let nan = JointParams { model: GearModel::Genetic(Params { beta: f32::NAN, ..good_model }), ..good };
+    let with = |name: ParamName, value: f32| JointParams { model: good.model.with(name, value), ..good };
+    let nan = with(ParamName::Beta, f32::NAN);
     let out_of_range = JointParams { gear_ratio: 0.0, ..good };
-    let infinite = JointParams { model: GearModel::Genetic(Params { c1: f32::INFINITY, ..good_model }), ..good };
-    let GearModel::MicroSlip(slip) = joint_params(&slip_model(), &SETTINGS).unwrap().model else { unreachable!() };
-    let mut negative = slip;
-    negative.stiffness[11] = -5.0;
-    let negative = JointParams { model: GearModel::MicroSlip(negative), ..good };
-    let mut inverted = slip;
-    inverted.slip_max = inverted.slip_min / 2.0;
-    let inverted = JointParams { model: GearModel::MicroSlip(inverted), ..good };
+    let infinite = with(ParamName::C1, f32::INFINITY);
+    let slip = joint_params(&slip_model(), &SETTINGS).unwrap().model;
+    let negative = JointParams { model: slip.with(ParamName::SlipStiffness(11), -5.0), ..good };
+    // The last element's slip deflection below the one before it.
+    let inverted = JointParams { model: slip.with(ParamName::Slip(15), 1.0e-5), ..good };
     // Finite, but the model overflows f32 within |θ| ≤ MAX_DEFLECTION: refused, not committed.
-    let overflowing = JointParams { model: GearModel::Genetic(Params { c3: 1.0e38, ..good_model }), ..good };
-    let mut stiff = slip;
-    stiff.stiffness[3] = 1.0e38;
-    let stiff = JointParams { model: GearModel::MicroSlip(stiff), ..good };
+    let overflowing = with(ParamName::C3, 1.0e38);
+    let stiff = JointParams { model: slip.with(ParamName::SlipStiffness(3), 1.0e38), ..good };
     let garbage = [0x13u8; 400];
 
     // The replies to frames the device cannot read carry the unknown id; the others, the
@@ -252,9 +255,9 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
             },
         ),
         (
-            "slip range upside down",
+            "slip deflections out of order",
             encode_to_vec(RequestId(15), &Request::WriteParams(inverted)).unwrap(),
-            ErrorReply::InvalidParam { field: ParamField::Model(ParamName::SlipMax), fault: ParamFault::OutOfRange },
+            ErrorReply::InvalidParam { field: ParamField::Model(ParamName::Slip(15)), fault: ParamFault::OutOfRange },
         ),
         (
             "c3 that overflows f32 in range",

@@ -18,7 +18,7 @@ fn decaying_gear() -> Params<f64> {
 
 fn base(params: Params<f64>, seed: u64) -> Simulation {
     Simulation {
-        params: GearModel::Genetic(params),
+        params: GearModel::paper(params),
         amplitude_rad: 1.168e-3,
         frequencies_hz: vec![0.25],
         cycles: 5,
@@ -50,8 +50,7 @@ fn curve_gap(a: &Params<f64>, b: &Params<f64>, amplitude: f64) -> f64 {
 
 /// The genetic truth of a simulation made by [`base`].
 fn truth(sim: &Simulation) -> Params<f64> {
-    let GearModel::Genetic(params) = sim.params else { unreachable!("base() simulates the genetic kind") };
-    params
+    sim.params.paper_params().expect("base() simulates the paper's genetic model")
 }
 
 fn check(sim: &Simulation, label: &str) {

@@ -131,7 +131,7 @@ fn the_fuzz_corpus_replays_without_a_panic() {
 fn frame_seeds() -> Vec<(String, Vec<u8>)> {
     let params = JointParams {
         model_version: MODEL_VERSION,
-        model: GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
+        model: GearModel::paper(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
         gear_ratio: 100.0,
         torque_limit: 50.0,
         direction_band: 2.0e-6,

@@ -9,7 +9,7 @@ mod qemu;
 use qemu::Qemu;
 
 use common::{json, swg_host_echoed as swg_host, write_params_file};
-use model_core::checks::MICRO_SLIP_SET;
+use model_core::checks::micro_slip_set;
 use model_core::GearModel;
 use model_core::Params;
 use swg_host::hil::{self, GearTruth, HilOptions, Scenario};
@@ -28,10 +28,10 @@ fn the_firmware_closes_the_loop_in_lockstep() {
     assert_eq!(link.call::<endpoint::GetDeviceInfo>(&()).unwrap().protocol_version, PROTOCOL_VERSION);
     let truth = GearTruth::Physics {
         physics: Physics::MicroSlip(MicroSlip::default()),
-        model: GearModel::Genetic(model_core::checks::SEED_TABLE_FIT),
+        model: GearModel::paper(model_core::checks::SEED_TABLE_FIT),
     };
     let options = HilOptions { scenarios: vec![Scenario::Contact], seconds: 1.5, ..HilOptions::new(truth) };
-    let report = hil::run(&mut link, &GearModel::MicroSlip(MICRO_SLIP_SET), &options).unwrap();
+    let report = hil::run(&mut link, &micro_slip_set().unwrap(), &options).unwrap();
     println!("{}", report.human());
     assert_eq!(report.runs.len(), 3);
     let rms = |mode| {

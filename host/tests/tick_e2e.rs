@@ -7,12 +7,12 @@ mod qemu;
 
 use qemu::Qemu;
 
-use model_core::checks::MICRO_SLIP_SET;
+use model_core::checks::micro_slip_set;
 use swg_host::link::{Discarded, Link, LinkError};
 use swg_protocol::endpoint::{Configure, Control, GetDeviceInfo, GetStatus, WriteParams};
 use swg_protocol::{
-    ControlMode, ControlOutput, ControlSample, ControllerConfig, ErrorReply, GearModel, JointParams, ParamFault,
-    ParamField, ParamName, RequestId, TickStatus, MODEL_VERSION,
+    ControlMode, ControlOutput, ControlSample, ControllerConfig, ErrorReply, JointParams, ParamFault, ParamField,
+    ParamName, RequestId, TickStatus, MODEL_VERSION,
 };
 
 const TICKS: usize = 1_000;
@@ -20,7 +20,7 @@ const TICKS: usize = 1_000;
 fn params() -> JointParams {
     JointParams {
         model_version: MODEL_VERSION,
-        model: GearModel::MicroSlip(MICRO_SLIP_SET.to_f32()),
+        model: micro_slip_set().unwrap().map(|_, v| v as f32),
         gear_ratio: 50.0,
         torque_limit: 60.0,
         direction_band: 0.0,
@@ -75,10 +75,7 @@ fn link_traffic_during_a_lockstep_run_delays_no_tick() {
     let mut link = qemu.ready_link();
     let quiet = lockstep(&mut link, |_, _| ());
 
-    let mut refused = params();
-    if let GearModel::MicroSlip(slip) = &mut refused.model {
-        slip.stiffness[3] = 1.0e38;
-    }
+    let refused = JointParams { model: params().model.with(ParamName::SlipStiffness(3), 1.0e38), ..params() };
     let refusal = ErrorReply::InvalidParam {
         field: ParamField::Model(ParamName::SlipStiffness(3)),
         fault: ParamFault::OutOfRange,

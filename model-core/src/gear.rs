@@ -270,8 +270,8 @@ impl<F: Real> GearModel<F> {
     /// joint prepares its next set in its slot, not on its stack and then copied.
     pub fn evaluator_into(&self, band: F, evaluator: &mut Option<Evaluator<F>>) -> Result<(), Error> {
         *evaluator = None;
-        if let Err((name, _)) = self.check() {
-            return Err(Error::InvalidParameter(name));
+        if let Err((name, fault)) = self.check() {
+            return Err(Error::InvalidParameter(name, fault));
         }
         let hysteresis = match &self.hysteresis {
             Hysteresis::Genetic(g) => HysteresisState::Genetic(GeneticMemory::new(g.model()?, band)),
@@ -331,7 +331,8 @@ impl<F: Copy + Default> GearModel<F> {
     ) -> Result<GearModel<G>, E> {
         let zero = convert(ParamName::Zero, self.zero)?;
         let s = &self.spring;
-        let (c1, c2, c3) = (convert(ParamName::C1, s.c1)?, convert(ParamName::C2, s.c2)?, convert(ParamName::C3, s.c3)?);
+        let (c1, c2, c3) =
+            (convert(ParamName::C1, s.c1)?, convert(ParamName::C2, s.c2)?, convert(ParamName::C3, s.c3)?);
         let mut knots = [crate::spring::Knot::default(); crate::spring::MAX_KNOTS];
         for ((i, knot), slot) in (0u8..).zip(s.knots.0.iter().take(usize::from(s.knots.1))).zip(knots.iter_mut()) {
             *slot = crate::spring::Knot {
@@ -349,7 +350,9 @@ impl<F: Copy + Default> GearModel<F> {
             }),
             Hysteresis::MicroSlip((elements, count)) => {
                 let mut converted = [SlipElement::default(); SLIP_ELEMENTS];
-                for ((i, element), slot) in (0u8..).zip(elements.iter().take(usize::from(*count))).zip(converted.iter_mut()) {
+                for ((i, element), slot) in
+                    (0u8..).zip(elements.iter().take(usize::from(*count))).zip(converted.iter_mut())
+                {
                     *slot = SlipElement {
                         slip: convert(ParamName::Slip(i), element.slip)?,
                         stiffness: convert(ParamName::SlipStiffness(i), element.stiffness)?,

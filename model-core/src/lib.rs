@@ -130,6 +130,22 @@ impl ParamName {
         }
     }
 
+    /// What the parameter's range is, for an error.
+    pub const fn range(self) -> &'static str {
+        match self {
+            ParamName::Omega => "it must not be zero (the model divides by it)",
+            ParamName::Slip(_) => "slip deflections must be > 0 rad and increasing",
+            ParamName::SlipStiffness(_) | ParamName::KnotStiffness(_) => "a stiffness must be >= 0 N·m/rad",
+            ParamName::Knot(_) => "knots must be increasing and within the spring's range",
+            ParamName::RangeMin => "the range's low end must be <= 0 rad",
+            ParamName::RangeMax => "the range's high end must be >= 0 rad and above its low end",
+            ParamName::Zero => "the deflection's zero must lie within the joint's deflection range",
+            ParamName::C1 | ParamName::C2 | ParamName::C3 | ParamName::Alpha | ParamName::Beta => {
+                "the model overflows the float type with it"
+            }
+        }
+    }
+
     /// The parameter's unit, for reports.
     pub const fn unit(self) -> &'static str {
         match self {
@@ -138,11 +154,9 @@ impl ParamName {
             ParamName::C3 => "N·m/rad⁵",
             ParamName::Alpha => "N·m/rad per unit of ω",
             ParamName::Beta | ParamName::Omega => "1/s",
-            ParamName::Slip(_)
-            | ParamName::Zero
-            | ParamName::Knot(_)
-            | ParamName::RangeMin
-            | ParamName::RangeMax => "rad",
+            ParamName::Slip(_) | ParamName::Zero | ParamName::Knot(_) | ParamName::RangeMin | ParamName::RangeMax => {
+                "rad"
+            }
         }
     }
 }
@@ -181,9 +195,8 @@ pub enum Error {
     /// A spring's knots are not finite and increasing with stiffnesses ≥ 0, or its range does
     /// not hold x = 0.
     InvalidSpring,
-    /// A parameter of a gear's model is not finite or out of its range
-    /// ([`GearModel::check`] says which).
-    InvalidParameter(ParamName),
+    /// A parameter of a gear's model is not finite or out of its range ([`GearModel::check`]).
+    InvalidParameter(ParamName, ParamFault),
 }
 
 impl fmt::Display for Error {
@@ -202,7 +215,12 @@ impl fmt::Display for Error {
             Error::InvalidSlipRange => {
                 f.write_str("micro-slip deflections must satisfy 0 < d_min < d_max, both finite rad")
             }
-            Error::InvalidParameter(name) => write!(f, "parameter {name} is not finite or out of its range"),
+            Error::InvalidParameter(name, ParamFault::NotFinite) => {
+                write!(f, "parameter {name} is not a finite number")
+            }
+            Error::InvalidParameter(name, ParamFault::OutOfRange) => {
+                write!(f, "parameter {name} is out of range: {}", name.range())
+            }
             Error::InvalidSpring => f.write_str(
                 "spring knots must be finite and increasing with stiffness >= 0 N·m/rad, its range must hold x = 0",
             ),

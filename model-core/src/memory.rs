@@ -834,14 +834,7 @@ impl<F: Real, const M: usize> MicroSlip<F, M> {
             }
             (*d, *k) = (element.slip, element.stiffness);
         }
-        Ok(MicroSlip {
-            slip,
-            stiffness,
-            elastic: [F::zero(); M],
-            theta: F::zero(),
-            count: elements.len(),
-            slipping: 0,
-        })
+        Ok(MicroSlip { slip, stiffness, elastic: [F::zero(); M], theta: F::zero(), count: elements.len(), slipping: 0 })
     }
 
     /// The elements' slip deflections d_i, rad.

@@ -44,15 +44,31 @@ one_test_per_check! {
     no_hysteresis_when_alpha_is_zero: "no hysteresis when alpha is zero",
 }
 
-/// The six parameters of a `params` object in a JSON file, exactly as written there.
+/// The paper's six parameters of a `params` object in a JSON file, exactly as written there:
+/// flat (model version 1, as `paper-params.json` prints the paper's table) or as a model version 2
+/// gear whose spring is the polynomial alone, zero at 0.
 fn params_in(json: &str) -> Params<f64> {
     let file: serde_json::Value = serde_json::from_str(json).unwrap();
     let params = file["params"].as_object().unwrap();
-    let mut keys: Vec<&str> = params.keys().map(|key| key.as_str()).collect();
-    keys.sort_unstable();
-    assert_eq!(keys, ["alpha", "beta", "c1", "c2", "c3", "omega"]);
-    let get = |name: &str| params[name].as_f64().unwrap_or_else(|| panic!("{name} is not a number"));
-    Params { c1: get("c1"), c2: get("c2"), c3: get("c3"), alpha: get("alpha"), beta: get("beta"), omega: get("omega") }
+    let spring = match params.get("spring") {
+        Some(spring) => {
+            assert_eq!(params["zero"].as_f64(), Some(0.0), "a paper gear's zero is 0");
+            assert_eq!(spring["knots"].as_array().map(Vec::len), Some(0), "a paper gear's spring has no knots");
+            spring.as_object().unwrap()
+        }
+        None => params,
+    };
+    let get = |object: &serde_json::Map<std::string::String, serde_json::Value>, name: &str| {
+        object[name].as_f64().unwrap_or_else(|| panic!("{name} is not a number"))
+    };
+    Params {
+        c1: get(spring, "c1"),
+        c2: get(spring, "c2"),
+        c3: get(spring, "c3"),
+        alpha: get(params, "alpha"),
+        beta: get(params, "beta"),
+        omega: get(params, "omega"),
+    }
 }
 
 /// Bit for bit, so that a one-ulp difference (or -0.0 for 0.0) fails.

@@ -548,6 +548,9 @@ pub struct ControlOutput {
 }
 
 /// Host → device. Each variant is one [`endpoint`]'s request.
+// A request is decoded into one stack slot of the link's task and never stored in a queue, and
+// no_std has no Box: the large parameter set stays inline.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Request {
@@ -572,6 +575,8 @@ pub enum Request {
 }
 
 /// Device → host, one per request: its endpoint's response, or [`Response::Error`].
+// As for Request: the parameter set stays inline.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Response {
@@ -602,6 +607,9 @@ pub trait Endpoint {
     /// `request` as the wire's message.
     fn request(request: &Self::Request) -> Request;
     /// The wire's answer as this endpoint's response, or back as it came when it is not.
+    // The response came on the stack and goes back unchanged for the caller's error: no copy to
+    // save by boxing it, and no_std has no Box.
+    #[allow(clippy::result_large_err)]
     fn response(response: Response) -> Result<Self::Response, Response>;
     /// `response` as the wire's message: the device's side of [`Endpoint::response`].
     fn reply(response: Self::Response) -> Response;

@@ -1,10 +1,11 @@
-//! `swg-host predict`: run fitted parameters along a recording from rest.
+//! `swg-host predict`: run fitted parameters along a recording from rest, following its
+//! reversals as `fit` does.
 use super::InputOptions;
 use anyhow::{Context, Result};
 use clap::Args;
 use std::path::PathBuf;
 use swg_host::input::read_recording;
-use swg_host::predict::predict;
+use swg_host::predict::{predict, Zeroing};
 use swg_host::report::finite::{ensure_finite, to_json};
 use swg_host::report::output::Outputs;
 use swg_host::report::params::read_model;
@@ -16,15 +17,21 @@ pub struct PredictArgs {
     params: PathBuf,
     /// Bench recording (`# swg-recording v1`) whose deflection the model follows.
     recording: PathBuf,
-    /// Write the prediction (time_s,deflection_rad,torque_nm,stiffness_nm_per_rad) to this CSV file.
+    /// Write the prediction (time_s,deflection_rad,torque_nm,stiffness_nm_per_rad,scored) to this
+    /// CSV file; `scored` is 0 before the motion's extremes wiped out an unknown start state.
     #[arg(long, value_name = "PRED.csv")]
     out: Option<PathBuf>,
-    /// Print the summary (n, rss, rms, max_step_nm, band_rad) as JSON.
+    /// Print the summary (n, start_state_samples, rss, rms, max_step_nm, reversals) as JSON.
     #[arg(long)]
     json: bool,
-    /// Smallest reversal the model follows, rad (default: 3× the recording's deflection noise).
+    /// Follow the reversals causally, taking those smaller than RAD for noise, as the joint
+    /// does (default: the turning points found offline over the whole recording, as `fit`).
     #[arg(long, value_name = "RAD")]
     band: Option<f64>,
+    /// Run with the params file's θ0 and no torque offset, as the joint does (default: a
+    /// recording that starts at rest is zeroed on its rest window, as `fit` zeroes each run).
+    #[arg(long)]
+    keep_zero: bool,
     #[command(flatten)]
     input_options: InputOptions,
 }
@@ -34,7 +41,9 @@ pub fn run(args: PredictArgs) -> Result<()> {
     outputs.refuse_inputs(args.out.as_deref()).context("--out")?;
     let model = read_model(&args.params)?;
     let recording = read_recording(&args.recording, args.input_options.ratio)?;
-    let prediction = predict(&model, &recording, args.band).with_context(|| args.recording.display().to_string())?;
+    let zeroing = if args.keep_zero { Zeroing::Model } else { Zeroing::RestWindow };
+    let prediction =
+        predict(&model, &recording, args.band, zeroing).with_context(|| args.recording.display().to_string())?;
     let summary = prediction.summary(&recording.torque);
     let name = || args.recording.display().to_string();
     let json = to_json("prediction", &summary).with_context(name)?;
@@ -47,15 +56,52 @@ pub fn run(args: PredictArgs) -> Result<()> {
     if args.json {
         println!("{json}");
     } else {
+        let reversals = match summary.band_rad {
+            Some(band) => format!("reversals followed causally, band {band:.3e} rad"),
+            None => "reversals found offline over the whole recording".to_string(),
+        };
         println!(
-            "{}: {} samples predicted from rest with {} (reversal band {:.3e} rad)",
+            "{}: {} samples predicted from rest with {} ({reversals})",
             args.recording.display(),
             summary.n,
             args.params.display(),
-            summary.band_rad
         );
-        println!("  against the recorded torque: RSS {:.5} (N·m)², RMS {:.4} N·m", summary.rss, summary.rms);
+        match &summary.origin {
+            Some(origin) => println!(
+                "  zeroed on the recording's rest window: θ0 = {:.4} mrad (params file {:.4} mrad), torque offset {:+.4} N·m",
+                origin.zero_rad * 1e3,
+                model.zero * 1e3,
+                origin.torque_offset_nm
+            ),
+            None => println!("  θ0 = {:.4} mrad from the params file, no torque offset", model.zero * 1e3),
+        }
+        if summary.start_state_samples > 0 {
+            println!(
+                "  {} samples before the motion's extremes wiped out the unknown start state: run through, not scored \
+                 (the recording does not say `# start: rest`)",
+                summary.start_state_samples
+            );
+        }
+        println!(
+            "  against the recorded torque ({} samples): RSS {:.5} (N·m)², RMS {:.4} N·m",
+            summary.n - summary.start_state_samples,
+            summary.rss,
+            summary.rms
+        );
         println!("  largest change of the predicted torque between samples: {:.4} N·m", summary.max_step_nm);
+        if summary.beyond_range_samples > 0 {
+            println!(
+                "  {} samples beyond the spring's identified range (θ {:.4} … {:.4} mrad), by up to {:.4} mrad: there \
+                 it continues with its edge's stiffness",
+                summary.beyond_range_samples,
+                prediction.range[0] * 1e3,
+                prediction.range[1] * 1e3,
+                summary.max_excess_rad * 1e3
+            );
+            if let Some(rms) = summary.within_range_rms {
+                println!("  RMS over the scored samples within the range: {rms:.4} N·m");
+            }
+        }
         if let Some(out) = &args.out {
             println!("wrote {}", out.display());
         }

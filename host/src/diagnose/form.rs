@@ -12,7 +12,7 @@ use super::observed::Observed;
 use super::{MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::fit::motion::{fit_micro_slip, micro_slip_with_columns, Motion};
 use crate::fit::FitOptions;
-use crate::gear::reversal_band;
+use crate::prepare::reversals;
 use serde::Serialize;
 
 /// Structure remains when the final residual's RMS exceeds this many times the noise's.
@@ -89,9 +89,8 @@ pub fn judge(
     let rss: f64 = final_residuals.iter().map(|r| r * r).sum();
     let rms = (rss / n as f64).sqrt();
     let data = &observed.data;
-    let band = reversal_band(noise.deflection_rad);
-    let motion = |training| Motion { theta: &data.theta, torque: &data.torque, training, noise: Some(noise), band };
-    let all = motion(n);
+    // The micro-slip model follows the recording's reversals offline, as `fit` and `predict` do.
+    let reversals = reversals(&data.theta);
     // Weighted χ² in the noise's units as the search measures them.
     let chi2: f64 = final_residuals.iter().zip(weights).map(|(r, w)| w * r * r).sum();
     let variance = chi2 / (n as f64 - final_fit.degrees_of_freedom() as f64).max(1.0);
@@ -100,7 +99,7 @@ pub fn judge(
         final_fit.active.iter().filter_map(|&e| torque_column(observed, e).map(|c| (e, c))).collect();
     let with = |skip: Option<Effect>| {
         let extra: Vec<&[f64]> = columns.iter().filter(|(e, _)| Some(*e) != skip).map(|(_, c)| c.as_slice()).collect();
-        micro_slip_with_columns(&all, weights, &extra).ok()
+        micro_slip_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &extra).ok()
     };
     let Some(with_all) = with(None) else { return Structure::Noise };
     let form_chi2 = with_all.1;
@@ -123,7 +122,7 @@ pub fn judge(
     let (form_torque, form_chi2) = if kept_columns.len() == columns.len() {
         with_all
     } else {
-        match micro_slip_with_columns(&all, weights, &kept_columns) {
+        match micro_slip_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &kept_columns) {
             Ok(form) => form,
             Err(_) => return Structure::Noise,
         }
@@ -132,7 +131,9 @@ pub fn judge(
     let form_rms = (form_rss / n as f64).sqrt();
     let held_out = (!observed.held_out().is_empty())
         .then(|| {
-            fit_micro_slip(&motion(observed.training().len()), &FitOptions::default()).ok().and_then(|f| f.held_out_rms)
+            let training = observed.training().len();
+            let motion = Motion::training_prefix(&data.theta, &data.torque, &reversals, training, Some(noise));
+            fit_micro_slip(&motion, &FitOptions::default()).ok().and_then(|f| f.held_out_rms)
         })
         .flatten();
     let extra_parameters =

@@ -11,17 +11,25 @@
 //! noise 1/(σ_T² + σ_θ²·K²), K the model's stiffness at the sample, refitted a few times.
 pub mod baselines;
 pub mod basis;
+pub mod held_out;
 pub mod motion;
+pub mod spring;
+pub mod zero;
 
-use crate::gear::reversal_band;
-use crate::input::Dataset;
+use crate::gear::{step_offline, Reversals};
+use crate::input::{Branch, Dataset, LoopTable, Recording};
 use crate::numeric::median;
 use crate::numeric::optimize::{brent, pso, PsoOptions};
-use crate::prepare::{prepare, FitData, NoiseModel, Prepared, SegmentError};
+use crate::prepare::{
+    from_loop_table, from_recording, reversals, FitData, NoiseModel, OfflineRun, Prepared, SegmentError, TurningBand,
+};
 use baselines::{lines_per_branch, three_segment, BranchLine, ThreeSegment};
 use basis::Basis;
+use held_out::{HeldOutRule, RunShape};
 use model_core::{GearModel, Identifiable, Kind, Model, Params};
 pub use motion::MotionFit;
+use motion::{Motion, Run};
+use zero::{fit_with_zero, RunOrigin};
 
 #[derive(Clone, Debug)]
 pub struct FitOptions {
@@ -30,11 +38,14 @@ pub struct FitOptions {
     pub max_iterations: usize,
     /// Weight residuals by total noise; `None` fits plain least squares (loop tables).
     pub noise: Option<NoiseModel>,
+    /// A model of the same kind fitted to part of the same data, whose searched parameters the
+    /// search may start from instead of searching globally (the refit on every sample).
+    pub start: Option<GearModel<f64>>,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None }
+        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None, start: None }
     }
 }
 
@@ -67,6 +78,8 @@ pub struct Fit {
     pub identifiable: Identifiable<f64>,
     /// The amplitude A that `identifiable.h` refers to, rad.
     pub reference_amplitude: f64,
+    /// The fitted deflections' range, [min, max] rad with 0 inside: the spring's identified range.
+    pub range: [f64; 2],
     /// Unweighted residual sum of squares, (N·m)².
     pub rss: f64,
     /// Unweighted RMS residual, N·m.
@@ -99,11 +112,15 @@ pub enum Stage {
         round: usize,
         of: usize,
     },
-    /// Fitting the `index`-th of `of` model kinds to a recording.
+    /// Fitting the `index`-th of `of` model kinds to the recordings.
     Kind {
         kind: Kind,
         index: usize,
         of: usize,
+    },
+    /// Refitting the chosen kind on every scored sample.
+    Refit {
+        kind: Kind,
     },
 }
 
@@ -111,8 +128,8 @@ pub enum Stage {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ModelChoice {
     Kind(Kind),
-    /// Every kind, on the first three quarters of a recording; the one with the lowest error on
-    /// the last quarter wins.
+    /// Every kind, without the held-out samples ([`held_out`]); the one with the lowest error
+    /// on them wins and is refitted on every sample.
     Auto,
     /// The paper's symmetric-loop rule on every leg of a recording (each leg on the loop of its
     /// own amplitude, from the offline segmentation): the fit before the stateful models, kept
@@ -120,64 +137,113 @@ pub enum ModelChoice {
     Loop,
 }
 
-/// What the fit of a recording found: the chosen model and every candidate tried.
+/// What `fit` identifies from: one loop table, or one or more recordings, each a run from its
+/// own start, that share one parameter set.
+#[derive(Clone, Copy, Debug)]
+pub enum FitInput<'a> {
+    LoopTable(&'a LoopTable),
+    Recordings(&'a [Recording]),
+}
+
+/// How a recording took part in a fit.
+#[derive(Clone, Debug)]
+pub struct RunOutcome {
+    /// Its samples.
+    pub samples: usize,
+    /// Its turning points, reversals and noise, as the offline model follows it.
+    pub offline: OfflineRun,
+    /// Whether `auto` held it out whole of the fits that chose the kind.
+    pub held_out: bool,
+    /// Its samples held out (of a run held out whole: all its scored samples).
+    pub held_out_samples: usize,
+}
+
+/// What the fit of recordings found: the chosen model and every candidate tried.
 #[derive(Clone, Debug)]
 pub struct MotionOutcome {
+    /// The model written: with `auto` the chosen kind refitted on every scored sample.
     pub chosen: MotionFit,
-    /// Every kind fitted, the chosen one included, in [`Kind::ALL`] order.
+    /// Every kind fitted, in [`Kind::ALL`] order: with `auto` without the held-out samples and
+    /// judged on them; else the one kind named.
     pub candidates: Vec<MotionFit>,
-    /// Samples held out of every fit (the last quarter with `auto`, else none).
-    pub held_out: usize,
-    /// The reversal band the stateful models used, rad.
-    pub band_rad: f64,
+    /// How `auto` chose the held-out samples (none for a named kind).
+    pub held_out_rule: Option<HeldOutRule>,
     /// The noise the residuals were weighted by.
     pub noise: Option<NoiseModel>,
     /// Half the range of the fitted deflections, rad: the loop amplitude a genetic model's h
     /// is reported at.
     pub reference_amplitude: f64,
+    /// Each run's θ0 and torque offset, in the order given (the model's θ0 is the first's).
+    pub origins: Vec<RunOrigin>,
 }
 
-/// The identified model: the loop fit of a loop table, or a stateful model of a recording.
+impl MotionOutcome {
+    /// The candidate of the chosen kind, as `auto` judged it (fitted without the held-out
+    /// samples).
+    pub fn chosen_candidate(&self) -> Option<&MotionFit> {
+        self.candidates.iter().find(|c| c.model.kind() == self.chosen.model.kind())
+    }
+}
+
+/// The identified model: the loop fit of a loop table, or a stateful model of recordings.
 #[derive(Clone, Debug)]
 pub enum Identified {
     Loop(Fit),
-    Motion(MotionOutcome),
+    Motion(Box<MotionOutcome>),
 }
 
 impl Identified {
     /// The model a params file holds.
     pub fn model(&self) -> GearModel<f64> {
         match self {
-            Identified::Loop(fit) => GearModel::Genetic(fit.params),
+            Identified::Loop(fit) => {
+                let mut model = GearModel::paper(fit.params);
+                model.spring.range = fit.range;
+                model
+            }
             Identified::Motion(outcome) => outcome.chosen.model,
         }
     }
 }
 
-/// Everything `swg-host fit` computes: the prepared data, the fit, the baselines beside it,
-/// and the RSS of other parameter sets on the same data.
+/// Everything `swg-host fit` computes: the fit, the baselines beside it, and the RSS of other
+/// parameter sets on the same data.
 #[derive(Clone, Debug)]
 pub struct FitOutcome {
-    pub prepared: Prepared,
+    /// The samples of a loop fit (a loop table, or recordings with `genetic-loop`).
+    pub prepared: Option<Prepared>,
+    /// Each recording, in the order given (none for a loop table).
+    pub runs: Vec<RunOutcome>,
     pub identified: Identified,
     pub lines: Vec<BranchLine>,
     pub three_segment: Option<ThreeSegment>,
-    /// RSS of each set given to compare, (N·m)², in order.
+    /// RSS of each set given to compare, (N·m)², in order: on a loop table's points, or on the
+    /// scored samples of the recordings, each run from rest along its reversals.
     pub compared_rss: Vec<f64>,
 }
 
-/// Why [`fit_dataset`] failed.
+/// Why [`fit_input`] failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum FitDatasetError {
-    #[error(transparent)]
-    Segment(#[from] SegmentError),
+    /// A recording (by its index in the order given) cannot be fitted.
+    #[error("{source}")]
+    Run {
+        index: usize,
+        #[source]
+        source: SegmentError,
+    },
     #[error("fit failed: {0}")]
     Fit(#[from] FitError),
     #[error("the {0} model needs a recording: a loop table is one symmetric loop (use the genetic model)")]
     NeedsRecording(&'static str),
-    #[error("{n} samples: too few to hold a quarter out for --model auto; name a model")]
-    TooFewToHoldOut { n: usize },
+    #[error("no recording to fit")]
+    NoInput,
+    #[error(
+        "{fitted} samples fitted and {held_out} held out: too few to judge the kinds for --model auto (it holds out \
+         {rule}); record more cycles or runs, or name a model"
+    )]
+    TooFewToHoldOut { fitted: usize, held_out: usize, rule: String },
     #[error("parameter set {index} to compare cannot be evaluated on this data: {source}")]
     Compared {
         index: usize,
@@ -186,85 +252,299 @@ pub enum FitDatasetError {
     },
 }
 
-/// The `fit` pipeline: prepare `dataset`, identify the model `choice` names, fit the
-/// baselines, and evaluate the `compare` sets on the same samples. A loop table is one loop:
-/// it takes the genetic loop fit (`Auto` means genetic there). A recording takes the stateful
-/// models, run along it from rest.
+/// The `fit` pipeline of one dataset ([`fit_input`]).
 pub fn fit_dataset(
     dataset: &Dataset,
     choice: ModelChoice,
     compare: &[GearModel<f64>],
     seed: u64,
-    mut progress: impl FnMut(Stage),
+    progress: impl Fn(Stage) + Sync,
 ) -> Result<FitOutcome, FitDatasetError> {
-    let prepared = prepare(dataset)?;
-    let options = FitOptions { seed, noise: prepared.noise, ..FitOptions::default() };
-    let data = &prepared.data;
-    let band = reversal_band(prepared.noise.map_or(0.0, |n| n.deflection_rad));
-    let identified = match (dataset, choice) {
-        (Dataset::LoopTable(_), ModelChoice::Kind(kind)) if !kind.has_symmetric_loop() => {
-            return Err(FitDatasetError::NeedsRecording(kind.name()))
-        }
-        (Dataset::LoopTable(_), _) | (_, ModelChoice::Loop) => Identified::Loop(fit(data, &options, progress)?),
-        (Dataset::Recording(_), ModelChoice::Kind(_) | ModelChoice::Auto) => {
-            let n = data.theta.len();
-            let (kinds, training): (Vec<Kind>, usize) = match choice {
-                ModelChoice::Kind(kind) => (vec![kind], n),
-                _ => (Kind::ALL.to_vec(), n * 3 / 4),
-            };
-            if training < MIN_POINTS || (choice == ModelChoice::Auto && n - training < MIN_POINTS) {
-                return Err(FitDatasetError::TooFewToHoldOut { n });
+    let input = match dataset {
+        Dataset::LoopTable(table) => FitInput::LoopTable(table),
+        Dataset::Recording(recording) => FitInput::Recordings(std::slice::from_ref(recording)),
+    };
+    fit_input(input, choice, compare, seed, progress)
+}
+
+/// The `fit` pipeline: identify the model `choice` names, fit the baselines, and evaluate the
+/// `compare` sets on the same samples. A loop table is one loop: it takes the genetic loop fit
+/// (`Auto` means genetic there). Recordings take the stateful models, run along each from rest
+/// following its reversals offline, fitted and scored from where its motion has wiped out an
+/// unknown start state.
+pub fn fit_input(
+    input: FitInput<'_>,
+    choice: ModelChoice,
+    compare: &[GearModel<f64>],
+    seed: u64,
+    progress: impl Fn(Stage) + Sync,
+) -> Result<FitOutcome, FitDatasetError> {
+    match input {
+        FitInput::LoopTable(table) => {
+            if let ModelChoice::Kind(kind) = choice {
+                if !kind.has_symmetric_loop() {
+                    return Err(FitDatasetError::NeedsRecording(kind.name()));
+                }
             }
-            let motion =
-                motion::Motion { theta: &data.theta, torque: &data.torque, training, noise: prepared.noise, band };
-            let mut candidates = Vec::new();
-            for (k, kind) in kinds.iter().enumerate() {
-                progress(Stage::Kind { kind: *kind, index: k + 1, of: kinds.len() });
-                candidates.push(motion::fit_kind(*kind, &motion, &options)?);
-            }
-            let chosen = candidates
+            let prepared = from_loop_table(table);
+            let options = FitOptions { seed, noise: None, ..FitOptions::default() };
+            let fitted = fit(&prepared.data, &options, &progress)?;
+            let data = &prepared.data;
+            let lines = lines_per_branch(&data.theta, &data.torque, &prepared.branch);
+            let three_segment = three_segment(&data.theta, &data.torque);
+            let compared_rss = compare
                 .iter()
-                .min_by(|a, b| a.held_out_rms.unwrap_or(a.rms).total_cmp(&b.held_out_rms.unwrap_or(b.rms)))
-                .cloned()
-                .ok_or(FitError::Degenerate)?;
-            Identified::Motion(MotionOutcome {
-                chosen,
-                candidates,
-                held_out: n - training,
-                band_rad: band,
-                noise: prepared.noise,
-                reference_amplitude: {
-                    let fitted = &data.theta[..training];
-                    let (lo, hi) =
-                        fitted.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
-                    (hi - lo) / 2.0
-                },
+                .enumerate()
+                .map(|(index, model)| {
+                    // A loop table's points are on one symmetric loop: a model that has the
+                    // loop's stateless form is evaluated on it, any other run along the points.
+                    match model.paper_params().map(Model::new).transpose() {
+                        Ok(Some(on_loop)) => rss(&on_loop, data),
+                        Ok(None) => offline_rss(model, &data.theta, &data.torque, 0.0, &reversals(&data.theta), 0),
+                        Err(e) => Err(e),
+                    }
+                    .map_err(|source| FitDatasetError::Compared { index, source })
+                })
+                .collect::<Result<_, _>>()?;
+            Ok(FitOutcome {
+                prepared: Some(prepared),
+                runs: Vec::new(),
+                identified: Identified::Loop(fitted),
+                lines,
+                three_segment,
+                compared_rss,
             })
         }
+        FitInput::Recordings(recordings) => fit_recordings(recordings, choice, compare, seed, progress),
+    }
+}
+
+fn fit_recordings(
+    recordings: &[Recording],
+    choice: ModelChoice,
+    compare: &[GearModel<f64>],
+    seed: u64,
+    progress: impl Fn(Stage) + Sync,
+) -> Result<FitOutcome, FitDatasetError> {
+    use rayon::prelude::*;
+    if recordings.is_empty() {
+        return Err(FitDatasetError::NoInput);
+    }
+    let offline: Vec<OfflineRun> = recordings.par_iter().map(OfflineRun::of).collect();
+    for (index, (recording, run)) in recordings.iter().zip(&offline).enumerate() {
+        if run.reversals.indices.is_empty() {
+            let TurningBand { band, range, .. } = TurningBand::of(&recording.deflection);
+            return Err(FitDatasetError::Run { index, source: SegmentError::NoReversal { range, band } });
+        }
+    }
+    let noise = pooled_noise(recordings, &offline);
+    let options = FitOptions { seed, noise: Some(noise), ..FitOptions::default() };
+    let all_fitted = Motion {
+        runs: recordings
+            .iter()
+            .zip(&offline)
+            .map(|(r, o)| Run::fitted_from(&r.deflection, &r.torque, &o.reversals, o.scored_from))
+            .collect(),
+        noise: Some(noise),
+        free_offset: false,
     };
-    let lines = lines_per_branch(&data.theta, &data.torque, &prepared.branch);
-    let three_segment = three_segment(&data.theta, &data.torque);
+    let at_rest: Vec<Option<RunOrigin>> = offline.iter().map(RunOrigin::at_rest).collect();
+    // The model's θ0 is the first run's (the others' rest points differ by the remanence of the
+    // loops between them).
+    let with_zero = |(mut fit, origins): (MotionFit, Vec<RunOrigin>)| {
+        fit.model.zero = origins.first().map_or(0.0, |o| o.zero_rad);
+        (fit, origins)
+    };
+    let motion_outcome = |chosen, candidates, held_out_rule, origins| MotionOutcome {
+        chosen,
+        candidates,
+        held_out_rule,
+        noise: Some(noise),
+        reference_amplitude: reference_amplitude(&all_fitted),
+        origins,
+    };
+    let mut held_out_spans = None;
+    let (prepared, identified) = match choice {
+        ModelChoice::Loop => {
+            let prepared = concatenated_loop_data(recordings)?;
+            let fitted = fit(&prepared.data, &options, &progress)?;
+            (Some(prepared), Identified::Loop(fitted))
+        }
+        ModelChoice::Kind(kind) => {
+            progress(Stage::Kind { kind, index: 1, of: 1 });
+            let (chosen, origins) = with_zero(fit_with_zero(kind, &all_fitted, &at_rest, &options)?);
+            (None, Identified::Motion(Box::new(motion_outcome(chosen.clone(), vec![chosen], None, origins))))
+        }
+        ModelChoice::Auto => {
+            let shapes: Vec<RunShape> = recordings
+                .iter()
+                .zip(&offline)
+                .map(|(r, o)| RunShape { theta: &r.deflection, reversals: &o.reversals, scored_from: o.scored_from })
+                .collect();
+            let (spans, rule) = held_out::hold_out(&shapes);
+            let mut training = all_fitted.clone();
+            for (run, spans) in training.runs.iter_mut().zip(&spans) {
+                run.spans.clone_from(spans);
+            }
+            let (fitted, held) = (training.fitted(), training.held_out());
+            if fitted < MIN_POINTS || held < MIN_POINTS {
+                return Err(FitDatasetError::TooFewToHoldOut { fitted, held_out: held, rule: rule.describe() });
+            }
+            // The kinds side by side, each judged on the samples held out of its fit.
+            let candidates = Kind::ALL
+                .par_iter()
+                .enumerate()
+                .map(|(k, &kind)| {
+                    progress(Stage::Kind { kind, index: k + 1, of: Kind::ALL.len() });
+                    fit_with_zero(kind, &training, &at_rest, &options).map(with_zero).map(|(fit, _)| fit)
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            let best = candidates
+                .iter()
+                .min_by(|a, b| a.held_out_rms.unwrap_or(a.rms).total_cmp(&b.held_out_rms.unwrap_or(b.rms)))
+                .ok_or(FitError::Degenerate)?;
+            // The written parameters use every sample.
+            let kind = best.model.kind();
+            progress(Stage::Refit { kind });
+            let refit = FitOptions { start: Some(best.model), ..options };
+            let (chosen, origins) = with_zero(fit_with_zero(kind, &all_fitted, &at_rest, &refit)?);
+            held_out_spans = Some(spans);
+            (None, Identified::Motion(Box::new(motion_outcome(chosen, candidates, Some(rule), origins))))
+        }
+    };
+    let (lines, three_segment) = match &prepared {
+        Some(p) => {
+            (lines_per_branch(&p.data.theta, &p.data.torque, &p.branch), three_segment(&p.data.theta, &p.data.torque))
+        }
+        None => {
+            let origins = match &identified {
+                Identified::Motion(outcome) => outcome.origins.clone(),
+                Identified::Loop(_) => Vec::new(),
+            };
+            recording_baselines(recordings, &offline, &origins)
+        }
+    };
     let compared_rss = compare
         .iter()
         .enumerate()
         .map(|(index, model)| {
-            // A loop table's samples are on one symmetric loop: a model that has the loop's
-            // stateless form is evaluated on it, any other run along the samples.
-            let on_loop = match &identified {
-                Identified::Loop(_) => model.symmetric_model(),
-                Identified::Motion(_) => Ok(None),
-            };
-            match on_loop {
-                Ok(Some(on_loop)) => rss(&on_loop, data),
-                Ok(None) => crate::gear::run(model, &data.theta, band)
-                    .map(|e| e.iter().zip(&data.torque).map(|(e, t)| (t - e.torque).powi(2)).sum())
-                    .map_err(|(_, e)| e),
-                Err(e) => Err(e),
-            }
-            .map_err(|source| FitDatasetError::Compared { index, source })
+            recordings
+                .iter()
+                .zip(&offline)
+                .map(|(r, o)| {
+                    let (placed, origin) = RunOrigin::place(model, o);
+                    let offset = origin.map_or(0.0, |o| o.torque_offset_nm);
+                    offline_rss(&placed, &r.deflection, &r.torque, offset, &o.reversals, o.scored_from)
+                })
+                .sum::<Result<f64, _>>()
+                .map_err(|source| FitDatasetError::Compared { index, source })
         })
         .collect::<Result<_, _>>()?;
-    Ok(FitOutcome { prepared, identified, lines, three_segment, compared_rss })
+    let runs = recordings
+        .iter()
+        .zip(offline)
+        .enumerate()
+        .map(|(k, (recording, offline))| {
+            let spans = held_out_spans.as_ref().and_then(|spans| spans.get(k));
+            let held_out_samples =
+                spans.map_or(0, |spans| spans.iter().filter(|s| s.held_out).map(|s| s.range.len()).sum());
+            let held_out = match &identified {
+                Identified::Motion(outcome) => {
+                    matches!(&outcome.held_out_rule, Some(HeldOutRule::Runs(held)) if held.contains(&k))
+                }
+                Identified::Loop(_) => false,
+            };
+            RunOutcome { samples: recording.deflection.len(), held_out, held_out_samples, offline }
+        })
+        .collect();
+    Ok(FitOutcome { prepared, runs, identified, lines, three_segment, compared_rss })
+}
+
+/// The noise of several runs: each standard deviation the RMS over the runs, by sample count.
+fn pooled_noise(recordings: &[Recording], offline: &[OfflineRun]) -> NoiseModel {
+    let total: usize = recordings.iter().map(|r| r.deflection.len()).sum();
+    let pooled = |sigma: &dyn Fn(&NoiseModel) -> f64| {
+        let sum: f64 =
+            recordings.iter().zip(offline).map(|(r, o)| r.deflection.len() as f64 * sigma(&o.noise).powi(2)).sum();
+        (sum / total.max(1) as f64).sqrt()
+    };
+    NoiseModel { torque_nm: pooled(&|n| n.torque_nm), deflection_rad: pooled(&|n| n.deflection_rad) }
+}
+
+/// Half the range of the fitted deflections, rad.
+fn reference_amplitude(motion: &Motion) -> f64 {
+    let (lo, hi) = motion
+        .runs
+        .iter()
+        .flat_map(|run| run.spans.iter().filter(|s| !s.held_out).flat_map(|s| &run.theta[s.range.clone()]))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
+    (hi - lo) / 2.0
+}
+
+/// The recordings' samples, prepared for the loop fit, one after the other.
+fn concatenated_loop_data(recordings: &[Recording]) -> Result<Prepared, FitDatasetError> {
+    let mut all: Option<Prepared> = None;
+    for (index, recording) in recordings.iter().enumerate() {
+        let prepared = from_recording(recording).map_err(|source| FitDatasetError::Run { index, source })?;
+        all = Some(match all {
+            None => prepared,
+            Some(mut all) => {
+                all.data.theta.extend(prepared.data.theta);
+                all.data.torque.extend(prepared.data.torque);
+                all.data.direction.extend(prepared.data.direction);
+                all.data.amplitude.extend(prepared.data.amplitude);
+                all.branch.extend(prepared.branch);
+                all.segmentation = None;
+                all
+            }
+        });
+    }
+    all.ok_or(FitDatasetError::NoInput)
+}
+
+/// The baselines on the scored samples of the recordings (as the fit's RSS), each sample on
+/// the branch of its leg, in x = θ − θ0 and the torque less the offset of its run (`origins`, in
+/// order; none for a loop fit).
+fn recording_baselines(
+    recordings: &[Recording],
+    offline: &[OfflineRun],
+    origins: &[RunOrigin],
+) -> (Vec<BranchLine>, Option<ThreeSegment>) {
+    let total: usize = offline.iter().zip(recordings).map(|(o, r)| r.deflection.len() - o.scored_from).sum();
+    let (mut x, mut torque, mut branch) =
+        (Vec::with_capacity(total), Vec::with_capacity(total), Vec::with_capacity(total));
+    for (k, (r, o)) in recordings.iter().zip(offline).enumerate() {
+        let (zero, offset) = origins.get(k).map_or((0.0, 0.0), |o| (o.zero_rad, o.torque_offset_nm));
+        let along = o.reversals.project(&r.deflection).zip(o.reversals.directions(r.deflection.len())).zip(&r.torque);
+        for ((p, d), t) in along.skip(o.scored_from) {
+            let here = p.theta_m + p.offset - zero;
+            x.push(here);
+            torque.push(t - offset);
+            branch.push(Branch::of(d, here));
+        }
+    }
+    (lines_per_branch(&x, &torque, &branch), three_segment(&x, &torque))
+}
+
+/// Unweighted RSS of `model` run from rest along one recording following its reversals, over
+/// its samples from `scored_from` on, (N·m)².
+fn offline_rss(
+    model: &GearModel<f64>,
+    theta: &[f64],
+    torque: &[f64],
+    torque_offset: f64,
+    reversals: &Reversals,
+    scored_from: usize,
+) -> Result<f64, model_core::Error> {
+    let mut evaluator = model.evaluator(0.0)?;
+    let mut rss = 0.0;
+    for ((i, sample), measured) in reversals.project(theta).enumerate().zip(torque) {
+        let predicted = step_offline(&mut evaluator, sample)?.torque + torque_offset;
+        if i >= scored_from {
+            rss += (measured - predicted).powi(2);
+        }
+    }
+    Ok(rss)
 }
 
 /// Fits the model to `data`.
@@ -330,10 +610,12 @@ pub fn fit(data: &FitData, options: &FitOptions, mut progress: impl FnMut(Stage)
         }
     }
     let rss = rss(&Model::new(params)?, data)?;
+    let range = data.theta.iter().fold([0.0f64, 0.0f64], |[lo, hi], &t| [lo.min(t), hi.max(t)]);
     Ok(Fit {
         params,
         identifiable: params.identifiable(reference_amplitude)?,
         reference_amplitude,
+        range,
         rss,
         rms: (rss / n as f64).sqrt(),
         n,

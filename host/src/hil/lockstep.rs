@@ -222,16 +222,16 @@ mod tests {
     fn slip_truth() -> GearTruth {
         GearTruth::Physics {
             physics: Physics::MicroSlip(MicroSlip::default()),
-            model: GearModel::Genetic(SEED_TABLE_FIT),
+            model: GearModel::paper(SEED_TABLE_FIT),
         }
     }
 
     fn bouc_wen_truth() -> GearTruth {
-        GearTruth::Physics { physics: Physics::BoucWen(BoucWen::default()), model: GearModel::Genetic(SEED_TABLE_FIT) }
+        GearTruth::Physics { physics: Physics::BoucWen(BoucWen::default()), model: GearModel::paper(SEED_TABLE_FIT) }
     }
 
     fn genetic_truth() -> GearTruth {
-        GearTruth::Physics { physics: Physics::Model, model: GearModel::Genetic(SEED_TABLE_FIT) }
+        GearTruth::Physics { physics: Physics::Model, model: GearModel::paper(SEED_TABLE_FIT) }
     }
 
     /// The model `fit` identifies (micro-slip for a micro-slip truth, genetic for the genetic
@@ -345,7 +345,7 @@ mod tests {
     #[test]
     fn bad_options_are_refused_before_any_traffic() {
         let mut link = FakeDevice::new().link();
-        let model = GearModel::Genetic(SEED_TABLE_FIT);
+        let model = GearModel::paper(SEED_TABLE_FIT);
         let options = HilOptions { seconds: 0.1, ..HilOptions::new(genetic_truth()) };
         assert!(matches!(run(&mut link, &model, &options), Err(HilError::Seconds(_))));
         let options = HilOptions { rate_hz: 0.0, ..HilOptions::new(genetic_truth()) };

@@ -143,11 +143,11 @@ pub const MODES: [ControlMode; 3] = [ControlMode::OpenLoop, ControlMode::Linear,
 #[cfg(test)]
 mod tests {
     use super::*;
-    use model_core::checks::{MICRO_SLIP_SET, SEED_TABLE_FIT};
+    use model_core::checks::{micro_slip_set, SEED_TABLE_FIT};
 
     #[test]
     fn the_linear_stiffness_is_the_loops_secant() {
-        for model in [GearModel::Genetic(SEED_TABLE_FIT), GearModel::MicroSlip(MICRO_SLIP_SET)] {
+        for model in [GearModel::paper(SEED_TABLE_FIT), micro_slip_set().unwrap()] {
             let k = linear_stiffness(&model).unwrap();
             // Between the small-signal spring and the stiffening at 15 N·m.
             println!("{model:?}: {k}");

@@ -228,7 +228,7 @@ mod tests {
     fn slip() -> GearTruth {
         GearTruth::Physics {
             physics: Physics::MicroSlip(MicroSlip::default()),
-            model: GearModel::Genetic(model_core::checks::SEED_TABLE_FIT),
+            model: GearModel::paper(model_core::checks::SEED_TABLE_FIT),
         }
     }
 

@@ -209,7 +209,7 @@ fn loop_table_from_table(table: &Table) -> Result<LoopTable, InputError> {
     let deflection_col = table.required_column("deflection_rad", "torsional deflection, rad")?;
     let mut out = LoopTable { branch: Vec::new(), torque: Vec::new(), deflection: Vec::new() };
     table.for_each_row(|row| {
-        let name = row.fields.get(branch_col).unwrap_or("");
+        let name = row.field(branch_col);
         let branch = Branch::ALL.into_iter().find(|b| b.name() == name).ok_or_else(|| {
             let names: Vec<_> = Branch::ALL.iter().map(|b| b.name()).collect();
             table.cell_error(row, branch_col, format!("unknown branch {name:?}; expected one of {}", names.join(", ")))

@@ -45,7 +45,7 @@ pub enum LinkError {
     #[error("device refused the request: {0}")]
     Refused(ErrorReply),
     #[error("unexpected response to {request}: {response:?}")]
-    Unexpected { request: &'static str, response: Response },
+    Unexpected { request: &'static str, response: Box<Response> },
 }
 
 fn unread_note(unread: &Option<ErrorReply>) -> String {
@@ -138,7 +138,8 @@ impl Link {
         self.send(&frame)?;
         match self.reply_to(id)? {
             Response::Error(reason) => Err(LinkError::Refused(reason)),
-            response => E::response(response).map_err(|response| LinkError::Unexpected { request: E::NAME, response }),
+            response => E::response(response)
+                .map_err(|response| LinkError::Unexpected { request: E::NAME, response: Box::new(response) }),
         }
     }
 
@@ -314,13 +315,15 @@ mod tests {
         assert!(error.to_string().contains("tcp://127.0.0.1:1"), "{error}");
     }
 
-    const PARAMS: JointParams = JointParams {
-        model_version: MODEL_VERSION,
-        model: GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
-        gear_ratio: 100.0,
-        torque_limit: 50.0,
-        direction_band: 2.0e-6,
-    };
+    fn params() -> JointParams {
+        JointParams {
+            model_version: MODEL_VERSION,
+            model: GearModel::paper(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
+            gear_ratio: 100.0,
+            torque_limit: 50.0,
+            direction_band: 2.0e-6,
+        }
+    }
 
     /// How [`Unreliable`] delivers the reply to one request (counted from 0).
     #[derive(Clone, Copy, Debug, PartialEq)]
@@ -425,7 +428,7 @@ mod tests {
         for delivery in [Delivery::AfterNext, Delivery::BeforeNext] {
             // Request 0 writes the parameters; the replies to requests 2 and 5 come late.
             let mut link = Unreliable::link(&[(2, delivery), (5, delivery)]);
-            link.call::<WriteParams>(&PARAMS).unwrap();
+            link.call::<WriteParams>(&params()).unwrap();
             assert_answers(&mut link, 1);
             let error = link.call::<Replay>(&replay_sample(2)).unwrap_err();
             assert!(matches!(error, LinkError::Timeout { unread: None, .. }), "{error}");
@@ -439,7 +442,7 @@ mod tests {
             // Both late replies were read and discarded, whichever way round they came.
             assert_eq!(link.discarded(), Discarded { other_request: 2, ..Discarded::default() }, "{delivery:?}");
             // And a reply of another type cannot be mistaken either: the endpoints pair them.
-            assert_eq!(link.call::<ReadParams>(&()).unwrap(), Some(PARAMS));
+            assert_eq!(link.call::<ReadParams>(&()).unwrap(), Some(params()));
         }
     }
 
@@ -449,7 +452,7 @@ mod tests {
     fn a_stale_answer_from_before_the_connection_is_skipped() {
         let mut device = FakeDevice::new();
         let mut stale = [0u8; MAX_FRAME_LEN];
-        let len = encode(RequestId(12_345), &Response::Params(Some(PARAMS)), &mut stale).unwrap();
+        let len = encode(RequestId(12_345), &Response::Params(Some(params())), &mut stale).unwrap();
         device.pending.extend(&stale[..len]);
         let mut link = device.link();
         assert_eq!(link.call::<ReadParams>(&()).unwrap(), None);

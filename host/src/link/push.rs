@@ -104,25 +104,27 @@ pub fn push(link: &mut Link, params: &JointParams) -> Result<PushReport, PushErr
 mod tests {
     use super::*;
     use crate::link::fake::FakeDevice;
-    use model_core::{ParamName, Params, SlipParams, SLIP_ELEMENTS};
+    use model_core::memory::slip_grid;
+    use model_core::{ParamName, Params, SlipElement, Spring, SLIP_ELEMENTS};
     use swg_protocol::{ParamFault, ParamField};
 
-    const SEED: GearModel<f64> =
-        GearModel::Genetic(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 });
-    const SLIP: SlipParams<f64, SLIP_ELEMENTS> = SlipParams {
-        c1: 6.0e3,
-        c2: 1.2e10,
-        c3: 0.0,
-        stiffness: [187.5; SLIP_ELEMENTS],
-        slip_min: 2.0e-5,
-        slip_max: 2.0e-3,
-    };
+    fn seed() -> GearModel<f64> {
+        GearModel::paper(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 })
+    }
+
+    /// 16 elements of 187.5 N·m/rad on the log grid 20 µrad … 2 mrad, beside a cubic spring.
+    fn slip() -> GearModel<f64> {
+        let grid = slip_grid::<f64, SLIP_ELEMENTS>(2.0e-5, 2.0e-3).unwrap();
+        let elements = grid.map(|slip| SlipElement { slip, stiffness: 187.5 });
+        GearModel::micro_slip(0.0, Spring::polynomial(6.0e3, 1.2e10, 0.0), &elements).unwrap()
+    }
+
     const SETTINGS: JointSettings = JointSettings { gear_ratio: 50.0, torque_limit: 30.0, direction_band: 1.0e-5 };
 
     #[test]
     fn push_writes_verifies_and_commits() {
         let mut link = FakeDevice::new().link();
-        let params = joint_params(&SEED, &SETTINGS).unwrap();
+        let params = joint_params(&seed(), &SETTINGS).unwrap();
         let report = push(&mut link, &params).unwrap();
         assert_eq!((report.previous, report.sequence), (None, 1));
         assert_eq!(report.device.protocol_version, PROTOCOL_VERSION);
@@ -133,44 +135,39 @@ mod tests {
     #[test]
     fn push_sends_a_micro_slip_model() {
         let mut link = FakeDevice::new().link();
-        let params = joint_params(&GearModel::MicroSlip(SLIP), &SETTINGS).unwrap();
-        let GearModel::MicroSlip(slip) = params.model else { panic!("{params:?}") };
-        assert_eq!(slip.stiffness, [187.5; SLIP_ELEMENTS]);
-        assert_eq!((slip.slip_min, slip.slip_max), (2.0e-5, 2.0e-3));
+        let params = joint_params(&slip(), &SETTINGS).unwrap();
+        let elements = params.model.slip_elements();
+        assert!(elements.iter().all(|e| e.stiffness == 187.5), "{params:?}");
+        assert_eq!((elements[0].slip, elements[15].slip), (2.0e-5, 2.0e-3));
         let report = push(&mut link, &params).unwrap();
         assert_eq!(report.written, params);
         // Replacing it with the genetic kind is an ordinary push.
-        let genetic = joint_params(&SEED, &SETTINGS).unwrap();
+        let genetic = joint_params(&seed(), &SETTINGS).unwrap();
         assert_eq!(push(&mut link, &genetic).unwrap().previous, Some(params));
     }
 
     #[test]
     fn bad_values_are_caught_before_sending() {
-        let GearModel::Genetic(seed) = SEED else { unreachable!() };
-        let huge = GearModel::Genetic(Params { c3: 1e300, ..seed });
+        let huge = seed().with(ParamName::C3, 1e300);
         assert!(
             matches!(joint_params(&huge, &SETTINGS), Err(PushError::NotRepresentable { ref name, .. }) if name == "c3")
         );
-        let mut slip = SLIP;
-        slip.stiffness[9] = 1e40;
-        let error = joint_params(&GearModel::MicroSlip(slip), &SETTINGS).unwrap_err();
+        let error = joint_params(&slip().with(ParamName::SlipStiffness(9), 1e40), &SETTINGS).unwrap_err();
         assert_eq!(
             error.to_string(),
             "stiffness[9] = 10000000000000000000000000000000000000000 does not fit the device's f32"
         );
-        // Representable, but refused by the device's rules (slip_min rounds to 0 in f32).
-        let mut slip = SLIP;
-        slip.slip_min = 1e-50;
+        // Representable, but refused by the device's rules (the slip deflection rounds to 0 in f32).
         assert!(matches!(
-            joint_params(&GearModel::MicroSlip(slip), &SETTINGS),
+            joint_params(&slip().with(ParamName::Slip(0), 1e-50), &SETTINGS),
             Err(PushError::Invalid(ErrorReply::InvalidParam {
-                field: ParamField::Model(ParamName::SlipMin),
+                field: ParamField::Model(ParamName::Slip(0)),
                 fault: ParamFault::OutOfRange
             }))
         ));
         let no_ratio = JointSettings { gear_ratio: 0.0, ..SETTINGS };
         assert!(matches!(
-            joint_params(&SEED, &no_ratio),
+            joint_params(&seed(), &no_ratio),
             Err(PushError::Invalid(ErrorReply::InvalidParam {
                 field: ParamField::GearRatio,
                 fault: ParamFault::OutOfRange
@@ -185,36 +182,36 @@ mod tests {
     /// old set stays active. The reference sets pass both.
     #[test]
     fn sets_that_overflow_in_range_are_refused_by_both_ends_with_the_same_reason() {
-        use model_core::checks::{MICRO_SLIP_SET, PAPER_TABLE_2, SEED_TABLE_FIT};
+        use model_core::checks::{micro_slip_set, PAPER_TABLE_2, SEED_TABLE_FIT};
         let mut link = FakeDevice::new().link();
-        let good = joint_params(&GearModel::Genetic(PAPER_TABLE_2), &SETTINGS).unwrap();
+        let good = joint_params(&GearModel::paper(PAPER_TABLE_2), &SETTINGS).unwrap();
         push(&mut link, &good).unwrap();
-        for model in [GearModel::Genetic(SEED_TABLE_FIT), GearModel::MicroSlip(MICRO_SLIP_SET)] {
+        for model in [GearModel::paper(SEED_TABLE_FIT), micro_slip_set().unwrap()] {
             let params = joint_params(&model, &SETTINGS).unwrap();
             link.call::<endpoint::WriteParams>(&params).unwrap();
         }
         link.call::<endpoint::WriteParams>(&good).unwrap();
 
         let mut cases: Vec<(GearModel<f64>, ParamField)> = Vec::new();
-        for base in [GearModel::Genetic(PAPER_TABLE_2), GearModel::MicroSlip(MICRO_SLIP_SET)] {
+        for base in [GearModel::paper(PAPER_TABLE_2), micro_slip_set().unwrap()] {
             let mut names = Vec::new();
             base.map(|name, value| {
                 names.push(name);
                 value
             });
+            let elements = base.slip_elements().len();
             for name in names {
                 let huge = match name {
                     ParamName::Omega => 1e-38,
-                    // Below it, the other end of the range is the culprit (below).
-                    ParamName::SlipMin => continue,
+                    // An element's slip deflection out of order names the next one (the kind's
+                    // checks); the last one's lies beyond the travel.
+                    ParamName::Slip(i) if usize::from(i) + 1 < elements => continue,
+                    ParamName::RangeMin => -1e38,
                     _ => 1e38,
                 };
                 cases.push((base.with(name, huge), ParamField::Model(name)));
             }
         }
-        let both_ends =
-            GearModel::MicroSlip(MICRO_SLIP_SET).with(ParamName::SlipMin, 1e37).with(ParamName::SlipMax, 1e38);
-        cases.push((both_ends, ParamField::Model(ParamName::SlipMin)));
         for (model, field) in cases {
             let reason = ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange };
             let error = joint_params(&model, &SETTINGS).unwrap_err();
@@ -237,7 +234,7 @@ mod tests {
     fn the_device_refusing_a_set_is_reported() {
         let mut link = FakeDevice::new().link();
         // Past the host's check (validated with the same rules), so corrupt it afterwards.
-        let mut params = joint_params(&SEED, &SETTINGS).unwrap();
+        let mut params = joint_params(&seed(), &SETTINGS).unwrap();
         params.direction_band = 1.0;
         let error = push(&mut link, &params).unwrap_err();
         assert_eq!(error.to_string(), "device refused the request: parameter direction_band is out of range");

@@ -283,17 +283,19 @@ mod tests {
     use crate::link::push::{joint_params, push, JointSettings};
     use crate::simulate::{simulate, Simulation};
 
-    use model_core::checks::{MICRO_SLIP_SET, SEED_AMPLITUDE as AMPLITUDE, SEED_TABLE_FIT as SEED_PARAMS};
+    use model_core::checks::{micro_slip_set, SEED_AMPLITUDE as AMPLITUDE, SEED_TABLE_FIT as SEED_PARAMS};
 
-    const SEED: GearModel<f64> = GearModel::Genetic(SEED_PARAMS);
+    fn seed() -> GearModel<f64> {
+        GearModel::paper(SEED_PARAMS)
+    }
 
     fn slip() -> GearModel<f64> {
-        GearModel::MicroSlip(MICRO_SLIP_SET)
+        micro_slip_set().unwrap()
     }
 
     fn recording(input_bits: Option<u32>) -> Recording {
         simulate(&Simulation {
-            params: SEED,
+            params: seed(),
             amplitude_rad: AMPLITUDE,
             frequencies_hz: vec![1.0],
             cycles: 2,
@@ -346,7 +348,7 @@ mod tests {
 
     #[test]
     fn both_paths_match_the_f64_model_over_whole_loops() {
-        let (mut link, joint) = pushed(&SEED, 100.0);
+        let (mut link, joint) = pushed(&seed(), 100.0);
         let samples = samples(&recording(None), joint.gear_ratio).unwrap();
         for path in [EvalPath::Direct, EvalPath::Fast] {
             // Each replay from rest: a write resets the device's memory.
@@ -360,7 +362,7 @@ mod tests {
 
     #[test]
     fn biased_and_nested_motions_of_both_kinds_match_the_f64_model() {
-        for model in [SEED, slip()] {
+        for model in [seed(), slip()] {
             let (mut link, joint) = pushed(&model, 100.0);
             for samples in motions() {
                 for path in [EvalPath::Direct, EvalPath::Fast] {
@@ -379,17 +381,17 @@ mod tests {
 
     #[test]
     fn a_device_not_at_rest_fails_the_comparison() {
-        let (mut link, joint) = pushed(&SEED, 100.0);
+        let (mut link, joint) = pushed(&seed(), 100.0);
         let [biased, _] = motions();
-        replay(&mut link, &joint, &SEED, &biased[..1000], EvalPath::Fast).unwrap();
+        replay(&mut link, &joint, &seed(), &biased[..1000], EvalPath::Fast).unwrap();
         // No write in between: the device remembers the first replay, the host starts at rest.
-        let report = replay(&mut link, &joint, &SEED, &biased, EvalPath::Fast).unwrap();
+        let report = replay(&mut link, &joint, &seed(), &biased, EvalPath::Fast).unwrap();
         assert!(!report.passed() && report.memory_mismatches > 0, "{report}");
     }
 
     #[test]
     fn clamped_samples_are_compared_against_the_limit() {
-        let (mut link, joint) = pushed(&SEED, 5.0);
+        let (mut link, joint) = pushed(&seed(), 5.0);
         let samples = samples(&recording(Some(20)), joint.gear_ratio).unwrap();
         let report = replay(&mut link, &joint, &device_model(&joint), &samples, EvalPath::Fast).unwrap();
         assert!(report.clamped > 0 && report.active > 0, "{report}");
@@ -399,14 +401,14 @@ mod tests {
     #[test]
     fn a_different_model_fails_the_comparison() {
         let samples = motions()[1].clone();
-        let other = GearModel::Genetic(model_core::Params { c1: SEED_PARAMS.c1 * 1.001, ..SEED_PARAMS });
-        let (mut link, joint) = pushed(&SEED, 100.0);
+        let other = GearModel::paper(model_core::Params { c1: SEED_PARAMS.c1 * 1.001, ..SEED_PARAMS });
+        let (mut link, joint) = pushed(&seed(), 100.0);
         let report = replay(&mut link, &joint, &other, &samples, EvalPath::Fast).unwrap();
         assert!(!report.passed() && report.first_violation.is_some(), "{report}");
-        let GearModel::MicroSlip(mut params) = slip() else { unreachable!() };
-        params.stiffness[3] *= 1.01;
+        let k = slip().slip_elements()[3].stiffness;
+        let other = slip().with(model_core::ParamName::SlipStiffness(3), 1.01 * k);
         let (mut link, joint) = pushed(&slip(), 100.0);
-        let report = replay(&mut link, &joint, &GearModel::MicroSlip(params), &samples, EvalPath::Fast).unwrap();
+        let report = replay(&mut link, &joint, &other, &samples, EvalPath::Fast).unwrap();
         assert!(!report.passed() && report.first_violation.is_some(), "{report}");
     }
 

@@ -4,6 +4,11 @@ pub mod linalg;
 pub mod nnls;
 pub mod optimize;
 
+/// The arithmetic mean; NaN for no values.
+pub fn mean(values: &[f64]) -> f64 {
+    values.iter().sum::<f64>() / values.len() as f64
+}
+
 /// The median (upper middle for an even count); NaN for no values.
 pub fn median(values: &[f64]) -> f64 {
     if values.is_empty() {

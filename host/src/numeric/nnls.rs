@@ -7,19 +7,36 @@ use super::linalg::Cholesky;
 /// Minimises xᵀGx − 2hᵀx (i.e. ‖Ax − b‖² with G = AᵀA, h = Aᵀb) over the n = `h.len()`
 /// unknowns, with x_j ≥ 0 for every j where `nonnegative[j]` and the others free. `gram` is
 /// G row-major. Returns `None` when the free unknowns alone are undetermined by the data.
+///
+/// The columns are scaled to unit norm first (G_jj = 1): the bounds keep their sign, and the
+/// optimality test compares gradients of like scale (a fit's columns differ by orders of
+/// magnitude).
 pub fn nnls_normal(gram: &[f64], h: &[f64], nonnegative: &[bool]) -> Option<Vec<f64>> {
     let n = h.len();
     debug_assert_eq!(gram.len(), n * n);
     debug_assert_eq!(nonnegative.len(), n);
+    let norm: Vec<f64> = (0..n).map(|j| gram[j * n + j].sqrt()).map(|d| if d > 0.0 { d } else { 1.0 }).collect();
+    let scaled: Vec<f64> = (0..n * n).map(|k| gram[k] / (norm[k / n] * norm[k % n])).collect();
+    let rhs: Vec<f64> = h.iter().zip(&norm).map(|(h, d)| h / d).collect();
+    let x = lawson_hanson(&scaled, &rhs, nonnegative)?;
+    Some(x.iter().zip(&norm).map(|(x, d)| x / d).collect())
+}
+
+/// Lawson & Hanson's active-set method on scaled normal equations.
+fn lawson_hanson(gram: &[f64], h: &[f64], nonnegative: &[bool]) -> Option<Vec<f64>> {
+    let n = h.len();
     // The passive set: unknowns solved for freely; the others sit at 0.
     let mut passive: Vec<bool> = nonnegative.iter().map(|&bounded| !bounded).collect();
     let mut x = solve_passive(gram, h, &passive)?;
+    let tolerance = 1e-12 * h.iter().map(|v| v.abs()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    // Unknowns that entered and were pushed straight back (round-off): not tried again until
+    // another one enters for good.
+    let mut rejected = vec![false; n];
     // Lawson & Hanson bound the outer loop by 3n; each round frees one bounded unknown.
     for _ in 0..3 * n.max(1) {
         let gradient: Vec<f64> = (0..n).map(|i| h[i] - (0..n).map(|j| gram[i * n + j] * x[j]).sum::<f64>()).collect();
-        let scale = gradient.iter().map(|g| g.abs()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
         let entering = (0..n)
-            .filter(|&j| !passive[j] && gradient[j] > 1e-12 * scale)
+            .filter(|&j| !passive[j] && !rejected[j] && gradient[j] > tolerance)
             .max_by(|&a, &b| gradient[a].total_cmp(&gradient[b]));
         let Some(entering) = entering else { break };
         passive[entering] = true;
@@ -39,10 +56,11 @@ pub fn nnls_normal(gram: &[f64], h: &[f64], nonnegative: &[bool]) -> Option<Vec<
                     x[j] = 0.0;
                 }
             }
-            if !passive[entering] {
-                // The entering unknown was pushed back at once: no progress possible with it.
-                break;
-            }
+        }
+        if passive[entering] {
+            rejected.iter_mut().for_each(|r| *r = false);
+        } else {
+            rejected[entering] = true;
         }
     }
     Some(x)

@@ -1,9 +1,15 @@
 //! From what was read to what the fit needs: direction, amplitude and noise per sample.
+pub mod rest;
 pub mod segment;
 
+use crate::gear::Reversals;
 use crate::input::{Branch, Dataset, LoopTable, Recording};
 use model_core::Direction;
-pub use segment::{deflection_noise, noise_from_second_differences, segment, SegmentError, Segmentation, TurningPoint};
+pub use rest::{rest_window, OriginSource, RestWindow, RunOrigin};
+pub use segment::{
+    deflection_noise, extremes_visited, noise_from_second_differences, reversals, reversals_beyond, segment,
+    SegmentError, Segmentation, TurningBand, TurningPoint,
+};
 
 /// Deflection samples with what the model needs to evaluate them.
 #[derive(Clone, Debug, Default)]
@@ -80,4 +86,45 @@ pub fn from_recording(recording: &Recording) -> Result<Prepared, SegmentError> {
         noise: Some(noise),
         segmentation: Some(segmentation),
     })
+}
+
+/// A recording as the offline model follows it (a run of a fit, or what `predict` scores): its
+/// turning points over the whole recording, its noise, its rest window, and where an unknown
+/// start state has been wiped out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OfflineRun {
+    pub reversals: Reversals,
+    pub noise: NoiseModel,
+    /// Where the run starts at rest: the rest window at its start, declared (`# start: rest`,
+    /// [`Recording::starts_at_rest`]) or found ([`rest_window`]). It gives the run's θ0 and
+    /// torque offset.
+    pub rest: Option<RestWindow>,
+    /// The first sample scored. A run that does not start at rest carries an unknown hysteresis
+    /// state until its motion has visited both its extremes ([`extremes_visited`]); the model
+    /// still runs through the samples before, from rest, but they are neither fitted nor
+    /// scored. 0 from rest.
+    pub scored_from: usize,
+}
+
+impl OfflineRun {
+    pub fn of(recording: &Recording) -> OfflineRun {
+        let deflection = &recording.deflection;
+        let band = TurningBand::of(deflection);
+        let rest = rest_window(&recording.time, deflection, &recording.torque, band.noise, recording.starts_at_rest());
+        let scored_from = if rest.is_some() { 0 } else { extremes_visited(deflection, band.band) };
+        OfflineRun {
+            reversals: reversals_beyond(deflection, band.band),
+            noise: NoiseModel {
+                torque_nm: noise_from_second_differences(&recording.torque),
+                deflection_rad: band.noise,
+            },
+            rest,
+            scored_from,
+        }
+    }
+
+    /// Samples before the motion's extremes, not scored.
+    pub fn unscored(&self) -> usize {
+        self.scored_from
+    }
 }

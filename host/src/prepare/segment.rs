@@ -2,6 +2,7 @@
 //! quantisation and noise: a zigzag with a noise band finds the turning points, a local
 //! parabola refines their deflection, and each leg between two turning points gets the
 //! larger of their magnitudes as its amplitude A.
+use crate::gear::Reversals;
 use model_core::Direction;
 
 /// A reversal of the deflection.
@@ -70,14 +71,7 @@ pub fn segment(time: &[f64], deflection: &[f64]) -> Result<Segmentation, Segment
     if n < 3 {
         return Err(SegmentError::TooShort(n));
     }
-    let step = typical_step(deflection);
-    let noise = deflection_noise(deflection);
-    let (lo, hi) = deflection.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-    let range = hi - lo;
-    // Ten σ keeps Gaussian noise from ever spanning the band near a slow turning point; two
-    // quantisation steps keep a dithering encoder from doing so.
-    let band = (10.0 * noise).max(2.0 * step).max(1e-9 * range);
-
+    let TurningBand { band, noise, range } = TurningBand::of(deflection);
     let extremes = zigzag(deflection, band);
     if extremes.is_empty() {
         return Err(SegmentError::NoReversal { range, band });
@@ -124,6 +118,72 @@ pub fn segment(time: &[f64], deflection: &[f64]) -> Result<Segmentation, Segment
         *a = a.max(floor);
     }
     Ok(Segmentation { direction, amplitude, turning_points, noise, band })
+}
+
+/// The smallest reversal the segmentation takes for motion, and what it is made of.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TurningBand {
+    /// Reversals smaller than this are noise, rad.
+    pub band: f64,
+    /// The deflection noise σ, rad ([`deflection_noise`]).
+    pub noise: f64,
+    /// The deflection's range, max − min, rad.
+    pub range: f64,
+}
+
+impl TurningBand {
+    pub fn of(deflection: &[f64]) -> TurningBand {
+        let step = typical_step(deflection);
+        let noise = deflection_noise(deflection);
+        let (lo, hi) = extent(deflection);
+        let range = hi - lo;
+        // Ten σ keeps Gaussian noise from ever spanning the band near a slow turning point; two
+        // quantisation steps keep a dithering encoder from doing so.
+        TurningBand { band: (10.0 * noise).max(2.0 * step).max(1e-9 * range), noise, range }
+    }
+}
+
+/// (min, max) of `x`; (∞, −∞) when empty.
+fn extent(x: &[f64]) -> (f64, f64) {
+    x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+}
+
+impl Segmentation {
+    /// The turning points' sample indices, as the offline model follows them.
+    pub fn reversals(&self) -> Reversals {
+        Reversals {
+            indices: self.turning_points.iter().map(|tp| tp.index).collect(),
+            rising_first: self.turning_points.first().is_some_and(|tp| tp.is_maximum),
+        }
+    }
+}
+
+/// The turning points of `deflection` as [`segment`] finds them (without refining their
+/// deflection, which needs the time): what the offline model follows. A deflection that never
+/// reverses by more than the band has none; it rises if it ends above where it started.
+pub fn reversals(deflection: &[f64]) -> Reversals {
+    reversals_beyond(deflection, TurningBand::of(deflection).band)
+}
+
+/// [`reversals`] larger than `band`, rad.
+pub fn reversals_beyond(deflection: &[f64], band: f64) -> Reversals {
+    let extremes = zigzag(deflection, band);
+    let rising_first = match extremes.first() {
+        Some(&(_, is_maximum)) => is_maximum,
+        None => deflection.last() >= deflection.first(),
+    };
+    Reversals { indices: extremes.into_iter().map(|(index, _)| index).collect(), rising_first }
+}
+
+/// The first sample by which the motion has visited both its extremes (in either order), to
+/// within the segmentation's `band`: its largest and its smallest deflection. Before it the
+/// hysteresis state left by the motion before the run began can still show (Madelung's
+/// rules: an excursion wipes out the memory of smaller ones only once it passes them); from
+/// it on, the motion has wiped out any memory inside its own range.
+pub fn extremes_visited(deflection: &[f64], band: f64) -> usize {
+    let (lo, hi) = extent(deflection);
+    let first = |reached: &dyn Fn(f64) -> bool| deflection.iter().position(|&t| reached(t)).unwrap_or(0);
+    first(&|t| t >= hi - band).max(first(&|t| t <= lo + band))
 }
 
 /// Indices of the extremes between reversals larger than `band`, with `true` for maxima.

@@ -1,6 +1,6 @@
 //! What `fit` reports: the JSON document (also the parameter file) and the human summary.
 use crate::fit::baselines::{BranchLine, ThreeSegment};
-use crate::fit::{Fit, Identified, MotionFit, SearchSummary};
+use crate::fit::{Fit, Identified, MotionFit, RunOutcome, SearchSummary};
 use crate::prepare::NoiseModel;
 use model_core::{GearModel, ParamName, MODEL_VERSION};
 use serde::Serialize;
@@ -11,6 +11,9 @@ pub struct FitReport {
     pub model: &'static str,
     pub model_version: u16,
     pub input: InputSummary,
+    /// Each recording fitted, in the order given.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub runs: Vec<RunReport>,
     /// The kind's parameters by name (canonical genetic ones have ω = 1).
     #[serde(serialize_with = "GearModel::serialize_params")]
     pub params: GearModel<f64>,
@@ -18,10 +21,11 @@ pub struct FitReport {
     pub identifiable: Option<IdentifiableReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub convention: Option<&'static str>,
-    /// Unweighted residual sum of squares, (N·m)².
+    /// Unweighted residual sum of squares over the samples fitted, (N·m)².
     pub rss: f64,
-    /// Unweighted RMS residual, N·m.
+    /// Unweighted RMS residual over the samples fitted, N·m.
     pub rms: f64,
+    /// The samples fitted (of recordings: every scored sample).
     pub n: usize,
     /// Noise the residuals were weighted by; absent for a plain least-squares fit.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -29,13 +33,16 @@ pub struct FitReport {
     pub baselines: Vec<BaselineReport>,
     /// Parameter sets given with `--compare`, evaluated on the same data.
     pub compared: Vec<ComparedReport>,
-    /// The smallest reversal the stateful models followed, rad (recordings).
+    /// How the stateful models found a recording's reversals: `offline`, over the whole
+    /// recording (recordings).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub band_rad: Option<f64>,
-    /// The samples held out of every fit and the chosen model's error on them (`--model auto`).
+    pub reversals: Option<&'static str>,
+    /// The samples held out of the fits that chose the kind (`--model auto`), how they were
+    /// chosen, and the chosen kind's error on them.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub held_out: Option<HeldOutReport>,
-    /// Every model kind fitted to a recording, the chosen one included.
+    /// Every model kind fitted to the recordings: with `auto`, without the held-out samples and
+    /// judged on them (the held-out table); the chosen kind is then refitted on every sample.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub candidates: Vec<CandidateReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -44,14 +51,20 @@ pub struct FitReport {
 
 #[derive(Clone, Debug, Serialize)]
 pub struct HeldOutReport {
+    /// The rule, in words.
+    pub rule: String,
     pub samples: usize,
-    /// RMS residual of the chosen model on them, N·m.
+    /// RMS residual on them of the chosen kind fitted without them, N·m.
     pub rms: f64,
 }
 
 #[derive(Clone, Debug, Serialize)]
 pub struct CandidateReport {
     pub model: &'static str,
+    /// Parameters the kind's fit identifies.
+    pub parameters: usize,
+    /// The samples it was fitted to.
+    pub n: usize,
     /// Unweighted RSS and RMS on the samples it was fitted to.
     pub rss: f64,
     pub rms: f64,
@@ -63,10 +76,41 @@ pub struct CandidateReport {
 
 #[derive(Clone, Debug, Serialize)]
 pub struct InputSummary {
+    /// The input's path (several recordings: their paths, comma-separated).
     pub path: String,
     pub kind: &'static str,
+    /// Turning points found (over every recording).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub turning_points: Option<usize>,
+}
+
+/// One recording of a fit.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunReport {
+    pub path: String,
+    pub samples: usize,
+    pub turning_points: usize,
+    /// Samples before the motion had visited both its extremes in a recording that does not say
+    /// it starts at rest: run through from rest, neither fitted nor scored.
+    pub start_state_samples: usize,
+    /// `training`, or `held out` (a run `auto` held out whole of the fits that chose the kind).
+    pub role: &'static str,
+    /// Its samples held out of those fits (a run's interleaved cycles, or all of a run held out).
+    pub held_out_samples: usize,
+}
+
+impl RunReport {
+    /// The report of `run`, read from `path`.
+    pub fn new(path: String, run: &RunOutcome) -> RunReport {
+        RunReport {
+            path,
+            samples: run.samples,
+            turning_points: run.offline.reversals.indices.len(),
+            start_state_samples: run.offline.unscored(),
+            role: if run.held_out { "held out" } else { "training" },
+            held_out_samples: run.held_out_samples,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -103,6 +147,7 @@ pub const CONVENTION: &str = "only h and r are identifiable: (s*alpha, s*beta, s
 impl FitReport {
     pub fn new(
         input: InputSummary,
+        runs: Vec<RunReport>,
         identified: &Identified,
         lines: Vec<BranchLine>,
         three_segment: Option<ThreeSegment>,
@@ -117,7 +162,7 @@ impl FitReport {
             baselines.push(BaselineReport { name: "three_segment", rss: curve.rss, params: serde_json::json!(curve) });
         }
         match identified {
-            Identified::Loop(fit) => FitReport::of_loop(input, fit, baselines, compared),
+            Identified::Loop(fit) => FitReport { runs, ..FitReport::of_loop(input, fit, baselines, compared) },
             Identified::Motion(outcome) => {
                 let chosen = &outcome.chosen;
                 let model = chosen.model;
@@ -128,15 +173,26 @@ impl FitReport {
                 });
                 let candidate = |fit: &MotionFit| CandidateReport {
                     model: fit.model.kind().name(),
+                    parameters: fit.parameters,
+                    n: fit.n,
                     rss: fit.rss,
                     rms: fit.rms,
                     held_out_rms: fit.held_out_rms,
-                    chosen: fit.model == model,
+                    chosen: fit.model.kind() == model.kind(),
                 };
+                let held_out =
+                    outcome.held_out_rule.as_ref().zip(outcome.chosen_candidate()).and_then(|(rule, fit)| {
+                        Some(HeldOutReport {
+                            rule: rule.describe(),
+                            samples: fit.held_out_samples,
+                            rms: fit.held_out_rms?,
+                        })
+                    });
                 FitReport {
                     model: model.kind().name(),
                     model_version: MODEL_VERSION,
                     input,
+                    runs,
                     params: model,
                     identifiable,
                     // Where only part of the parameters is identifiable, the point written.
@@ -147,11 +203,8 @@ impl FitReport {
                     noise: outcome.noise,
                     baselines,
                     compared,
-                    band_rad: Some(outcome.band_rad),
-                    held_out: chosen
-                        .held_out_rms
-                        .map(|rms| HeldOutReport { samples: outcome.held_out, rms })
-                        .filter(|h| h.samples > 0),
+                    reversals: Some("offline"),
+                    held_out,
                     candidates: outcome.candidates.iter().map(candidate).collect(),
                     search: None,
                 }
@@ -164,7 +217,7 @@ impl FitReport {
             model: model_core::MODEL_NAME,
             model_version: MODEL_VERSION,
             input,
-            params: GearModel::Genetic(fit.params),
+            params: GearModel::paper(fit.params),
             identifiable: Some(IdentifiableReport {
                 h: fit.identifiable.h,
                 r: fit.identifiable.r,
@@ -177,7 +230,8 @@ impl FitReport {
             noise: fit.noise,
             baselines,
             compared,
-            band_rad: None,
+            runs: Vec::new(),
+            reversals: None,
             held_out: None,
             candidates: Vec::new(),
             search: Some(fit.search.clone()),
@@ -187,14 +241,15 @@ impl FitReport {
     /// The summary printed for a person.
     pub fn human(&self) -> String {
         let mut s = String::new();
-        let _ = write!(s, "{} ({}, {} samples", self.input.path, self.input.kind.replace('_', " "), self.n);
+        let samples = if self.runs.is_empty() { self.n } else { self.runs.iter().map(|r| r.samples).sum() };
+        let _ = write!(s, "{} ({}, {samples} samples", self.input.path, self.input.kind.replace('_', " "));
         if let Some(tp) = self.input.turning_points {
             let _ = write!(s, ", {tp} turning points");
         }
         let _ = writeln!(s, ")");
         let _ = writeln!(s, "model {} v{}: {}", self.model, self.model_version, self.params.kind().equation());
         write_parameters(&mut s, &self.params);
-        match (&self.identifiable, self.band_rad) {
+        match (&self.identifiable, self.reversals) {
             (Some(id), None) => {
                 let _ = writeln!(
                     s,
@@ -223,17 +278,59 @@ impl FitReport {
                 noise.torque_nm, noise.deflection_rad
             );
         }
-        if let Some(band) = self.band_rad {
-            let _ = writeln!(s, "  run from rest along the recording; reversals below {band:.3e} rad taken for noise");
+        if self.reversals.is_some() {
+            let _ = writeln!(
+                s,
+                "  run from rest along each recording, following the turning points found over the whole recording"
+            );
+        }
+        if !self.runs.is_empty() {
+            let _ = writeln!(s, "runs ({} sharing one parameter set)", self.runs.len());
+            for run in &self.runs {
+                let held = match (run.role, run.held_out_samples) {
+                    ("held out", _) => "held out".to_string(),
+                    (_, 0) => "training".to_string(),
+                    (_, held) => format!("training, {held} samples of cycles held out"),
+                };
+                let _ = writeln!(
+                    s,
+                    "  {}: {} samples, {} turning points, {held}",
+                    run.path, run.samples, run.turning_points
+                );
+                if run.start_state_samples > 0 {
+                    let _ = writeln!(
+                        s,
+                        "    {} samples before the motion's extremes wiped out the unknown start state (no `# start: \
+                         rest`): run through, not fitted or scored",
+                        run.start_state_samples
+                    );
+                }
+            }
+        }
+        if let Some(held) = &self.held_out {
+            let _ = writeln!(
+                s,
+                "model kinds tried, fitted without {} held-out samples and judged on them ({}); the chosen kind is then \
+                 refitted on every sample",
+                held.samples, held.rule
+            );
+        } else if !self.candidates.is_empty() {
+            let _ = writeln!(s, "model kind named: fitted on every sample");
         }
         if !self.candidates.is_empty() {
-            let held = self.held_out.as_ref().map_or(0, |h| h.samples);
-            let _ = writeln!(s, "model kinds tried (fitted without the last {held} samples, judged on them)");
-            let _ = writeln!(s, "  {:<34} {:>12} {:>10} {:>14}", "model", "RSS (N·m)²", "RMS N·m", "held-out RMS");
+            let _ = writeln!(
+                s,
+                "  {:<20} {:>10} {:>12} {:>14} {:>14}",
+                "model", "parameters", "samples", "training RMS", "held-out RMS"
+            );
             for c in &self.candidates {
                 let held_out = c.held_out_rms.map_or("—".to_string(), |r| format!("{r:.4}"));
                 let mark = if c.chosen { "  ← chosen" } else { "" };
-                let _ = writeln!(s, "  {:<34} {:>12.5} {:>10.4} {:>14}{mark}", c.model, c.rss, c.rms, held_out);
+                let _ = writeln!(
+                    s,
+                    "  {:<20} {:>10} {:>12} {:>14.4} {:>14}{mark}",
+                    c.model, c.parameters, c.n, c.rms, held_out
+                );
             }
         }
         let _ = writeln!(s, "fit quality (unweighted torque residuals)");
@@ -269,7 +366,7 @@ fn write_parameters(s: &mut String, model: &GearModel<f64>) {
     });
     for (name, values) in lines {
         let _ = match values.as_slice() {
-            [value] => writeln!(s, "  {:<8} = {value:>12.5e} {}", name.as_str(), name.unit()),
+            [value] => writeln!(s, "  {:<9} = {value:>12.5e} {}", name.as_str(), name.unit()),
             many => {
                 let total: f64 = many.iter().sum();
                 let listed: Vec<String> = many.iter().map(|v| format!("{v:.3e}")).collect();

@@ -1,11 +1,16 @@
-//! Parameter files: model-core's [`GearModel`] in its serde form, `{"model": kind, "params":
-//! {…}}` (what `swg-host fit --out` writes, with more fields that are ignored here):
+//! Parameter files: model-core's [`GearModel`] in its serde form, `{"model": kind,
+//! "model_version": 2, "params": {…}}` (what `swg-host fit --out` writes, with more fields that
+//! are ignored here):
 //!
-//! - `"model": "genetic-hysteresis"`: `params` {c1, c2, c3, alpha, beta, omega};
-//! - `"model": "micro-slip"`: `params` {c1, c2, c3, stiffness: [16 values, N·m/rad], slip_min,
-//!   slip_max (rad)};
-//! - no `model` (files from before the micro-slip kind): the genetic kind's `params`.
-use model_core::{GearModel, Kind, Params};
+//! - `params` holds `zero` (θ0, rad), `spring` ({c1, c2, c3, knots: [{x, stiffness}…], range:
+//!   [lo, hi]}) and the kind's own: `alpha`, `beta`, `omega` (`"model": "genetic-hysteresis"`),
+//!   `elements`: [{slip, stiffness}…] (`"model": "micro-slip"`).
+//! - Files of model version 1 (`model_version` 1, or none) still load, upgraded to the same torque
+//!   (model-core's `legacy`): `params` {c1, c2, c3, alpha, beta, omega}, or for the micro-slip kind
+//!   {c1, c2, c3, stiffness: [16 values], slip_min, slip_max}; no `model` at all (files from before
+//!   the micro-slip kind) is the genetic kind.
+use model_core::legacy::GearModelV1;
+use model_core::{GearModel, Kind, Params, MODEL_VERSION};
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
@@ -21,6 +26,10 @@ pub enum ParamsFileError {
     WrongModel { path: PathBuf, found: &'static str },
     #[error("{path}: {source}")]
     Invalid { path: PathBuf, source: model_core::Error },
+    #[error(
+        "{path}: model_version {found} is not one this tool reads (1 to {MODEL_VERSION}): a newer swg-host wrote it"
+    )]
+    UnknownVersion { path: PathBuf, found: u16 },
 }
 
 /// The kinds' names in files, quoted, for an error.
@@ -31,6 +40,7 @@ fn known_kinds() -> String {
 #[derive(serde::Deserialize)]
 struct Header {
     model: Option<String>,
+    model_version: Option<u16>,
 }
 
 /// A params file from before the kinds had names: the genetic model's parameters.
@@ -56,7 +66,7 @@ pub fn read_params(path: &Path) -> Result<Params<f64>, ParamsFileError> {
 /// [`read_params`] of a text already read.
 pub fn parse_params(path: &Path, text: &str) -> Result<Params<f64>, ParamsFileError> {
     let model = parse_model(path, text)?;
-    model.as_genetic().copied().ok_or(ParamsFileError::WrongModel { path: path.to_owned(), found: model.kind().name() })
+    model.paper_params().ok_or(ParamsFileError::WrongModel { path: path.to_owned(), found: model.kind().name() })
 }
 
 /// [`read_model`] of a text already read.
@@ -67,15 +77,28 @@ pub fn parse_model(path: &Path, text: &str) -> Result<GearModel<f64>, ParamsFile
         column: e.column(),
         message: e.to_string().split(" at line ").next().unwrap_or_default().to_owned(),
     };
+    let invalid = |source| ParamsFileError::Invalid { path: path.to_owned(), source };
     let header: Header = serde_json::from_str(text).map_err(syntax)?;
+    let version_1 = header.model_version.is_none_or(|version| version == 1);
     let model = match header.model.as_deref() {
-        None => GearModel::Genetic(serde_json::from_str::<UnnamedFile>(text).map_err(syntax)?.params),
-        Some(name) if Kind::ALL.iter().any(|kind| kind.name() == name) => {
+        None => GearModel::paper(serde_json::from_str::<UnnamedFile>(text).map_err(syntax)?.params),
+        Some(name) if !Kind::ALL.iter().any(|kind| kind.name() == name) => {
+            return Err(ParamsFileError::UnknownModel { path: path.to_owned(), found: name.to_owned() })
+        }
+        Some(_) if version_1 => {
+            serde_json::from_str::<GearModelV1<f64>>(text).map_err(syntax)?.upgrade().map_err(invalid)?
+        }
+        Some(_) if header.model_version == Some(MODEL_VERSION) => {
             serde_json::from_str::<GearModel<f64>>(text).map_err(syntax)?
         }
-        Some(name) => return Err(ParamsFileError::UnknownModel { path: path.to_owned(), found: name.to_owned() }),
+        Some(_) => {
+            return Err(ParamsFileError::UnknownVersion {
+                path: path.to_owned(),
+                found: header.model_version.unwrap_or(0),
+            })
+        }
     };
-    model.validate().map_err(|source| ParamsFileError::Invalid { path: path.to_owned(), source })?;
+    model.validate().map_err(invalid)?;
     Ok(model)
 }
 
@@ -92,7 +115,8 @@ mod tests {
         let err = parse_params(path, missing).unwrap_err().to_string();
         assert!(err.starts_with("p.json:2:") && err.contains("missing field `c3`"), "{err}");
         let zero = r#"{"params": {"c1": 1, "c2": 2, "c3": 3, "alpha": 4, "beta": 5, "omega": 0}}"#;
-        assert!(parse_params(path, zero).unwrap_err().to_string().contains("omega is zero"));
+        let err = parse_params(path, zero).unwrap_err().to_string();
+        assert!(err.contains("parameter omega is out of range: it must not be zero"), "{err}");
         let other = r#"{"model": "dahl", "params": {"c1": 1, "c2": 2, "c3": 3, "alpha": 4, "beta": 5, "omega": 1}}"#;
         let err = parse_params(path, other).unwrap_err();
         assert!(matches!(err, ParamsFileError::UnknownModel { .. }), "{err}");
@@ -107,8 +131,9 @@ mod tests {
             r#"{{"model": "micro-slip", "params": {{"c1": 9000, "c2": 0, "c3": 0, "stiffness": [{}], "slip_min": 1e-6, "slip_max": 1e-3}}}}"#,
             stiffness.join(",")
         );
-        let GearModel::MicroSlip(params) = parse_model(path, &text).unwrap() else { panic!("not micro-slip") };
-        assert_eq!(params.stiffness[3], 300.0);
+        let model = parse_model(path, &text).unwrap();
+        assert_eq!(model.kind(), Kind::MicroSlip);
+        assert_eq!(model.slip_elements()[3].stiffness, 300.0);
         let err = parse_params(path, &text).unwrap_err().to_string();
         assert!(err.contains("takes the \"genetic-hysteresis\" model"), "{err}");
         let short = text.replace("[0,", "[");

@@ -10,7 +10,7 @@ pub mod physics;
 
 use crate::diagnose::effects::{backlash, kinematic_error, Effect, EffectValue};
 use crate::input::{deflection, Angles, Recording, MAX_DEFLECTION_RAD, MAX_TORQUE_NM};
-use model_core::{Direction, Evaluator, GearModel, Hysteretic};
+use model_core::{Direction, Evaluator, GearModel, Hysteretic, Model};
 pub use motion::{read_trajectory, Motion, Trajectory};
 use motion::{Played, Timing};
 use physics::Gear;
@@ -165,7 +165,7 @@ fn truth(sim: &Simulation, motion: &Motion, physics: &Physics, width: f64) -> Re
     if let Some(gear) = physics.gear()? {
         return Ok(Truth::Path(gear));
     }
-    Ok(match (motion, sim.params.symmetric_model()?) {
+    Ok(match (motion, sim.params.paper_params().map(Model::new).transpose()?) {
         (Motion::Sine, Some(model)) => {
             check(
                 "backlash",
@@ -346,7 +346,7 @@ mod tests {
 
     fn base() -> Simulation {
         Simulation {
-            params: GearModel::Genetic(SEED_FIT),
+            params: GearModel::paper(SEED_FIT),
             amplitude_rad: 1.168e-3,
             frequencies_hz: vec![0.5],
             cycles: 2,
@@ -506,10 +506,10 @@ mod tests {
 
     #[test]
     fn every_truth_but_the_sines_loop_writes_start_rest() {
-        let slip_model = Simulation { params: GearModel::MicroSlip(model_core::checks::MICRO_SLIP_SET), ..base() };
+        let slip_model = Simulation { params: model_core::checks::micro_slip_set().unwrap(), ..base() };
         for simulation in [base(), slip_model] {
             // The micro-slip kind has no stateless loop: its memory runs from rest under the sine too.
-            let has_loop = simulation.params.symmetric_model().unwrap().is_some();
+            let has_loop = simulation.params.paper_params().is_some();
             for motion in motions() {
                 for physics in physics() {
                     let on_loop = has_loop && motion == Motion::Sine && physics == Physics::Model;
@@ -528,7 +528,7 @@ mod tests {
             }
         }
         // The genetic seed fit has its loop: the default recording is as it was.
-        assert!(base().params.symmetric_model().unwrap().is_some());
+        assert!(base().params.paper_params().is_some());
         assert!(!simulate(&base()).unwrap().metadata.iter().any(|(k, _)| k == "start"));
     }
 

@@ -38,15 +38,24 @@ pub fn json(output: &Output) -> serde_json::Value {
     serde_json::from_slice(&output.stdout).expect("valid JSON on stdout")
 }
 
-/// A parameter file for `params` in `dir`.
+/// A parameter file (the current model version) for the paper's gear of `params` in `dir`.
 pub fn write_params_file(dir: &Path, params: &model_core::Params<f64>) -> PathBuf {
     let path = dir.join("params.json");
-    let json = serde_json::json!({ "model": model_core::MODEL_NAME, "params": params });
+    let json = serde_json::json!({
+        "model": model_core::MODEL_NAME,
+        "model_version": model_core::MODEL_VERSION,
+        "params": model_core::GearModel::paper(*params),
+    });
     std::fs::write(&path, json.to_string()).expect("params file written");
     path
 }
 
-/// The model's parameter names, as files write them.
-pub fn param_names() -> [&'static str; 6] {
-    model_core::ParamName::GENETIC.map(|name| name.as_str())
+/// The paper's six parameters of a report's or file's `params` (a genetic gear), by name: c1..c3
+/// live in its spring.
+pub fn paper_params(params: &serde_json::Value) -> [(&'static str, f64); 6] {
+    model_core::ParamName::GENETIC.map(|name| {
+        let name = name.as_str();
+        let value = params[name].as_f64().or_else(|| params["spring"][name].as_f64());
+        (name, value.unwrap_or_else(|| panic!("params has no number {name}: {params}")))
+    })
 }

@@ -106,7 +106,12 @@ fn a_failed_conversion_names_the_parameter() {
     assert_eq!(knots.try_map(narrow), Err(ParamName::KnotStiffness(3)));
     assert_eq!(ParamName::SlipStiffness(5).to_string(), "stiffness[5]");
     let text = micro_slip_set().unwrap().to_string();
-    assert!(text.starts_with("micro-slip zero=0e0 c1=6e3 c2=1.2e10 c3=0e0 range_min=-1e0 range_max=1e0 slip[0]=1e-5 stiffness[0]=1.2e2 "), "{text}");
+    assert!(
+        text.starts_with(
+            "micro-slip zero=0e0 c1=6e3 c2=1.2e10 c3=0e0 range_min=-1e0 range_max=1e0 slip[0]=1e-5 stiffness[0]=1.2e2 "
+        ),
+        "{text}"
+    );
 }
 
 #[test]
@@ -128,7 +133,7 @@ fn check_names_the_first_bad_parameter() {
     ];
     for (model, fault) in cases {
         assert_eq!(model.check(), Err(fault), "{model:?}");
-        assert_eq!(model.validate(), Err(Error::InvalidParameter(fault.0)), "{model:?}");
+        assert_eq!(model.validate(), Err(Error::InvalidParameter(fault.0, fault.1)), "{model:?}");
     }
     // A name the model does not have changes nothing.
     assert_eq!(genetic.with(ParamName::Slip(0), 5.0), genetic);
@@ -144,8 +149,12 @@ fn the_evaluator_is_the_spring_plus_the_kinds_own_memory() {
         let mut spring = model.spring.prepare().unwrap();
         let mut deepest = 0;
         let mut own: std::boxed::Box<dyn Hysteretic<f64>> = match &model.hysteresis {
-            Hysteresis::Genetic(g) => std::boxed::Box::new(GeneticMemory::<f64, TURNING_POINTS>::new(g.model().unwrap(), 1.0e-7)),
-            Hysteresis::MicroSlip(_) => std::boxed::Box::new(MicroSlip::<f64, SLIP_ELEMENTS>::new(model.slip_elements()).unwrap()),
+            Hysteresis::Genetic(g) => {
+                std::boxed::Box::new(GeneticMemory::<f64, TURNING_POINTS>::new(g.model().unwrap(), 1.0e-7))
+            }
+            Hysteresis::MicroSlip(_) => {
+                std::boxed::Box::new(MicroSlip::<f64, SLIP_ELEMENTS>::new(model.slip_elements()).unwrap())
+            }
         };
         for &theta in &motion {
             let theta = theta + model.zero;

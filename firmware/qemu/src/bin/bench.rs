@@ -12,8 +12,8 @@ use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use model_core::checks::{micro_slip_set, SEED_TABLE_FIT};
-use model_core::{Knot, Spring};
 use model_core::{Direction, Model};
+use model_core::{Knot, Spring};
 use swg_joint::budget::{self, CONTROL_TICK_INSTRUCTIONS};
 use swg_joint::{Compensator, Controller, FastModel};
 use swg_protocol::{
@@ -239,7 +239,9 @@ fn main() -> ! {
         let stiffness = 9.0e3 * (1.0 + 2.0 * u * u) * if u > 0.0 { 0.8 } else { 1.0 };
         *knot = Knot { x: 1.2 * AMPLITUDE * u, stiffness };
     }
-    let Ok(spring) = Spring::of_knots(&knots, [-1.2 * AMPLITUDE, 1.2 * AMPLITUDE]) else { swg_firmware_qemu::exit(false) };
+    let Ok(spring) = Spring::of_knots(&knots, [-1.2 * AMPLITUDE, 1.2 * AMPLITUDE]) else {
+        swg_firmware_qemu::exit(false)
+    };
     let hysteresis = GearModel::paper(model_core::Params { c1: 0.0, c2: 0.0, c3: 0.0, ..params });
     let genetic = JointParams {
         model_version: MODEL_VERSION,

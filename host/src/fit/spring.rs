@@ -1,0 +1,136 @@
+//! The spring's part of a fit: where its knots go, the columns they give the linear solves, and
+//! the spring a solve's weights make.
+//!
+//! **The knot rule.** Per side of x = θ − θ0, E = that side's largest |x| in the fitted samples,
+//! n = min(8, ⌊E / (10·σθ)⌋) knots at E·j/n (j = 1 … n), plus one at x = 0: up to 17 knots, the
+//! outermost ones at the range's edges. Why:
+//! - The stiffness beyond the range is the outermost knot's (model-core's edge rule), so the last
+//!   segment is the one that extrapolates. Fitted on a cluster of samples whose spread is
+//!   deflection noise, its slope is biased towards 0 (errors in x); at least 10σθ between knots
+//!   keeps it fitted on real travel. Without that limit a fit on the measured 1 A run predicts the
+//!   2 A runs at 1 N·m RMS against a straight line's 0.08 (`bench/real/FINDINGS.md` §3, §6).
+//! - Uniform, because the variants tried on the measured runs (quantiles of |x|, denser near 0,
+//!   4/8/12 knots) were second order there and uniform is the simplest to state.
+//! - 8 a side: the seed gear's quintic spring is then within 0.006 % of its peak torque.
+//! - Separate sides: the spring's asymmetry. K ≥ 0 at every knot (the solves ask it) keeps the
+//!   spring monotone, as the physics asks.
+use crate::gear::Projected;
+use model_core::spring::MAX_KNOTS;
+use model_core::{Knot, Spring};
+
+/// Most knots a side of x = 0 gets (model-core's 17 = 8 + 8 + the one at 0).
+pub const KNOTS_PER_SIDE: usize = (MAX_KNOTS - 1) / 2;
+/// Knots lie at least this many deflection-noise σ apart.
+pub const KNOT_SPACING_IN_NOISE: f64 = 10.0;
+
+/// The knots of a spring fitted on x within `[lo, hi]` (lo ≤ 0 ≤ hi), the deflection noise σθ
+/// being `noise`: see the module's documentation.
+pub fn knot_rule(lo: f64, hi: f64, noise: f64) -> Vec<f64> {
+    let per_side = |extent: f64| -> usize {
+        if !(extent > 0.0) {
+            return 0;
+        }
+        let limit = if noise > 0.0 { (extent / (KNOT_SPACING_IN_NOISE * noise)).floor() } else { f64::INFINITY };
+        (limit.max(0.0) as usize).min(KNOTS_PER_SIDE)
+    };
+    let (minus, plus) = (per_side(-lo), per_side(hi));
+    let mut knots: Vec<f64> = (1..=minus).rev().map(|j| lo * j as f64 / minus as f64).collect();
+    knots.push(0.0);
+    knots.extend((1..=plus).map(|j| hi * j as f64 / plus as f64));
+    knots
+}
+
+/// The spring's columns for a fit: one per knot, its stiffness K_j ≥ 0.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpringBasis {
+    knots: Vec<f64>,
+    range: [f64; 2],
+}
+
+impl SpringBasis {
+    /// The knots of [`knot_rule`] over the fitted range `[lo, hi]` of x.
+    pub fn new(range: [f64; 2], noise: f64) -> Self {
+        let [lo, hi] = [range[0].min(0.0), range[1].max(0.0)];
+        SpringBasis { knots: knot_rule(lo, hi, noise), range: [lo, hi] }
+    }
+
+    /// Columns: one per knot.
+    pub fn len(&self) -> usize {
+        self.knots.len()
+    }
+
+    /// Never empty: the knot at x = 0 is always there.
+    pub fn is_empty(&self) -> bool {
+        self.knots.is_empty()
+    }
+
+    /// The knots, x rad.
+    pub fn knots(&self) -> &[f64] {
+        &self.knots
+    }
+
+    /// The columns' torque B_j(x) into `torque` (its first [`len`](Self::len) entries).
+    pub fn torque_row(&self, x: f64, torque: &mut [f64]) {
+        let mut stiffness = [0.0; MAX_KNOTS];
+        model_core::spring::basis(&self.knots, x, torque, &mut stiffness);
+    }
+
+    /// The columns as the offline model takes them (`crate::gear::step_offline`): at x_m,
+    /// carried to x along their slopes, B_j(x_m) + h_j(x_m)·(x − x_m), each divided by `scale`.
+    #[inline]
+    pub fn row(&self, at: Projected, scale: f64, out: &mut [f64]) {
+        let (mut torque, mut stiffness) = ([0.0; MAX_KNOTS], [0.0; MAX_KNOTS]);
+        model_core::spring::basis(&self.knots, at.theta_m, &mut torque, &mut stiffness);
+        for ((value, b), h) in out.iter_mut().zip(torque).zip(stiffness) {
+            *value = (b + h * at.offset) / scale;
+        }
+    }
+
+    /// The spring of the knots' stiffnesses `weights` (N·m/rad, one per knot), over the fitted
+    /// range. A weight that the solve left a hair below 0 is 0.
+    pub fn spring(&self, weights: &[f64]) -> Result<Spring<f64>, model_core::Error> {
+        let knots: Vec<Knot<f64>> =
+            self.knots.iter().zip(weights).map(|(&x, &k)| Knot { x, stiffness: k.max(0.0) }).collect();
+        Spring::of_knots(&knots, self.range)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_knot_rule_spaces_knots_by_ten_noise_sigmas_and_caps_each_side_at_eight() {
+        // Wide sides: 8 each, the outermost at the edges, x = 0 always.
+        let knots = knot_rule(-2.0e-3, 4.0e-3, 1.0e-6);
+        assert_eq!(knots.len(), 17);
+        assert_eq!((knots[0], knots[8], knots[16]), (-2.0e-3, 0.0, 4.0e-3));
+        assert!(knots.windows(2).all(|w| w[1] > w[0]));
+        // A short side gets ⌊E / 10σ⌋ knots, none below 10σ.
+        assert_eq!(knot_rule(-3.5e-4, 1.0e-3, 3.0e-5), [-3.5e-4, 0.0, 1.0e-3 / 3.0, 2.0e-3 / 3.0, 1.0e-3]);
+        assert_eq!(knot_rule(-2.9e-4, 0.0, 3.0e-5), [0.0]);
+        // Without noise (a loop table) the cap alone.
+        assert_eq!(knot_rule(-1.0, 1.0, 0.0).len(), 17);
+    }
+
+    #[test]
+    fn a_fitted_spring_is_its_knots_with_the_range_as_given() {
+        let basis = SpringBasis::new([-1.0e-3, 2.0e-3], 1.0e-6);
+        let weights: Vec<f64> = (0..basis.len()).map(|j| 1000.0 + 10.0 * j as f64).collect();
+        let spring = basis.spring(&weights).unwrap();
+        assert_eq!(spring.range, [-1.0e-3, 2.0e-3]);
+        // The spring evaluates to the columns' weighted sum.
+        let mut prepared = spring.prepare().unwrap();
+        let mut row = vec![0.0; basis.len()];
+        for x in [-9.0e-4, -1.0e-4, 0.0, 3.0e-4, 1.9e-3] {
+            basis.torque_row(x, &mut row);
+            let sum: f64 = row.iter().zip(&weights).map(|(b, k)| b * k).sum();
+            let torque = prepared.evaluate(x).torque;
+            assert!((torque - sum).abs() <= 1e-12 * sum.abs().max(1.0), "{x}: {torque} vs {sum}");
+        }
+        // A solve's −0 or −1e-18 is 0, not a refused negative stiffness.
+        let mut tiny = weights.clone();
+        tiny[3] = -1.0e-18;
+        assert_eq!(basis.spring(&tiny).unwrap().knots()[3].stiffness, 0.0);
+    }
+}

@@ -1,0 +1,108 @@
+//! A recording's rest window: the samples at its start during which the gear stands still at
+//! (nearly) zero torque. A run with one starts at rest, its deflection's zero θ0 is what it reads
+//! there and the torque sensor's offset is the torque it reads there.
+use super::OfflineRun;
+use crate::numeric::mean;
+use model_core::GearModel;
+
+/// The samples at a recording's start during which the gear stands still, and what they read.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct RestWindow {
+    /// Samples from the first.
+    pub samples: usize,
+    /// How long it lasts, s.
+    pub seconds: f64,
+    /// The mean deflection, rad: θ0 for a gear at rest.
+    pub deflection_rad: f64,
+    /// Its standard error, rad: the deflection noise over √samples.
+    pub deflection_se_rad: f64,
+    /// The mean torque, N·m: the torque sensor's offset for a gear at rest. None in a window
+    /// too short to read it (a declared rest the motion leaves at once).
+    pub torque_nm: Option<f64>,
+}
+
+/// Band around the first sample's deflection within which the gear counts as still, in σθ:
+/// wider than noise ever spans at these sample counts, and wider than one encoder step
+/// (σθ ≥ step/√12).
+const REST_BAND_IN_NOISE: f64 = 4.0;
+/// Fewest samples of a rest window that reads the torque offset, and of one the recording does
+/// not declare (`# start: rest`). Fewer are the first steps of a motion that starts at once: their
+/// mean torque is the spring's over those steps, not the sensor's offset (a sine from rest in
+/// 20-bit angles leaves a 4σθ band within 2 samples, and their torque biased a prediction by
+/// 1.9× the floor of `tests/prediction.rs`), and their mean deflection lags the first sample.
+const MIN_REST: usize = 20;
+/// An undeclared rest window's torque is at most this fraction of the recording's torque range:
+/// a gear held still under load is not at rest.
+const REST_TORQUE_FRACTION: f64 = 0.05;
+
+/// The leading samples whose deflection stays within 4σθ of the first's, when they make a rest
+/// window: at least 20 at a torque within 5 % of the recording's torque range, or, when the
+/// recording says it starts at rest (`declared`), any number (fewer than 20 read θ0 at the first
+/// sample and no torque offset).
+pub fn rest_window(time: &[f64], deflection: &[f64], torque: &[f64], noise: f64, declared: bool) -> Option<RestWindow> {
+    let first = *deflection.first()?;
+    let band = REST_BAND_IN_NOISE * noise;
+    let samples = deflection.iter().take_while(|&&theta| (theta - first).abs() <= band).count();
+    let still = deflection.get(..samples)?;
+    let torque_still = torque.get(..samples)?;
+    let seconds = time.get(samples - 1).zip(time.first()).map_or(0.0, |(end, start)| end - start);
+    if samples < MIN_REST {
+        let first = RestWindow { samples, seconds, deflection_rad: first, deflection_se_rad: noise, torque_nm: None };
+        return declared.then_some(first);
+    }
+    let torque_nm = mean(torque_still);
+    let window = RestWindow {
+        samples,
+        seconds,
+        deflection_rad: mean(still),
+        deflection_se_rad: noise / (samples as f64).sqrt(),
+        torque_nm: Some(torque_nm),
+    };
+    let (lo, hi) = torque.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
+    (declared || torque_nm.abs() <= REST_TORQUE_FRACTION * (hi - lo)).then_some(window)
+}
+
+/// How a run's θ0 and torque offset were found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OriginSource {
+    /// Both read in the run's rest window.
+    RestWindow,
+    /// θ0 fitted (the spring's zero torque), the offset taken as 0.
+    Fitted,
+}
+
+/// A run's θ0 and torque offset.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct RunOrigin {
+    /// θ0, rad.
+    pub zero_rad: f64,
+    /// Its standard error, rad, where it has one.
+    pub zero_se_rad: Option<f64>,
+    /// The torque sensor's offset, N·m: what it reads when the gear's torque is 0.
+    pub torque_offset_nm: f64,
+    pub source: OriginSource,
+}
+
+impl RunOrigin {
+    /// `model` as it runs along a recording `run` from its own start, and the torque sensor's
+    /// offset there (N·m): zeroed on the run's rest window where it has one (as a fit places each
+    /// run), else with the model's own θ0 and no offset. What `predict` and a fit's `--compare`
+    /// run.
+    pub fn place(model: &GearModel<f64>, run: &OfflineRun) -> (GearModel<f64>, Option<RunOrigin>) {
+        match RunOrigin::at_rest(run) {
+            Some(origin) => (GearModel { zero: origin.zero_rad, ..*model }, Some(origin)),
+            None => (*model, None),
+        }
+    }
+
+    /// The origin a run's rest window gives, if it has one.
+    pub fn at_rest(run: &OfflineRun) -> Option<RunOrigin> {
+        run.rest.map(|rest| RunOrigin {
+            zero_rad: rest.deflection_rad,
+            zero_se_rad: Some(rest.deflection_se_rad),
+            torque_offset_nm: rest.torque_nm.unwrap_or(0.0),
+            source: OriginSource::RestWindow,
+        })
+    }
+}
