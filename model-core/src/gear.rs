@@ -448,11 +448,8 @@ impl<F: Real> Evaluator<F> {
         let finish = WithSpring { spring: &mut self.spring, x };
         match &mut self.hysteresis {
             HysteresisState::Genetic(memory) => {
-                let evaluation = if first {
-                    memory.step_finishing::<A>(x, finish)
-                } else {
-                    memory.step_finishing::<B>(x, finish)
-                };
+                let evaluation =
+                    if first { memory.step_finishing::<A>(x, finish) } else { memory.step_finishing::<B>(x, finish) };
                 (evaluation, Memory { direction: memory.direction(), depth: memory.depth() })
             }
             HysteresisState::MicroSlip(slip) => {

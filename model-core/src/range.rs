@@ -154,16 +154,10 @@ pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culp
     }
     // β and ω before α: α = 0 switches the whole hysteresis term off, whatever overflows in it.
     let genetic = matches!(model.hysteresis, Hysteresis::Genetic(_));
-    let first = [
-        ParamName::C1,
-        ParamName::C2,
-        ParamName::C3,
-        ParamName::RangeMin,
-        ParamName::RangeMax,
-        ParamName::Zero,
-    ]
-    .into_iter()
-    .chain(genetic.then_some([ParamName::Beta, ParamName::Omega]).into_iter().flatten());
+    let first =
+        [ParamName::C1, ParamName::C2, ParamName::C3, ParamName::RangeMin, ParamName::RangeMax, ParamName::Zero]
+            .into_iter()
+            .chain(genetic.then_some([ParamName::Beta, ParamName::Omega]).into_iter().flatten());
     let knots = (0..model.spring.knots().len()).map(|i| ParamName::KnotStiffness(i as u8));
     let elements = (0..model.slip_elements().len()).map(|i| ParamName::SlipStiffness(i as u8));
     first

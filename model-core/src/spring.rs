@@ -234,7 +234,13 @@ impl<F: Real> PreparedSpring<F> {
             *only = Segment { start: F::neg_infinity(), ..unused };
         }
         let zero = F::zero();
-        PreparedSpring { polynomial: None, segments, range: [zero, zero], at_range: [Evaluation::default(); 2], cursor: 0 }
+        PreparedSpring {
+            polynomial: None,
+            segments,
+            range: [zero, zero],
+            at_range: [Evaluation::default(); 2],
+            cursor: 0,
+        }
     }
 }
 

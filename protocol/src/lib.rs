@@ -132,9 +132,9 @@ impl fmt::Display for RequestId {
 }
 
 /// The control tick's timing since boot: the board's timer starts each tick in an interrupt
-/// above the link's priority, and the tick counts what went wrong with its timing. Counters
-/// wrap at 2³².
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// above the link's priority, and the tick counts what went wrong with its timing; and how far
+/// the active set was asked beyond its identified range. Counters wrap at 2³².
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TickStatus {
     /// The tick rate, Hz; 0 when the ticks are not timed (an in-process test device runs one
@@ -163,6 +163,11 @@ pub struct TickStatus {
     pub drive_faults: u32,
     /// The kind of the last of those.
     pub last_drive_fault: Option<DriveErrorKind>,
+    /// Samples the active set evaluated beyond its spring's identified range (where the spring
+    /// continues with the stiffness at the range's edge), since the set was activated.
+    pub beyond_range: u32,
+    /// The largest distance of those samples beyond the range, rad (0 when none is).
+    pub max_excess_rad: f32,
 }
 
 /// Why an angle sensor's reading failed; the kinds of embedded-hal's error convention, as

@@ -1,6 +1,6 @@
 use crate::fast::FastMath;
 use core::cell::UnsafeCell;
-use core::sync::atomic::{fence, AtomicBool, AtomicU8, Ordering};
+use core::sync::atomic::{fence, AtomicBool, AtomicU32, AtomicU8, Ordering};
 use model_core::{Evaluator, Libm};
 use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams};
 
@@ -35,7 +35,6 @@ impl Installed {
         self.fast = params.model.has_fast_path();
         Ok(())
     }
-
 }
 
 /// The feed-forward of one joint: parameters, the model's memory, evaluation, clamping.
@@ -69,6 +68,12 @@ pub struct Compensator {
     /// The other slot holds a set for the next tick: raised by the link once the set is in
     /// place, lowered by the tick when it switches to it.
     staged: AtomicBool,
+    /// The active set's samples beyond its spring's identified range, since it was activated:
+    /// written by the tick only, read by the link.
+    beyond_range: AtomicU32,
+    /// The largest excess of those, rad, as f32 bits (for values ≥ 0 the bits order as the
+    /// values do).
+    max_excess: AtomicU32,
 }
 
 // SAFETY: the slots are reached only through the two halves of `split` (or through `&mut self`
@@ -86,7 +91,15 @@ impl Compensator {
             slots: [UnsafeCell::new(Installed::EMPTY), UnsafeCell::new(Installed::EMPTY)],
             active: AtomicU8::new(0),
             staged: AtomicBool::new(false),
+            beyond_range: AtomicU32::new(0),
+            max_excess: AtomicU32::new(0),
         }
+    }
+
+    /// The active set's samples beyond its spring's identified range since it was activated,
+    /// and the largest excess of those, rad.
+    pub fn beyond_range(&self) -> (u32, f32) {
+        (self.beyond_range.load(Ordering::Relaxed), f32::from_bits(self.max_excess.load(Ordering::Relaxed)))
     }
 
     /// The link's half (staging sets) and the tick's (evaluating them), for a board's two
@@ -139,6 +152,8 @@ impl Clone for Compensator {
             slots,
             active: AtomicU8::new(self.active.load(Ordering::Relaxed)),
             staged: AtomicBool::new(self.staged.load(Ordering::Relaxed)),
+            beyond_range: AtomicU32::new(self.beyond_range.load(Ordering::Relaxed)),
+            max_excess: AtomicU32::new(self.max_excess.load(Ordering::Relaxed)),
         }
     }
 }
@@ -161,6 +176,11 @@ impl Stager<'_> {
     /// Whether the tick has taken the last staged set (a new one may be staged).
     pub fn has_room(&self) -> bool {
         !self.compensator.staged.load(Ordering::Acquire)
+    }
+
+    /// See [`Compensator::beyond_range`].
+    pub fn beyond_range(&self) -> (u32, f32) {
+        self.compensator.beyond_range()
     }
 
     /// Validates `params` and prepares them, at rest, in the slot the tick does not use; the
@@ -210,7 +230,22 @@ impl Ticker<'_> {
         if compensator.staged.load(Ordering::Relaxed) {
             fence(Ordering::Acquire);
             compensator.active.store(compensator.active.load(Ordering::Relaxed) ^ 1, Ordering::Relaxed);
+            compensator.beyond_range.store(0, Ordering::Relaxed);
+            compensator.max_excess.store(0, Ordering::Relaxed);
             compensator.staged.store(false, Ordering::Release);
+        }
+    }
+
+    /// Counts a sample `excess` rad (> 0) beyond the spring's identified range. Rare, so out of
+    /// the tick's straight path.
+    #[cold]
+    #[inline(never)]
+    fn note_beyond_range(&mut self, excess: f32) {
+        let compensator = self.compensator;
+        let count = compensator.beyond_range.load(Ordering::Relaxed);
+        compensator.beyond_range.store(count.wrapping_add(1), Ordering::Relaxed);
+        if excess.to_bits() > compensator.max_excess.load(Ordering::Relaxed) {
+            compensator.max_excess.store(excess.to_bits(), Ordering::Relaxed);
         }
     }
 
@@ -254,6 +289,12 @@ impl Ticker<'_> {
         // The same state whichever path runs the sample.
         let fast = installed.fast && path == EvalPath::Fast;
         let (evaluation, memory) = evaluator.step_reporting_either::<FastMath, Libm>(deflection, fast);
+        // Beyond the identified range the spring runs on with its edge's stiffness; such
+        // samples are counted (the status reports them).
+        let excess = evaluator.excess(deflection);
+        if excess > 0.0 {
+            self.note_beyond_range(excess);
+        }
         // At most TURNING_POINTS or SLIP_ELEMENTS, both 16.
         let (direction, memory) = (memory.direction, memory.depth as u8);
         let Ok(evaluation) = evaluation else {
@@ -364,6 +405,89 @@ mod tests {
     fn tick_theta(compensator: &mut Compensator, theta: f32, path: EvalPath) -> Feedforward {
         // θ_in = N·θ with θ_out = 0, N = 100: exact for these θ up to f32 rounding of N·θ/N.
         compensator.tick(100.0 * theta, 0.0, path)
+    }
+
+    /// S(x) of `spring` in f64, from its definition: the knots' stiffness integrated from 0
+    /// (linear between knots, the end knot's beyond them) plus the polynomial, which beyond the
+    /// identified range runs on as the line of its stiffness at the range's edge.
+    fn spring_torque(spring: &Spring<f32>, x: f64) -> f64 {
+        let knots: Vec<(f64, f64)> = spring.knots().iter().map(|k| (f64::from(k.x), f64::from(k.stiffness))).collect();
+        let stiffness = |u: f64| match knots.iter().position(|&(at, _)| at > u) {
+            None => knots.last().map_or(0.0, |&(_, k)| k),
+            Some(0) => knots[0].1,
+            Some(j) => {
+                let ((a, ka), (b, kb)) = (knots[j - 1], knots[j]);
+                ka + (kb - ka) * (u - a) / (b - a)
+            }
+        };
+        // The midpoint rule is exact but at the knots, for a stiffness linear in between.
+        let steps = 20_000;
+        let knots_part: f64 =
+            (0..steps).map(|i| stiffness((i as f64 + 0.5) * x / steps as f64) * x / steps as f64).sum();
+        let (c1, c2, c3) = (f64::from(spring.c1), f64::from(spring.c2), f64::from(spring.c3));
+        let polynomial = |u: f64| c1 * u + c2 * u.powi(3) + c3 * u.powi(5);
+        let slope = |u: f64| c1 + 3.0 * c2 * u.powi(2) + 5.0 * c3 * u.powi(4);
+        let [lo, hi] = spring.range.map(f64::from);
+        let edge = x.clamp(lo, hi);
+        knots_part + polynomial(edge) + slope(edge) * (x - edge)
+    }
+
+    /// Beyond the spring's identified range the tick runs on along the line of the edge's
+    /// stiffness (the polynomial's runaway would be several times larger here), on both kinds,
+    /// from θ0 ≠ 0; the samples beyond are counted with their largest excess, from the set's
+    /// activation on.
+    #[test]
+    fn beyond_the_range_the_spring_runs_on_with_the_edge_stiffness_and_is_counted() {
+        let knots = [
+            Knot { x: -0.6e-3, stiffness: 3.0e4 },
+            Knot { x: 0.0, stiffness: 1.0e4 },
+            Knot { x: 0.5e-3, stiffness: 1.5e4 },
+        ];
+        let spring = Spring { c2: 2.0e9, c3: 1.0e15, ..Spring::of_knots(&knots, [-1.0e-3, 1.2e-3]).unwrap() };
+        let zero = -3.0e-4;
+        // From rest out to x = 3 mrad, back to x = −2.5 mrad: beyond both edges.
+        let path: Vec<f32> = (0..=300)
+            .map(|i| 3.0e-3 * i as f32 / 300.0)
+            .chain((1..=550).map(|i| 3.0e-3 - 5.5e-3 * i as f32 / 550.0))
+            .map(|x| x + zero)
+            .collect();
+        for base in [paper(), slip()] {
+            let set =
+                |spring| JointParams { model: GearModel { zero, spring, ..base.model }, torque_limit: 1.0e4, ..base };
+            let (mut full, mut bare) = (Compensator::new(), Compensator::new());
+            full.stage(set(spring)).unwrap();
+            bare.stage(set(Spring::polynomial(0.0, 0.0, 0.0))).unwrap();
+            let (mut beyond, mut largest) = (0, 0.0f64);
+            for &theta in &path {
+                let (with, without) =
+                    (tick_theta(&mut full, theta, EvalPath::Fast), tick_theta(&mut bare, theta, EvalPath::Fast));
+                assert_eq!(with.compensation, Compensation::Active);
+                // The same hysteresis in both: the difference is the spring alone.
+                let x = f64::from(with.deflection) - f64::from(zero);
+                let expected = spring_torque(&spring, x);
+                let got = f64::from(with.torque) - f64::from(without.torque);
+                assert!(
+                    (got - expected).abs() <= 2.0e-3 + 1.0e-4 * expected.abs(),
+                    "{:?} x = {x:e}: S = {got}, expected {expected}",
+                    base.model.kind()
+                );
+                let excess = (x - 1.2e-3).max(-1.0e-3 - x);
+                if excess > 0.0 {
+                    beyond += 1;
+                    largest = largest.max(excess);
+                }
+            }
+            let (count, max_excess) = full.split().0.beyond_range();
+            assert!(count.abs_diff(beyond) <= 2, "{count} samples counted, {beyond} beyond");
+            assert!(
+                (f64::from(max_excess) - largest).abs() < 1.0e-7,
+                "largest excess {max_excess}, expected {largest}"
+            );
+            // A new set starts counting afresh.
+            full.stage(set(spring)).unwrap();
+            tick_theta(&mut full, zero, EvalPath::Fast);
+            assert_eq!(full.split().0.beyond_range(), (0, 0.0));
+        }
     }
 
     #[test]

@@ -397,8 +397,9 @@ mod tests {
             for (error, grows) in [(0.8 * deadband, false), (1.2 * deadband, true)] {
                 let (mut controller, mut compensator) = installed(mode);
                 let first = controller.tick(&mut compensator.ticker(), theta * RATIO, 0.0, estimate + error).command;
-                let later =
-                    (0..100).map(|_| controller.tick(&mut compensator.ticker(), theta * RATIO, 0.0, estimate + error)).last();
+                let later = (0..100)
+                    .map(|_| controller.tick(&mut compensator.ticker(), theta * RATIO, 0.0, estimate + error))
+                    .last();
                 let growth = later.unwrap().command - first;
                 let per_tick = config(mode).ki * error * PERIOD;
                 if grows {

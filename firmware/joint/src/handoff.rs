@@ -19,8 +19,8 @@ use crate::compensator::{Compensator, Stager, Ticker};
 use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
 use heapless::spsc::{Consumer, Producer, Queue};
 use swg_protocol::{
-    ControlOutput, ControlSample, ControllerConfig, DriveErrorKind, EncoderSample, ErrorReply, Feedforward, JointParams,
-    SensorErrorKind, TickStatus,
+    ControlOutput, ControlSample, ControllerConfig, DriveErrorKind, EncoderSample, ErrorReply, Feedforward,
+    JointParams, SensorErrorKind, TickStatus,
 };
 
 /// What the link hands the tick besides parameter sets.
@@ -216,6 +216,7 @@ impl LinkPort<'_> {
     pub fn status(&self) -> TickStatus {
         let c = self.counters;
         let load = |counter: &AtomicU32| counter.load(Ordering::Relaxed);
+        let (beyond_range, max_excess_rad) = self.stager.beyond_range();
         TickStatus {
             rate_hz: self.timing.clock_hz.checked_div(self.timing.period).unwrap_or(0),
             ticks: load(&c.ticks),
@@ -229,6 +230,8 @@ impl LinkPort<'_> {
             last_sensor_fault: kind_of(&SENSOR_KINDS, c.last_sensor_fault.load(Ordering::Relaxed)),
             drive_faults: load(&c.drive_faults),
             last_drive_fault: kind_of(&DRIVE_KINDS, c.last_drive_fault.load(Ordering::Relaxed)),
+            beyond_range,
+            max_excess_rad,
         }
     }
 }

@@ -13,8 +13,7 @@ use swg_protocol::endpoint::{
 };
 use swg_protocol::{
     decode_request, encode_response, ControlMode, ControllerConfig, DeviceInfo, Endpoint, Envelope, ErrorReply,
-    FrameError, FrameReader,
-    JointParams, Request, RequestId, Response, MAX_FRAME_LEN, MODEL_VERSION, PROTOCOL_VERSION,
+    FrameError, FrameReader, JointParams, Request, RequestId, Response, MAX_FRAME_LEN, MODEL_VERSION, PROTOCOL_VERSION,
 };
 
 /// The device end of the link.
@@ -253,8 +252,8 @@ mod tests {
     use model_core::Params;
     use std::vec::Vec;
     use swg_protocol::{
-        decode, encode, encode_with_version, Compensation, ControlSample, DriveErrorKind, EncoderSample, EvalPath, GainField,
-        GearModel, ParamFault, ParamField, ParamName, SlipElement, Spring, StorageError, SLIP_ELEMENTS,
+        decode, encode, encode_with_version, Compensation, ControlSample, DriveErrorKind, EncoderSample, EvalPath,
+        GainField, GearModel, ParamFault, ParamField, ParamName, SlipElement, Spring, StorageError, SLIP_ELEMENTS,
     };
 
     fn params() -> JointParams {

@@ -44,12 +44,8 @@ impl Joint {
                 Answer::Replay(port.compensator().tick(sample.input_angle, sample.output_angle, sample.path))
             }
             Sample::Control(sample) => {
-                let output = self.controller.tick(
-                    port.compensator(),
-                    sample.input_angle,
-                    sample.output_angle,
-                    sample.reference,
-                );
+                let output =
+                    self.controller.tick(port.compensator(), sample.input_angle, sample.output_angle, sample.reference);
                 match drive.apply(output.command) {
                     Ok(()) => Answer::Control(output),
                     Err(error) => Answer::Refused(ErrorReply::MotorDrive(drive::Error::kind(&error))),
