@@ -20,10 +20,41 @@ struct Installed {
     torque_limit: f32,
     /// [`EvalPath::Fast`] runs the evaluator with [`FastMath`] (model-core's `has_fast_path`).
     fast: bool,
+    /// The deflections θ both plausible and within the spring's identified range, as a centre
+    /// and a half-width (a little narrower than exact): one comparison for both on a tick.
+    usual: Window,
+}
+
+/// θ with |θ − centre| ≤ half_width, rad.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Window {
+    centre: f32,
+    half_width: f32,
+}
+
+impl Window {
+    /// [lo, hi] narrowed by a few f32 roundings of its ends, so that no θ in it lies beyond
+    /// them however the tick rounds x = θ − θ0 (the tick checks the θ outside it exactly).
+    fn within(lo: f32, hi: f32) -> Self {
+        let centre = 0.5 * lo + 0.5 * hi;
+        let margin = 1.0e-6 * (lo.abs() + hi.abs()) + f32::MIN_POSITIVE;
+        Window { centre, half_width: (0.5 * hi - 0.5 * lo - margin).max(0.0) }
+    }
+
+    #[inline(always)]
+    fn holds(&self, theta: f32) -> bool {
+        (theta - self.centre).abs() <= self.half_width
+    }
 }
 
 impl Installed {
-    const EMPTY: Installed = Installed { evaluator: None, gear_ratio: 0.0, torque_limit: 0.0, fast: false };
+    const EMPTY: Installed = Installed {
+        evaluator: None,
+        gear_ratio: 0.0,
+        torque_limit: 0.0,
+        fast: false,
+        usual: Window { centre: 0.0, half_width: 0.0 },
+    };
 
     /// Validates `params` and prepares their evaluator at rest in this slot: the slow part of
     /// staging a set (the range checks, the fast path's constants), done where time does not
@@ -33,6 +64,8 @@ impl Installed {
         params.prepare_evaluator(&mut self.evaluator)?;
         (self.gear_ratio, self.torque_limit) = (params.gear_ratio, params.torque_limit);
         self.fast = params.model.has_fast_path();
+        let [lo, hi] = params.model.spring.range.map(|edge| edge + params.model.zero);
+        self.usual = Window::within(lo.max(-MAX_DEFLECTION), hi.min(MAX_DEFLECTION));
         Ok(())
     }
 }
@@ -236,11 +269,14 @@ impl Ticker<'_> {
         }
     }
 
-    /// Counts a sample `excess` rad (> 0) beyond the spring's identified range. Rare, so out of
-    /// the tick's straight path.
+    /// Counts a sample `excess` rad beyond the spring's identified range, if it is > 0. Rare,
+    /// so out of the tick's straight path.
     #[cold]
     #[inline(never)]
     fn note_beyond_range(&mut self, excess: f32) {
+        if !(excess > 0.0) {
+            return;
+        }
         let compensator = self.compensator;
         let count = compensator.beyond_range.load(Ordering::Relaxed);
         compensator.beyond_range.store(count.wrapping_add(1), Ordering::Relaxed);
@@ -281,20 +317,20 @@ impl Ticker<'_> {
         let installed = unsafe { &mut *compensator.slot(compensator.active.load(Ordering::Relaxed)).get() };
         let Some(evaluator) = installed.evaluator.as_mut() else { return OFF };
         let deflection = input_angle / installed.gear_ratio - output_angle;
-        // One comparison refuses NaN too.
-        let plausible = deflection.abs() <= MAX_DEFLECTION;
-        if !plausible {
-            return OFF;
+        // One comparison on the usual tick: plausible and within the identified range. Outside
+        // that window: refused where implausible (NaN too), else counted (beyond the range the
+        // spring runs on with its edge's stiffness) and evaluated.
+        if !installed.usual.holds(deflection) {
+            if !(deflection.abs() <= MAX_DEFLECTION) {
+                return OFF;
+            }
+            self.note_beyond_range(evaluator.excess(deflection));
         }
         // The same state whichever path runs the sample.
         let fast = installed.fast && path == EvalPath::Fast;
         let (evaluation, memory) = evaluator.step_reporting_either::<FastMath, Libm>(deflection, fast);
         // Beyond the identified range the spring runs on with its edge's stiffness; such
         // samples are counted (the status reports them).
-        let excess = evaluator.excess(deflection);
-        if excess > 0.0 {
-            self.note_beyond_range(excess);
-        }
         // At most TURNING_POINTS or SLIP_ELEMENTS, both 16.
         let (direction, memory) = (memory.direction, memory.depth as u8);
         let Ok(evaluation) = evaluation else {
