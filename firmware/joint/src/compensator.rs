@@ -274,7 +274,8 @@ impl Ticker<'_> {
     #[cold]
     #[inline(never)]
     fn note_beyond_range(&mut self, excess: f32) {
-        if !(excess > 0.0) {
+        // Never NaN: θ was plausible, θ0 and the range finite.
+        if excess <= 0.0 {
             return;
         }
         let compensator = self.compensator;
@@ -321,7 +322,9 @@ impl Ticker<'_> {
         // that window: refused where implausible (NaN too), else counted (beyond the range the
         // spring runs on with its edge's stiffness) and evaluated.
         if !installed.usual.holds(deflection) {
-            if !(deflection.abs() <= MAX_DEFLECTION) {
+            // One comparison refuses NaN too.
+            let plausible = deflection.abs() <= MAX_DEFLECTION;
+            if !plausible {
                 return OFF;
             }
             self.note_beyond_range(evaluator.excess(deflection));
