@@ -15,7 +15,7 @@ const ALLOWED: &[(&str, &[&str], &[&str])] = &[
     ("predict", &["gear", "prepare", "input"], &[]),
     ("simulate", &["input", "diagnose::effects"], &[]),
     ("report", &["diagnose", "fit", "gear", "predict", "prepare", "input", "numeric"], &[]),
-    ("link", &["gear", "input"], &["simulate"]),
+    ("link", &["gear", "input", "prepare"], &["simulate"]),
     ("hil", &["gear", "input", "simulate", "link", "report"], &["fit"]),
 ];
 

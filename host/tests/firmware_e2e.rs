@@ -86,6 +86,9 @@ fn push_read_back_and_replay_match_the_host_model() {
         assert!(replayed.status.success(), "{path}");
         let stdout = String::from_utf8_lossy(&replayed.stdout);
         assert!(stdout.contains("(0 samples outside"), "{stdout}");
+        // The seed's polynomial spring is identified over ±1 rad: nothing lies beyond.
+        assert!(stdout.contains("(board status): 0 samples, largest excess 0.000e0 rad"), "{stdout}");
+        assert!(stdout.contains("the causal reversal band against the offline model: T_ff RMS"), "{stdout}");
     }
 
     // The same through the library, with the details asserted: whole loops, turning points
@@ -219,7 +222,8 @@ fn bad_traffic_gets_a_clear_error_and_the_old_parameters_stay() {
     // Finite, but the model overflows f32 within |θ| ≤ MAX_DEFLECTION: refused, not committed.
     let overflowing = with(ParamName::C3, 1.0e38);
     let stiff = JointParams { model: slip.with(ParamName::SlipStiffness(3), 1.0e38), ..good };
-    let garbage = [0x13u8; 400];
+    // Longer than any frame the device reads.
+    let garbage = [0x13u8; swg_protocol::MAX_FRAME_LEN + 100];
 
     // The replies to frames the device cannot read carry the unknown id; the others, the
     // request's own (the frames' ids are 11 onwards, in order).

@@ -23,7 +23,7 @@
 //! (with its parameters' names in [`ParamName`], its checks, its range bound in `range`, its f32
 //! tolerance in `tolerance`, its serde names), its fit on the host, and one arm in the firmware's
 //! budget, which bounds its per-tick cost. Nothing else branches on the kind.
-use crate::memory::{GeneticMemory, Hysteretic, MicroSlip, SlipElement};
+use crate::memory::{finite, Finish, GeneticMemory, Hysteretic, MicroSlip, SlipElement};
 use crate::range::{self, Culprit};
 use crate::spring::{PreparedSpring, Spring};
 use crate::{Direction, Elementary, Error, Evaluation, Identifiable, Libm, Model, ParamName, Params, Real};
@@ -261,6 +261,15 @@ impl<F: Real> GearModel<F> {
     /// (rad; negative or NaN counts as 0); the micro-slip kind needs none (noise only makes tiny
     /// reversible loops).
     pub fn evaluator(&self, band: F) -> Result<Evaluator<F>, Error> {
+        let mut evaluator = None;
+        self.evaluator_into(band, &mut evaluator)?;
+        evaluator.ok_or(Error::Overflow)
+    }
+
+    /// [`GearModel::evaluator`] written into `evaluator`, in place (`None` there on error): a
+    /// joint prepares its next set in its slot, not on its stack and then copied.
+    pub fn evaluator_into(&self, band: F, evaluator: &mut Option<Evaluator<F>>) -> Result<(), Error> {
+        *evaluator = None;
         if let Err((name, fault)) = self.check() {
             return Err(Error::InvalidParameter(name, fault));
         }
@@ -268,7 +277,12 @@ impl<F: Real> GearModel<F> {
             Hysteresis::Genetic(g) => HysteresisState::Genetic(GeneticMemory::new(g.model()?, band)),
             Hysteresis::MicroSlip(_) => HysteresisState::MicroSlip(MicroSlip::new(self.slip_elements())?),
         };
-        Ok(Evaluator { zero: self.zero, spring: self.spring.prepare()?, hysteresis })
+        let prepared = evaluator.insert(Evaluator { zero: self.zero, spring: PreparedSpring::empty(), hysteresis });
+        let spring = self.spring.prepare_into(&mut prepared.spring);
+        if spring.is_err() {
+            *evaluator = None;
+        }
+        spring
     }
 
     /// Whether the model can be evaluated in `F` for every |θ| ≤ `max_deflection` and every
@@ -415,26 +429,33 @@ impl<F: Real> Evaluator<F> {
     /// (the joint's tick: a second dispatch cost instructions every tick).
     #[inline(always)]
     pub fn step_reporting<E: Elementary<F>>(&mut self, theta: F) -> (Result<Evaluation<F>, Error>, Memory) {
+        self.step_reporting_either::<E, E>(theta, true)
+    }
+
+    /// [`Evaluator::step_reporting`] with the elementary functions of `A` where `first`, else
+    /// of `B`: the joint's tick, which chooses its fast path or libm sample by sample, gets one
+    /// copy of the kinds that use none.
+    ///
+    /// T = S(x) + H(x) is checked once, on the sum; the hysteresis' memory is written only if it
+    /// is finite, so a step that fails leaves the memory as it was.
+    #[inline(always)]
+    pub fn step_reporting_either<A: Elementary<F>, B: Elementary<F>>(
+        &mut self,
+        theta: F,
+        first: bool,
+    ) -> (Result<Evaluation<F>, Error>, Memory) {
         let x = theta - self.zero;
-        let (hysteresis, memory) = match &mut self.hysteresis {
+        let finish = WithSpring { spring: &mut self.spring, x };
+        match &mut self.hysteresis {
             HysteresisState::Genetic(memory) => {
-                let evaluation = memory.step_with::<E>(x);
+                let evaluation =
+                    if first { memory.step_finishing::<A>(x, finish) } else { memory.step_finishing::<B>(x, finish) };
                 (evaluation, Memory { direction: memory.direction(), depth: memory.depth() })
             }
             HysteresisState::MicroSlip(slip) => {
-                let evaluation = slip.step(x);
-                (evaluation, Memory { direction: None, depth: slip.slipping() })
+                (slip.step_finishing(x, finish), Memory { direction: None, depth: slip.slipping() })
             }
-        };
-        let evaluation = hysteresis.and_then(|h| {
-            let total = self.spring.evaluate(x).plus(h);
-            if total.torque.is_finite() && total.stiffness.is_finite() {
-                Ok(total)
-            } else {
-                Err(Error::Overflow)
-            }
-        });
-        (evaluation, memory)
+        }
     }
 
     /// What the evaluator remembers.
@@ -459,6 +480,20 @@ impl<F: Real> Evaluator<F> {
     /// The deflection's zero θ0, rad.
     pub fn zero(&self) -> F {
         self.zero
+    }
+}
+
+/// The gear's spring at x added to the hysteresis, and the sum checked: what the evaluator's
+/// step makes of H before the memory is written.
+struct WithSpring<'a, F> {
+    spring: &'a mut PreparedSpring<F>,
+    x: F,
+}
+
+impl<F: Real> Finish<F> for WithSpring<'_, F> {
+    #[inline(always)]
+    fn finish(self, hysteresis: Evaluation<F>) -> Result<Evaluation<F>, Error> {
+        finite(self.spring.evaluate(self.x).plus(hysteresis))
     }
 }
 

@@ -39,13 +39,47 @@ fn opposite(direction: Direction) -> Direction {
 /// `e`, or [`Error::Overflow`] where T or K is not finite.
 #[inline(always)]
 #[allow(clippy::eq_op)]
-fn finite<F: Real>(e: Evaluation<F>) -> Result<Evaluation<F>, Error> {
+pub(crate) fn finite<F: Real>(e: Evaluation<F>) -> Result<Evaluation<F>, Error> {
     // x − x is 0 for every finite x and NaN for ±∞ and NaN: one comparison for both, where
     // `is_finite` tests each one's bits (twice the M4F's instructions, every tick).
     if (e.torque - e.torque) + (e.stiffness - e.stiffness) == F::zero() {
         Ok(e)
     } else {
         Err(Error::Overflow)
+    }
+}
+
+/// What a step does with the hysteresis' H and dH/dθ before it writes its new state: adds a
+/// spring and checks the sum (a trait rather than a closure, so that the tick's one call of it
+/// is inlined whatever its size).
+pub(crate) trait Finish<F> {
+    /// T and K from H and dH/dθ, or why they cannot be used (the state is then not written).
+    fn finish(self, hysteresis: Evaluation<F>) -> Result<Evaluation<F>, Error>;
+}
+
+/// H and dH/dθ alone, checked.
+struct Alone;
+
+impl<F: Real> Finish<F> for Alone {
+    #[inline(always)]
+    fn finish(self, hysteresis: Evaluation<F>) -> Result<Evaluation<F>, Error> {
+        finite(hysteresis)
+    }
+}
+
+/// The memory's own polynomial spring at θ added, where it has one; checked.
+struct WithPolynomial<F> {
+    polynomial: Option<crate::Polynomial<F>>,
+    theta: F,
+}
+
+impl<F: Real> Finish<F> for WithPolynomial<F> {
+    #[inline(always)]
+    fn finish(self, hysteresis: Evaluation<F>) -> Result<Evaluation<F>, Error> {
+        finite(match self.polynomial {
+            Some(polynomial) => polynomial.evaluate(self.theta).plus(hysteresis),
+            None => hysteresis,
+        })
     }
 }
 
@@ -399,14 +433,27 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     /// is written only once the evaluation has succeeded, so a failed step changes nothing.
     #[inline]
     pub fn step_with<E: Elementary<F>>(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
+        // A gear's model adds its spring itself: its hysteresis' model has none to evaluate.
+        let polynomial = self.model.has_spring().then_some(self.model.polynomial);
+        self.step_finishing::<E>(theta, WithPolynomial { polynomial, theta })
+    }
+
+    /// [`GeneticMemory::step_with`] whose result is what `finish` makes of H and dH/dθ (a
+    /// caller's sum with its spring, checked there): the state is written only if that succeeds.
+    #[inline(always)]
+    pub(crate) fn step_finishing<E: Elementary<F>>(
+        &mut self,
+        theta: F,
+        finish: impl Finish<F>,
+    ) -> Result<Evaluation<F>, Error> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);
         }
         let (direction, new_extreme, turned) = self.motion(theta);
         let (below, above) = self.branch.exits;
         let (evaluation, h) = if !(turned || theta < below || theta > above) {
-            let (evaluation, h) = Self::evaluate_on::<E>(&self.model, &self.branch, theta);
-            (evaluation?, h)
+            let h = self.branch.evaluate::<E>(&self.model, theta);
+            (finish.finish(h)?, h.torque)
         } else {
             let plan = self.restack(theta, turned);
             let branch = match plan.current {
@@ -415,8 +462,8 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
                 Some((from, to, _)) => Branch { exits: exits(from.theta, to.theta, plan.retracing), ..self.branch },
                 None => Branch::rest(),
             };
-            let (evaluation, h) = Self::evaluate_on::<E>(&self.model, &branch, theta);
-            let evaluation = evaluation?;
+            let h = branch.evaluate::<E>(&self.model, theta);
+            let evaluation = finish.finish(h)?;
             self.branch = branch;
             if let Some(point) = plan.pushed {
                 if let Some(slot) = self.stack.get_mut(plan.depth) {
@@ -425,7 +472,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
             }
             self.depth = plan.depth + usize::from(plan.pushed.is_some());
             self.retracing = plan.retracing;
-            (evaluation, h)
+            (evaluation, h.torque)
         };
         self.direction = direction;
         if new_extreme {
@@ -586,19 +633,6 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
         }
         Restack { depth, pushed, retracing, current: self.branch_at(depth, pushed), changed }
     }
-
-    /// T and K at `theta` on `branch` (an error where they are not finite), and H there.
-    #[inline(always)]
-    fn evaluate_on<E: Elementary<F>>(
-        model: &Model<F>,
-        branch: &Branch<F>,
-        theta: F,
-    ) -> (Result<Evaluation<F>, Error>, F) {
-        let h = branch.evaluate::<E>(model, theta);
-        // A gear's model adds its spring itself: its hysteresis' model has none to evaluate.
-        let t = if model.has_spring() { model.polynomial.evaluate(theta).plus(h) } else { h };
-        (finite(t), h.torque)
-    }
 }
 
 /// The stack after a step that changes it ([`GeneticMemory::restack`]): the points
@@ -703,7 +737,7 @@ impl<F: Real, const M: usize> SlipElements<F, M> {
         }
         let delta = theta - self.theta;
         for (e, d) in self.elastic.iter_mut().zip(self.slip.iter()) {
-            (*e, _) = slide(*e, delta, *d);
+            (*e, _) = slide::<F, true>(*e, delta, *d);
         }
         self.theta = theta;
         Ok(())
@@ -740,16 +774,29 @@ impl<F: Real, const M: usize> SlipElements<F, M> {
 /// columns are what the joint evaluates. Finite θs make Δθ finite or ±∞, never NaN, so
 /// e + Δθ is never NaN and e stays finite; then this is exactly the clamp (e + Δθ = ±d gives
 /// ±d either way).
+///
+/// `RISING` says which limit to test first: the one the motion heads for (Δθ ≥ 0: +d), so that
+/// an element that slips costs one comparison, not a comparison and a choice of sign (the M4F's
+/// tick, where most elements may slip). The value is the same either way.
 #[inline(always)]
-fn slide<F: Real>(e: F, delta: F, d: F) -> (F, bool) {
+fn slide<F: Real, const RISING: bool>(e: F, delta: F, d: F) -> (F, bool) {
     let moved = e + delta;
-    if moved.abs() < d {
-        (moved, true)
-    } else if moved > F::zero() {
-        (d, false)
+    if RISING {
+        if moved >= d {
+            return (d, false);
+        }
+        if moved <= -d {
+            return (-d, false);
+        }
     } else {
-        (-d, false)
+        if moved <= -d {
+            return (-d, false);
+        }
+        if moved >= d {
+            return (d, false);
+        }
     }
+    (moved, true)
 }
 
 /// Maxwell-slip (a discrete Iwan model): up to M elasto-slip elements, element i a spring k_i in
@@ -812,6 +859,68 @@ impl<F: Real, const M: usize> MicroSlip<F, M> {
     }
 }
 
+impl<F: Real, const M: usize> MicroSlip<F, M> {
+    /// [`Hysteretic::step`] whose result is what `finish` makes of H and dH/dθ (a caller's sum
+    /// with its spring, checked there): the new deflections are committed only if that succeeds.
+    ///
+    /// One pass over the elements moves each, sums H and dH/dθ and counts the slipping ones.
+    /// (Stepping a copy of the elements, evaluating it in a second pass and counting in a third
+    /// cost the M4F far more instructions per tick.)
+    #[inline(always)]
+    pub(crate) fn step_finishing(&mut self, theta: F, finish: impl Finish<F>) -> Result<Evaluation<F>, Error> {
+        if !theta.is_finite() {
+            return Err(Error::NonFiniteDeflection);
+        }
+        let delta = theta - self.theta;
+        let mut elastic = self.elastic;
+        let (total, slipping) = if delta >= F::zero() {
+            self.slide_all::<true>(&mut elastic, delta)
+        } else {
+            self.slide_all::<false>(&mut elastic, delta)
+        };
+        let evaluation = finish.finish(total)?;
+        self.elastic = elastic;
+        self.theta = theta;
+        self.slipping = slipping;
+        Ok(evaluation)
+    }
+}
+
+impl<F: Real, const M: usize> MicroSlip<F, M> {
+    /// `elastic` moved by Δθ = `delta`, element by element ([`slide`] with the limit Δθ heads
+    /// for tested first): H, dH/dθ and how many elements slip.
+    #[inline(always)]
+    fn slide_all<const RISING: bool>(&self, elastic: &mut [F; M], delta: F) -> (Evaluation<F>, usize) {
+        let mut total = Evaluation { torque: F::zero(), stiffness: F::zero() };
+        let mut slipping = 0;
+        let mut one = |e: &mut F, d: F, k: F| {
+            let sticks;
+            (*e, sticks) = slide::<F, RISING>(*e, delta, d);
+            total.torque = total.torque + k * *e;
+            if sticks {
+                total.stiffness = total.stiffness + k;
+            } else {
+                slipping += 1;
+            }
+        };
+        // Every slot, the unused too (k = 0, d = 1 rad: they never slip): the worst case, all M
+        // in use, is what the tick is budgeted for. Four at a time, which the compiler writes
+        // out (no loop's counting and addressing for each element).
+        let (e4, d4, k4) = (elastic.chunks_exact_mut(4), self.slip.chunks_exact(4), self.stiffness.chunks_exact(4));
+        for ((e, d), k) in e4.zip(d4).zip(k4) {
+            for ((e, d), k) in e.iter_mut().zip(d).zip(k) {
+                one(e, *d, *k);
+            }
+        }
+        let rest = M - M % 4;
+        let (e, d, k) = (elastic.get_mut(rest..), self.slip.get(rest..), self.stiffness.get(rest..));
+        for ((e, d), k) in e.unwrap_or_default().iter_mut().zip(d.unwrap_or_default()).zip(k.unwrap_or_default()) {
+            one(e, *d, *k);
+        }
+        (total, slipping)
+    }
+}
+
 impl<F: Real, const M: usize> Hysteretic<F> for MicroSlip<F, M> {
     fn reset(&mut self) {
         self.elastic = [F::zero(); M];
@@ -819,35 +928,9 @@ impl<F: Real, const M: usize> Hysteretic<F> for MicroSlip<F, M> {
         self.slipping = 0;
     }
 
-    /// One pass over the elements moves each, sums H and dH/dθ and counts the slipping ones; the
-    /// new deflections are committed only if both are finite. (Stepping a copy of the elements,
-    /// evaluating it in a second pass and counting in a third cost the M4F far more instructions
-    /// per tick.)
+    /// H and dH/dθ; the new deflections are committed only if both are finite.
     fn step(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
-        if !theta.is_finite() {
-            return Err(Error::NonFiniteDeflection);
-        }
-        let delta = theta - self.theta;
-        let mut total = Evaluation { torque: F::zero(), stiffness: F::zero() };
-        let mut elastic = self.elastic;
-        let mut slipping = 0;
-        // Every slot, the unused too (k = 0, d = 1 rad: they never slip): a loop of a fixed length
-        // is unrolled, and the worst case, all M in use, is what the tick is budgeted for.
-        for ((e, d), k) in elastic.iter_mut().zip(self.slip.iter()).zip(self.stiffness.iter()) {
-            let sticks;
-            (*e, sticks) = slide(*e, delta, *d);
-            total.torque = total.torque + *k * *e;
-            if sticks {
-                total.stiffness = total.stiffness + *k;
-            } else {
-                slipping += 1;
-            }
-        }
-        let evaluation = finite(total)?;
-        self.elastic = elastic;
-        self.theta = theta;
-        self.slipping = slipping;
-        Ok(evaluation)
+        self.step_finishing(theta, Alone)
     }
 }
 

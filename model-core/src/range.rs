@@ -3,10 +3,13 @@
 //! up to 2·(D + |θ0|) that the stateful evaluators can produce, in the float type `F` the joint
 //! runs (f32), on the direct path and on the firmware's fast path.
 //!
-//! The check bounds each term of T and dT/dθ analytically (in f64, whatever `F` is) and asks
-//! that the bound of the sum stay below `F::MAX / MARGIN`, so that no intermediate of the
-//! evaluation (5·c3·x⁴, h·e^(−rφ), r·h·e^(−rφ), the capped 1/|cos φ|, …) nor the rounding of
-//! the fast path's approximations can reach infinity:
+//! The check bounds each term of T and dT/dθ analytically and asks that the bound of the sum
+//! stay below `F::MAX / MARGIN`, so that no intermediate of the evaluation (5·c3·x⁴, h·e^(−rφ),
+//! r·h·e^(−rφ), the capped 1/|cos φ|, …) nor the rounding of the fast path's approximations can
+//! reach infinity. The bounds are computed in `F` itself (no soft-float f64 on the joint): every
+//! term is a sum of non-negative parts, so a part that overflows `F` makes the sum exceed the
+//! limit, which is the answer; k·E is formed as e^(ln k + ln E), as the evaluation forms h·e^(−rφ),
+//! so that a large E with a tiny k is not refused for E alone.
 //!
 //! - the spring's polynomial: |T| ≤ |c1|·d + |c2|·d³ + |c3|·d⁵, |K| ≤ |c1| + 3|c2|·d² + 5|c3|·d⁴,
 //!   and the slope factors 3|c2| and 5|c3| themselves (beyond its range the spring is the line
@@ -29,7 +32,7 @@
 //! closer together than f32 resolves; the evaluator refuses such a sample by itself (the
 //! tick is off, the memory untouched).
 use crate::gear::{GearModel, Hysteresis, TURNING_POINTS};
-use crate::{ParamName, Real};
+use crate::{Model, ParamName, Params, Real};
 use core::cmp::Ordering;
 #[allow(unused_imports)]
 use num_traits::Float;
@@ -47,181 +50,121 @@ pub enum Culprit {
     Several,
 }
 
-fn f64_of<F: Real>(value: F) -> f64 {
-    value.to_f64().unwrap_or(f64::INFINITY)
-}
-
 /// Bounds of |T| and |K| of the polynomial c1·x + c2·x³ + c3·x⁵ for |x| ≤ d.
-fn polynomial_bound(c: [f64; 3], d: f64) -> (f64, f64) {
-    let [c1, c2, c3] = c.map(f64::abs);
+fn polynomial_bound<F: Real>(c: [F; 3], d: F) -> (F, F) {
+    let [c1, c2, c3] = c.map(F::abs);
     let d2 = d * d;
     // The slope factors 3·c2 and 5·c3 are formed before x² multiplies them.
-    let stiffness = (c1 + d2 * (3.0 * c2 + 5.0 * c3 * d2)).max(3.0 * c2).max(5.0 * c3);
+    let (c2x3, c3x5) = (F::THREE * c2, F::FIVE * c3);
+    let stiffness = (c1 + d2 * (c2x3 + c3x5 * d2)).max(c2x3).max(c3x5);
     (d * (c1 + d2 * (c2 + d2 * c3)), stiffness)
 }
 
-/// The model's parameters in f64, in the order of [`GearModel::map`], with their names.
-struct Wide {
-    values: [(ParamName, f64); 2 * crate::spring::MAX_KNOTS + 3 * crate::gear::SLIP_ELEMENTS + 8],
-    count: usize,
-    kind: crate::Kind,
-}
-
-impl Wide {
-    fn of<F: Real>(model: &GearModel<F>) -> Wide {
-        let mut wide = Wide {
-            values: [(ParamName::Zero, 0.0); 2 * crate::spring::MAX_KNOTS + 3 * crate::gear::SLIP_ELEMENTS + 8],
-            count: 0,
-            kind: model.kind(),
-        };
-        model.map(|name, value| {
-            if let Some(slot) = wide.values.get_mut(wide.count) {
-                *slot = (name, f64_of(value));
-                wide.count += 1;
-            }
-            value
-        });
-        wide
-    }
-
-    fn all(&self) -> &[(ParamName, f64)] {
-        self.values.get(..self.count).unwrap_or(&[])
-    }
-
-    fn get(&self, name: ParamName) -> f64 {
-        self.all().iter().find(|(n, _)| *n == name).map_or(0.0, |(_, v)| *v)
-    }
-
-    /// Bounds of |T| and |K| over |θ| ≤ `max_deflection`, the parameter `neutral` set to its
-    /// neutral value (0; |β| or 1 for ω).
-    fn bound(&self, max_deflection: f64, neutral: Option<ParamName>) -> (f64, f64) {
-        let value = |name: ParamName| match neutral {
-            Some(n) if n == name && name == ParamName::Omega => {
-                let beta = self.get(ParamName::Beta);
-                if beta == 0.0 {
-                    1.0
-                } else {
-                    beta.abs()
-                }
-            }
-            Some(n) if n == name => 0.0,
-            _ => self.get(name),
-        };
-        let d = max_deflection + value(ParamName::Zero).abs();
-        // The spring is evaluated at the range's ends too (the edges' values and stiffness,
-        // continued beyond them).
-        let ends = value(ParamName::RangeMin).abs().max(value(ParamName::RangeMax).abs());
-        let d_spring = d.max(ends);
-        let (mut torque, mut stiffness) =
-            polynomial_bound([value(ParamName::C1), value(ParamName::C2), value(ParamName::C3)], d_spring);
-        // Horner's rule forms x² whatever the coefficients.
-        stiffness = stiffness.max(d_spring * d_spring);
-        let knots_k = self
-            .all()
-            .iter()
-            .filter(|(name, _)| matches!(name, ParamName::KnotStiffness(_)))
-            .map(|(name, _)| value(*name).abs())
-            .fold(0.0, f64::max);
-        torque += knots_k * d_spring;
-        stiffness += knots_k;
-        // The stiffness's slope between knots, which the prepared spring keeps per segment.
-        let knots: [(f64, f64); crate::spring::MAX_KNOTS] = core::array::from_fn(|j| {
-            let j = u8::try_from(j).unwrap_or(u8::MAX);
-            (value(ParamName::Knot(j)), value(ParamName::KnotStiffness(j)))
-        });
-        let count = self.all().iter().filter(|(name, _)| matches!(name, ParamName::Knot(_))).count();
-        for pair in knots.get(..count).unwrap_or(&[]).windows(2) {
-            if let [(x0, k0), (x1, k1)] = pair {
-                stiffness = stiffness.max(((k1 - k0) / (x1 - x0)).abs());
-            }
-        }
-        let width = 2.0 * d;
-        let (t, k) = match self.kind {
-            crate::Kind::Genetic => {
-                genetic_bound(value(ParamName::Alpha), value(ParamName::Beta), value(ParamName::Omega), width)
-            }
-            crate::Kind::MicroSlip => {
-                let mut bound = (0.0, 0.0);
-                for (name, _) in self.all() {
-                    if let ParamName::SlipStiffness(i) = name {
-                        let k = value(*name).abs();
-                        bound.0 += k * self.get(ParamName::Slip(*i)).min(width);
-                        bound.1 += k;
-                    }
-                }
-                bound
-            }
-        };
-        // A NaN (∞·0) counts as ∞.
-        let nan_inf = |v: f64| if v.is_nan() { f64::INFINITY } else { v };
-        (nan_inf(torque + t), nan_inf(stiffness + k))
-    }
-}
-
 /// Bounds of |H| and |dH/dθ| of the genetic memory with [`TURNING_POINTS`] turning points on
-/// branches of half-width up to `width`.
-fn genetic_bound(alpha: f64, beta: f64, omega: f64, width: f64) -> (f64, f64) {
-    if alpha == 0.0 {
-        return (0.0, 0.0);
+/// branches of half-width up to `width`; ∞ where the hysteresis cannot be evaluated at all.
+fn genetic_bound<F: Real>(alpha: F, beta: F, omega: F, width: F) -> (F, F) {
+    if alpha == F::zero() {
+        return (F::zero(), F::zero());
     }
-    let r = beta / omega;
-    let k = alpha.abs() / (omega.abs() * (1.0 + r * r));
-    let half_pi = core::f64::consts::FRAC_PI_2;
-    let e = (r * half_pi).max(-3.0 * r * half_pi).exp();
+    let zero = F::zero();
+    let params = Params { c1: zero, c2: zero, c3: zero, alpha, beta, omega };
+    // r = β/ω and ln k, k = α/(ω(1 + r²)), formed as the evaluation forms them.
+    let Ok(model) = Model::new(params) else { return (F::infinity(), F::infinity()) };
+    let r = model.r();
+    let half_pi = F::FRAC_PI_2();
+    // ln E = max(rπ/2, −3rπ/2), E the largest e^(−rφ) over φ ∈ [−π/2, 3π/2].
+    let ln_e = (r * half_pi).max(-F::THREE * r * half_pi);
+    let (k, k_e) = (model.ln_abs_k.exp(), (model.ln_abs_k + ln_e).exp());
     let r = r.abs();
-    let z_t = k * width * (e + r + 1.0);
+    let z_t = width * (k_e + k * (r + F::one()));
     // r, k and h = A·k at A = 1 (what the fast path forms) must be finite too.
-    let z_k = (k * ((r + 100.0) * e + 101.0 * (r + 1.0))).max(k).max(r);
-    let copies = (TURNING_POINTS + 2) as f64;
+    let hundred = F::from(100.0).unwrap_or_else(F::infinity);
+    let z_k = (k_e * (r + hundred) + k * (hundred + F::one()) * (r + F::one())).max(k).max(r);
+    let copies = F::from(TURNING_POINTS + 2).unwrap_or_else(F::infinity);
     (copies * z_t, copies * z_k)
+}
+
+/// Bounds of |T| and |K| over |θ| ≤ `max_deflection`, with the parameter `neutral` set to its
+/// neutral value (0; |β| or 1 for ω).
+fn bound<F: Real>(model: &GearModel<F>, max_deflection: F, neutral: Option<ParamName>) -> (F, F) {
+    let value = |name: ParamName, actual: F| if neutral == Some(name) { F::zero() } else { actual };
+    let spring = &model.spring;
+    let d = max_deflection + value(ParamName::Zero, model.zero).abs();
+    // The spring is evaluated at the range's ends too (the edges' values and stiffness,
+    // continued beyond them).
+    let [lo, hi] = spring.range;
+    let ends = value(ParamName::RangeMin, lo).abs().max(value(ParamName::RangeMax, hi).abs());
+    let d_spring = d.max(ends);
+    let c = [value(ParamName::C1, spring.c1), value(ParamName::C2, spring.c2), value(ParamName::C3, spring.c3)];
+    let (mut torque, mut stiffness) = polynomial_bound(c, d_spring);
+    // Horner's rule forms x² whatever the coefficients.
+    stiffness = stiffness.max(d_spring * d_spring);
+    let knot_stiffness = |i: usize, k: F| value(ParamName::KnotStiffness(i as u8), k.abs());
+    let knots = spring.knots();
+    let largest = (0..).zip(knots).fold(F::zero(), |largest, (i, knot)| largest.max(knot_stiffness(i, knot.stiffness)));
+    torque = torque + largest * d_spring;
+    stiffness = stiffness + largest;
+    // The stiffness's slope between knots, which the prepared spring keeps per segment.
+    for (i, pair) in (0..).zip(knots.windows(2)) {
+        if let [a, b] = pair {
+            let slope = (knot_stiffness(i + 1, b.stiffness) - knot_stiffness(i, a.stiffness)) / (b.x - a.x);
+            stiffness = stiffness.max(slope.abs());
+        }
+    }
+    let width = (F::one() + F::one()) * d;
+    let (t, k) = match &model.hysteresis {
+        Hysteresis::Genetic(g) => {
+            let omega = match neutral {
+                Some(ParamName::Omega) if g.beta == F::zero() => F::one(),
+                Some(ParamName::Omega) => g.beta.abs(),
+                _ => g.omega,
+            };
+            genetic_bound(value(ParamName::Alpha, g.alpha), value(ParamName::Beta, g.beta), omega, width)
+        }
+        Hysteresis::MicroSlip(_) => (0..).zip(model.slip_elements()).fold((F::zero(), F::zero()), |(t, k), (i, e)| {
+            let stiffness = value(ParamName::SlipStiffness(i), e.stiffness).abs();
+            (t + stiffness * e.slip.min(width), k + stiffness)
+        }),
+    };
+    // A NaN (∞·0, ∞ − ∞) counts as ∞.
+    let nan_inf = |v: F| if v.is_nan() { F::infinity() } else { v };
+    (nan_inf(torque + t), nan_inf(stiffness + k))
 }
 
 /// Whether `model` (checked: [`GearModel::check`]) can be evaluated in `F` for |θ| ≤
 /// `max_deflection`; else the parameter whose neutral value would make it so (0 for the spring's
-/// and the elements' stiffnesses, its range's ends, θ0, α, β; |β| or 1 for ω), or the micro-slip element whose
-/// slip deflection lies beyond the travel.
+/// and the elements' stiffnesses, its range's ends, θ0, α, β; |β| or 1 for ω), or the micro-slip
+/// element whose slip deflection lies beyond the travel.
 pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culprit> {
-    let limit = f64_of(F::max_value()) / MARGIN;
-    let d = f64_of(max_deflection);
-    let wide = Wide::of(model);
+    let limit = F::max_value() / F::from(MARGIN).unwrap_or_else(F::one);
+    let d = max_deflection;
     // θ0 is a deflection the encoders read: within the joint's plausible range (so that x stays
-    // within twice it, where the evaluators are bounded).
-    if !matches!(wide.get(ParamName::Zero).abs().partial_cmp(&d), Some(Ordering::Less | Ordering::Equal)) {
+    // within twice it, where the evaluators are bounded). NaN counts as beyond.
+    let within = |value: F, limit: F| matches!(value.partial_cmp(&limit), Some(Ordering::Less | Ordering::Equal));
+    if !within(model.zero.abs(), d) {
         return Err(Culprit::Param(ParamName::Zero));
     }
-    if let Hysteresis::MicroSlip(_) = model.hysteresis {
-        let travel = 2.0 * (d + wide.get(ParamName::Zero).abs());
-        for (name, value) in wide.all() {
-            // NaN counts as beyond.
-            let within = matches!(value.partial_cmp(&travel), Some(Ordering::Less | Ordering::Equal));
-            if matches!(name, ParamName::Slip(_)) && !within {
-                return Err(Culprit::Param(*name));
-            }
-        }
+    let travel = (F::one() + F::one()) * (d + model.zero.abs());
+    if let Some(i) = (0u8..).zip(model.slip_elements()).find_map(|(i, e)| (!within(e.slip, travel)).then_some(i)) {
+        return Err(Culprit::Param(ParamName::Slip(i)));
     }
-    let fits = |(torque, stiffness): (f64, f64)| torque <= limit && stiffness <= limit;
-    if fits(wide.bound(d, None)) {
+    let fits = |(torque, stiffness): (F, F)| torque <= limit && stiffness <= limit;
+    if fits(bound(model, d, None)) {
         return Ok(());
     }
     // β and ω before α: α = 0 switches the whole hysteresis term off, whatever overflows in it.
-    let first = [
-        ParamName::C1,
-        ParamName::C2,
-        ParamName::C3,
-        ParamName::RangeMin,
-        ParamName::RangeMax,
-        ParamName::Zero,
-        ParamName::Beta,
-        ParamName::Omega,
-    ];
-    let rest =
-        wide.all().iter().map(|(name, _)| *name).filter(|name| {
-            matches!(name, ParamName::KnotStiffness(_) | ParamName::SlipStiffness(_) | ParamName::Alpha)
-        });
+    let genetic = matches!(model.hysteresis, Hysteresis::Genetic(_));
+    let first =
+        [ParamName::C1, ParamName::C2, ParamName::C3, ParamName::RangeMin, ParamName::RangeMax, ParamName::Zero]
+            .into_iter()
+            .chain(genetic.then_some([ParamName::Beta, ParamName::Omega]).into_iter().flatten());
+    let knots = (0..model.spring.knots().len()).map(|i| ParamName::KnotStiffness(i as u8));
+    let elements = (0..model.slip_elements().len()).map(|i| ParamName::SlipStiffness(i as u8));
     first
-        .into_iter()
-        .chain(rest)
-        .find(|&name| wide.all().iter().any(|(n, _)| *n == name) && fits(wide.bound(d, Some(name))))
+        .chain(knots)
+        .chain(elements)
+        .chain(genetic.then_some(ParamName::Alpha))
+        .find(|&name| fits(bound(model, d, Some(name))))
         .map_or(Err(Culprit::Several), |name| Err(Culprit::Param(name)))
 }
 

@@ -128,16 +128,25 @@ impl<F: Real> Spring<F> {
     }
 
     /// The spring ready to evaluate: per segment of the knots' part its quadratic in x and where
-    /// it ends, and the polynomial's values at the range's edges.
+    /// it starts and ends, and the polynomial's values at the range's edges.
     pub fn prepare(&self) -> Result<PreparedSpring<F>, Error> {
+        let mut prepared = PreparedSpring::empty();
+        self.prepare_into(&mut prepared)?;
+        Ok(prepared)
+    }
+
+    /// [`Spring::prepare`] written over `prepared`, in place (unspecified where it fails).
+    pub(crate) fn prepare_into(&self, prepared: &mut PreparedSpring<F>) -> Result<(), Error> {
         self.check().map_err(|_| Error::InvalidSpring)?;
         let polynomial = Polynomial::new(self.c1, self.c2, self.c3)?;
         let knots = self.knots();
         let half = F::one() / (F::one() + F::one());
         // From knot j the stiffness is K_j + slope_j·(x − x_j) and P = P_j + K_j·d + slope_j·d²/2
         // (P_j from knot 0, shifted below so that P(0) = 0); left of knot 0 and right of the last,
-        // the end knot's stiffness. Each piece as a + b·x + c·x², ending at the next knot.
-        let mut segments = [Segment::default(); MAX_KNOTS + 1];
+        // the end knot's stiffness. Each piece as a + b·x + c·x², from the previous knot (−∞
+        // for the first) to the next (+∞ for the last). Without knots, one piece of 0 everywhere.
+        *prepared = PreparedSpring::empty();
+        let segments = &mut prepared.segments;
         let mut torque = F::zero();
         for (j, knot) in knots.iter().enumerate() {
             let next = knots.get(j + 1);
@@ -152,27 +161,20 @@ impl<F: Real> Spring<F> {
             if j == 0 {
                 if let Some(segment) = segments.first_mut() {
                     *segment = Segment::from_start(knot.x, F::zero(), knot.stiffness, F::zero(), knot.x);
+                    segment.start = F::neg_infinity();
                 }
             }
             if let Some(next) = next {
                 torque = torque + (knot.stiffness + next.stiffness) * half * (next.x - knot.x);
             }
         }
-        let count = if knots.is_empty() { 0 } else { knots.len() + 1 };
-        let mut prepared = PreparedSpring {
-            polynomial: self.has_polynomial().then_some(polynomial),
-            segments,
-            count,
-            range: self.range,
-            at_range: [Evaluation::default(); 2],
-            cursor: 0,
-        };
-        // P(0) = 0.
+        prepared.polynomial = self.has_polynomial().then_some(polynomial);
+        prepared.range = self.range;
+        // P(0) = 0. The cursor stays at x = 0, where an evaluator starts from rest.
         let at_zero = prepared.knots_part(F::zero());
-        for segment in prepared.segments.iter_mut().take(count) {
+        for segment in prepared.segments.iter_mut().take(knots.len() + 1) {
             segment.a = segment.a - at_zero.torque;
         }
-        prepared.cursor = 0;
         let [lo, hi] = self.range;
         prepared.at_range = [polynomial.evaluate(lo), polynomial.evaluate(hi)];
         let finite = |e: &Evaluation<F>| e.torque.is_finite() && e.stiffness.is_finite();
@@ -180,7 +182,7 @@ impl<F: Real> Spring<F> {
         if !prepared.at_range.iter().all(finite) || !segments_finite {
             return Err(Error::Overflow);
         }
-        Ok(prepared)
+        Ok(())
     }
 
     /// Whether the odd polynomial is there (not c1 = c2 = c3 = 0).
@@ -189,9 +191,10 @@ impl<F: Real> Spring<F> {
     }
 }
 
-/// One piece of the knots' part: for x below `end`, P = a + b·x + c·x² and k = b + 2c·x.
+/// One piece of the knots' part: for `start` ≤ x < `end`, P = a + b·x + c·x² and k = b + 2c·x.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Segment<F> {
+    start: F,
     end: F,
     a: F,
     b: F,
@@ -202,23 +205,53 @@ impl<F: Real> Segment<F> {
     /// The piece from `start` with P = `torque`, k = `stiffness` and dk/dx = `slope` there.
     fn from_start(start: F, torque: F, stiffness: F, slope: F, end: F) -> Self {
         let c = slope / (F::one() + F::one());
-        Segment { end, a: torque - stiffness * start + c * start * start, b: stiffness - slope * start, c }
+        Segment { start, end, a: torque - stiffness * start + c * start * start, b: stiffness - slope * start, c }
     }
 }
 
 /// A [`Spring`] ready to evaluate sample by sample; it remembers the last segment, so that a
-/// tick finds the next one in a step or two (x moves little between ticks).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// tick finds the next one in a step or two (x moves little between ticks). Two are equal when
+/// they evaluate alike: where the cursor stands is left out.
+#[derive(Clone, Copy, Debug)]
 pub struct PreparedSpring<F> {
     /// The odd polynomial, where it is there.
     polynomial: Option<Polynomial<F>>,
+    /// The pieces in order of x, each starting where the one before ends: the first from −∞,
+    /// the last in use to +∞; those not in use lie at +∞ (so the ends never decrease).
     segments: [Segment<F>; MAX_KNOTS + 1],
-    /// Segments in use: knots + 1, or 0 without knots.
-    count: usize,
     range: [F; 2],
     /// The polynomial and its stiffness at the range's two edges.
     at_range: [Evaluation<F>; 2],
     cursor: usize,
+}
+
+impl<F: Real> PreparedSpring<F> {
+    /// No knots, no polynomial: S = 0 everywhere (what [`Spring::prepare_into`] starts from).
+    pub(crate) fn empty() -> Self {
+        let unused = Segment { start: F::infinity(), end: F::infinity(), ..Segment::default() };
+        let mut segments = [unused; MAX_KNOTS + 1];
+        if let Some(only) = segments.first_mut() {
+            *only = Segment { start: F::neg_infinity(), ..unused };
+        }
+        let zero = F::zero();
+        PreparedSpring {
+            polynomial: None,
+            segments,
+            range: [zero, zero],
+            at_range: [Evaluation::default(); 2],
+            cursor: 0,
+        }
+    }
+}
+
+impl<F: PartialEq> PartialEq for PreparedSpring<F> {
+    fn eq(&self, other: &Self) -> bool {
+        let PreparedSpring { polynomial, segments, range, at_range, cursor: _ } = self;
+        *polynomial == other.polynomial
+            && *segments == other.segments
+            && *range == other.range
+            && *at_range == other.at_range
+    }
 }
 
 impl<F: Real> PreparedSpring<F> {
@@ -261,25 +294,44 @@ impl<F: Real> PreparedSpring<F> {
     }
 
     /// P(x) and k(x), moving the cursor to x's segment (the knots' part is linear beyond the
-    /// outer knots: no range to check).
+    /// outer knots: no range to check): the cursor's own segment or its neighbour towards x (x
+    /// moves little between ticks), else a binary search of five fixed steps (the same few
+    /// instructions wherever x jumps to). NaN for an x that is not finite.
     #[inline(always)]
     fn knots_part(&mut self, x: F) -> Evaluation<F> {
-        let last = self.count.saturating_sub(1);
-        let mut cursor = self.cursor;
-        while cursor < last && self.segments.get(cursor).is_some_and(|s| x >= s.end) {
-            cursor += 1;
-        }
-        while cursor > 0 && self.segments.get(cursor - 1).is_some_and(|s| x < s.end) {
-            cursor -= 1;
-        }
-        self.cursor = cursor;
-        match self.segments.get(cursor) {
-            Some(s) if self.count > 0 => {
-                let cx = s.c * x;
-                Evaluation { torque: s.a + x * (s.b + cx), stiffness: s.b + cx + cx }
+        let holds = |s: &&Segment<F>| x >= s.start && x < s.end;
+        let cursor = self.cursor;
+        let segment = match self.segments.get(cursor) {
+            Some(s) if x >= s.end => self.segments.get(cursor + 1).filter(holds).map(|s| (cursor + 1, s)),
+            Some(s) if x < s.start => {
+                cursor.checked_sub(1).and_then(|i| self.segments.get(i)).filter(holds).map(|s| (cursor - 1, s))
             }
-            _ => Evaluation::default(),
-        }
+            Some(s) => Some((cursor, s)),
+            None => None,
+        };
+        let segment = match segment {
+            Some((index, segment)) => {
+                self.cursor = index;
+                segment
+            }
+            None => {
+                // How many pieces end at or before x: the index of x's piece (the ends increase,
+                // the last piece in use and those after it end at +∞).
+                let mut index = 0;
+                for step in [16, 8, 4, 2, 1] {
+                    if self.segments.get(index + step - 1).is_some_and(|s| x >= s.end) {
+                        index += step;
+                    }
+                }
+                self.cursor = index;
+                match self.segments.get(index) {
+                    Some(segment) => segment,
+                    None => return Evaluation { torque: F::nan(), stiffness: F::nan() },
+                }
+            }
+        };
+        let cx = segment.c * x;
+        Evaluation { torque: segment.a + x * (segment.b + cx), stiffness: segment.b + cx + cx }
     }
 }
 

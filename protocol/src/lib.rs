@@ -132,9 +132,9 @@ impl fmt::Display for RequestId {
 }
 
 /// The control tick's timing since boot: the board's timer starts each tick in an interrupt
-/// above the link's priority, and the tick counts what went wrong with its timing. Counters
-/// wrap at 2³².
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+/// above the link's priority, and the tick counts what went wrong with its timing; and how far
+/// the active set was asked beyond its identified range. Counters wrap at 2³².
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TickStatus {
     /// The tick rate, Hz; 0 when the ticks are not timed (an in-process test device runs one
@@ -163,6 +163,11 @@ pub struct TickStatus {
     pub drive_faults: u32,
     /// The kind of the last of those.
     pub last_drive_fault: Option<DriveErrorKind>,
+    /// Samples the active set evaluated beyond its spring's identified range (where the spring
+    /// continues with the stiffness at the range's edge), since the set was activated.
+    pub beyond_range: u32,
+    /// The largest distance of those samples beyond the range, rad (0 when none is).
+    pub max_excess_rad: f32,
 }
 
 /// Why an angle sensor's reading failed; the kinds of embedded-hal's error convention, as
@@ -306,6 +311,30 @@ impl JointParams {
             }
             Culprit::Several => ErrorReply::ModelOverflow,
         })
+    }
+
+    /// The set validated ([`JointParams::validate`]) and its model's evaluator at rest, with the
+    /// direction band as the genetic kind's reversal band, written into `evaluator` (`None`
+    /// there where the set is refused): what a joint installs, in place. Not inlined (nor
+    /// generic): compiled once, with this crate's settings (for size; the joint prepares a set
+    /// on its link's side, where time does not matter).
+    #[inline(never)]
+    pub fn prepare_evaluator(&self, evaluator: &mut Option<model_core::Evaluator<f32>>) -> Result<(), ErrorReply> {
+        *evaluator = None;
+        self.validate()?;
+        self.model.evaluator_into(self.direction_band, evaluator).map_err(|_| ErrorReply::ModelOverflow)
+    }
+
+    /// The set as postcard writes it (a record's payload in flash); its length in `out`.
+    #[inline(never)]
+    pub fn to_postcard(&self, out: &mut [u8]) -> Result<usize, postcard::Error> {
+        postcard::to_slice(self, out).map(|written| written.len())
+    }
+
+    /// The set from postcard's bytes (a record's payload in flash).
+    #[inline(never)]
+    pub fn from_postcard(bytes: &[u8]) -> Result<Self, postcard::Error> {
+        postcard::from_bytes(bytes)
     }
 }
 
@@ -884,6 +913,19 @@ pub fn encode_to_vec<T: Serialize>(id: RequestId, message: &T) -> Result<std::ve
     Ok(out.get(..len).ok_or(FrameError::BufferTooSmall)?.to_vec())
 }
 
+/// A device's frames: [`decode`] of a [`Request`] and [`encode`] of a [`Response`], not inlined
+/// nor generic, so compiled once with this crate's settings (for size).
+#[inline(never)]
+pub fn decode_request(frame: &mut [u8]) -> Result<Envelope<Request>, FrameError> {
+    decode(frame)
+}
+
+/// See [`decode_request`].
+#[inline(never)]
+pub fn encode_response(id: RequestId, response: &Response, out: &mut [u8]) -> Result<usize, FrameError> {
+    encode(id, response, out)
+}
+
 /// Decodes one frame (the bytes between two delimiters) in place.
 pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<Envelope<T>, FrameError> {
     let len = cobs::decode_in_place(frame).map_err(|_| FrameError::Malformed)?;
@@ -964,6 +1006,16 @@ impl<const N: usize> FrameReader<N> {
             return None;
         }
         self.buffer.get_mut(..len).map(Ok)
+    }
+
+    /// The buffer between two frames (no byte of the next one pushed yet): it still holds the
+    /// frame [`push`] returned last, at its start, and a device may encode its reply over it (one
+    /// frame buffer for both directions). The next [`push`] overwrites it; `None` while a frame
+    /// is being collected.
+    ///
+    /// [`push`]: FrameReader::push
+    pub fn spare(&mut self) -> Option<&mut [u8; N]> {
+        (self.len == 0 && !self.overflowed).then_some(&mut self.buffer)
     }
 }
 

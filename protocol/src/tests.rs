@@ -417,7 +417,7 @@ fn golden_responses() {
             // id 14 | 08 | rate_hz 20000 = a0 9c 01 | ticks 0x12345678 = f8 ac d1 91 01 |
             // overruns 01 | late 02 | missed 03 | late_bound_ns 2000 = d0 0f |
             // worst_latency_ns 300 = ac 02 | worst_tick_ns 20000 = a0 9c 01 | sensor_faults 04 | Some 01 Corrupt 01 |
-            // drive_faults 05 | Some 01 Fault 01
+            // drive_faults 05 | Some 01 Fault 01 | beyond_range 06 | max_excess_rad 1.0 = 00 00 80 3f
             RequestId(14),
             Response::Status(TickStatus {
                 rate_hz: 20_000,
@@ -432,10 +432,13 @@ fn golden_responses() {
                 last_sensor_fault: Some(SensorErrorKind::Corrupt),
                 drive_faults: 5,
                 last_drive_fault: Some(DriveErrorKind::Fault),
+                beyond_range: 6,
+                max_excess_rad: 1.0,
             }),
             &[
-                0x20, 0x06, 0x0e, 0x08, 0xa0, 0x9c, 0x01, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x01, 0x02, 0x03, 0xd0, 0x0f,
-                0xac, 0x02, 0xa0, 0x9c, 0x01, 0x04, 0x01, 0x01, 0x05, 0x01, 0x01, 0x2d, 0x49, 0xa6, 0x3a, 0x00,
+                0x1d, 0x06, 0x0e, 0x08, 0xa0, 0x9c, 0x01, 0xf8, 0xac, 0xd1, 0x91, 0x01, 0x01, 0x02, 0x03, 0xd0, 0x0f,
+                0xac, 0x02, 0xa0, 0x9c, 0x01, 0x04, 0x01, 0x01, 0x05, 0x01, 0x01, 0x06, 0x01, 0x07, 0x80, 0x3f, 0x62,
+                0xb4, 0x96, 0xe3, 0x00,
             ],
         ),
     ];
@@ -758,6 +761,8 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
             last_sensor_fault: Some(SensorErrorKind::Other),
             drive_faults: u32::MAX,
             last_drive_fault: Some(DriveErrorKind::Other),
+            beyond_range: u32::MAX,
+            max_excess_rad: f32::MAX,
         }),
         Response::Error(ErrorReply::UnsupportedProtocol { got: big, supported: big }),
         Response::Error(ErrorReply::ModelVersion { got: big, supported: big }),
@@ -931,6 +936,26 @@ fn reader_splits_a_stream_and_survives_garbage() {
         }
     }
     assert_eq!(results, vec![Err(FrameError::TooLong), Ok(Ok(Request::Commit)), Ok(Ok(Request::ReadParams))]);
+}
+
+/// The reader's buffer is lent between frames only (a reply encoded there is overwritten by
+/// the next frame, never a frame being collected).
+#[test]
+fn the_buffer_is_spare_between_frames_only() {
+    let mut reader = FrameReader::<32>::new();
+    assert!(reader.spare().is_some());
+    reader.push(0x11);
+    assert!(reader.spare().is_none(), "a frame is being collected");
+    assert!(reader.push(0).is_some());
+    let spare = reader.spare().unwrap();
+    assert_eq!(spare[0], 0x11, "the frame just read");
+    spare[..3].copy_from_slice(&[1, 2, 3]);
+    for byte in [0x55u8; 40] {
+        reader.push(byte);
+    }
+    assert!(reader.spare().is_none(), "an overlong frame is being skipped");
+    assert_eq!(reader.push(0), Some(Err(FrameError::TooLong)));
+    assert!(reader.spare().is_some());
 }
 
 #[test]

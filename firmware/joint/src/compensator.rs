@@ -1,5 +1,7 @@
 use crate::fast::FastMath;
-use model_core::{Evaluation, Evaluator, Libm, Memory};
+use core::cell::UnsafeCell;
+use core::sync::atomic::{fence, AtomicBool, AtomicU32, AtomicU8, Ordering};
+use model_core::{Evaluator, Libm};
 use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams};
 
 /// Largest plausible torsional deflection, rad (≈ 5.7°; strain wave gears deflect a few mrad).
@@ -8,115 +10,286 @@ use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams}
 /// set evaluates in f32 ([`JointParams::validate`] checks that, on the host too).
 pub const MAX_DEFLECTION: f32 = swg_protocol::MAX_DEFLECTION;
 
-/// A validated parameter set with its evaluator, prepared at rest.
+/// A slot for a validated parameter set as the tick uses it: its evaluator, prepared at rest
+/// (`None`: no set), and the two numbers of the joint the tick needs (the link keeps the whole
+/// set for reads and commits).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Installed {
-    params: JointParams,
-    evaluator: Evaluator<f32>,
+    evaluator: Option<Evaluator<f32>>,
+    gear_ratio: f32,
+    torque_limit: f32,
     /// [`EvalPath::Fast`] runs the evaluator with [`FastMath`] (model-core's `has_fast_path`).
     fast: bool,
+    /// The deflections θ both plausible and within the spring's identified range, as a centre
+    /// and a half-width (a little narrower than exact): one comparison for both on a tick.
+    usual: Window,
 }
 
-impl Installed {
-    /// One sample (the same state whichever `path` runs it) and the memory then.
+/// θ with |θ − centre| ≤ half_width, rad.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Window {
+    centre: f32,
+    half_width: f32,
+}
+
+impl Window {
+    /// [lo, hi] narrowed by a few f32 roundings of its ends, so that no θ in it lies beyond
+    /// them however the tick rounds x = θ − θ0 (the tick checks the θ outside it exactly).
+    fn within(lo: f32, hi: f32) -> Self {
+        let centre = 0.5 * lo + 0.5 * hi;
+        let margin = 1.0e-6 * (lo.abs() + hi.abs()) + f32::MIN_POSITIVE;
+        Window { centre, half_width: (0.5 * hi - 0.5 * lo - margin).max(0.0) }
+    }
+
     #[inline(always)]
-    fn step(&mut self, theta: f32, path: EvalPath) -> (Option<Evaluation<f32>>, Memory) {
-        let (evaluation, memory) = if self.fast && path == EvalPath::Fast {
-            self.evaluator.step_reporting::<FastMath>(theta)
-        } else {
-            self.evaluator.step_reporting::<Libm>(theta)
-        };
-        (evaluation.ok(), memory)
+    fn holds(&self, theta: f32) -> bool {
+        (theta - self.centre).abs() <= self.half_width
     }
 }
 
-/// A validated set with its evaluator at rest ([`Compensator::prepare`]), ready to be
-/// installed by the control tick.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Prepared(Installed);
+impl Installed {
+    const EMPTY: Installed = Installed {
+        evaluator: None,
+        gear_ratio: 0.0,
+        torque_limit: 0.0,
+        fast: false,
+        usual: Window { centre: 0.0, half_width: 0.0 },
+    };
 
-impl Prepared {
-    /// The set.
-    pub fn params(&self) -> JointParams {
-        self.0.params
+    /// Validates `params` and prepares their evaluator at rest in this slot: the slow part of
+    /// staging a set (the range checks, the fast path's constants), done where time does not
+    /// matter, in place (no second set on the link's stack). The slot is left empty where the
+    /// set is refused.
+    fn prepare(&mut self, params: &JointParams) -> Result<(), ErrorReply> {
+        params.prepare_evaluator(&mut self.evaluator)?;
+        (self.gear_ratio, self.torque_limit) = (params.gear_ratio, params.torque_limit);
+        self.fast = params.model.has_fast_path();
+        let [lo, hi] = params.model.spring.range.map(|edge| edge + params.model.zero);
+        self.usual = Window::within(lo.max(-MAX_DEFLECTION), hi.min(MAX_DEFLECTION));
+        Ok(())
     }
 }
 
 /// The feed-forward of one joint: parameters, the model's memory, evaluation, clamping.
 ///
-/// A new set is validated and prepared completely by [`Compensator::stage`] and takes effect
-/// at the start of the next [`Compensator::tick`], so no tick ever sees half of it; a
-/// refused set leaves the previous one (and its memory) active.
+/// A new set is validated and prepared completely by [`Stager::stage`] and takes effect at
+/// the start of the next [`Ticker::tick`], so no tick ever sees half of it; a refused set
+/// leaves the previous one (and its memory) active.
 ///
 /// **Memory and parameter changes.** The installed model runs stateful from rest
 /// (model-core's `Evaluator`: the genetic kind with the set's direction band as its reversal
 /// band and `TURNING_POINTS` turning points, the micro-slip kind with `SLIP_ELEMENTS`). A
 /// staged set is prepared at rest, and the memory is reset at exactly one moment: when that
-/// set is activated, at the start of the first tick after [`Compensator::stage`], before that
-/// tick's sample is evaluated. That tick therefore starts from rest (the virgin curve) with the
-/// new set, whatever the old one had remembered, as after a reboot; writing the same set again
+/// set is activated, at the start of the first tick after it was staged, before that tick's
+/// sample is evaluated. That tick therefore starts from rest (the virgin curve) with the new
+/// set, whatever the old one had remembered, as after a reboot; writing the same set again
 /// resets too. A history recorded under other parameters has no meaning for the new ones
 /// (turning points hold torques of the old model), so none is carried over. Between two ticks
 /// nothing else touches the memory: refused sets, reads and commits leave it as it is.
 ///
-/// The set in use and a staged one live in two slots; activation flips which slot is in use,
-/// so the tick that activates a set copies nothing (a copy made that tick the slowest of all).
-#[derive(Clone, Debug, Default)]
+/// **Two slots, no lock.** The set in use and the next one live in two slots, shared by the
+/// link (lowest priority) and the tick (highest) through [`Compensator::split`]: the link's
+/// [`Stager`] prepares a set in the slot the tick does not use and raises a flag; the
+/// [`Ticker`] switches slots at the start of its next tick and lowers it. So a set is
+/// prepared in place, never copied, and the tick that activates it flips an index (a copy
+/// made that tick would be the slowest of all). While the flag is up the link stages nothing
+/// more (the link answers [`ErrorReply::Busy`]; it waits for the next tick).
 pub struct Compensator {
-    slots: (Option<Installed>, Option<Installed>),
-    /// Whether `slots.1` holds the set in use (else `slots.0`).
-    second_active: bool,
-    /// Whether the slot not in use holds a staged set, to be used from the next tick.
-    staged: bool,
+    slots: [UnsafeCell<Installed>; 2],
+    /// The slot the tick evaluates, 0 or 1: written by the tick only.
+    active: AtomicU8,
+    /// The other slot holds a set for the next tick: raised by the link once the set is in
+    /// place, lowered by the tick when it switches to it.
+    staged: AtomicBool,
+    /// The active set's samples beyond its spring's identified range, since it was activated:
+    /// written by the tick only, read by the link.
+    beyond_range: AtomicU32,
+    /// The largest excess of those, rad, as f32 bits (for values ≥ 0 the bits order as the
+    /// values do).
+    max_excess: AtomicU32,
 }
+
+// SAFETY: the slots are reached only through the two halves of `split` (or through `&mut self`
+// and `&self` when no halves exist): the `Ticker` touches only the active slot, the `Stager`
+// only the other one and only while `staged` is down, and `active` changes only when the
+// `Ticker` finds `staged` up (the `Stager` then leaves both slots alone). `staged` is raised
+// with release ordering after the slot is written and read with acquire ordering (a fence)
+// before the slot is used, so the tick sees the whole set.
+#[allow(unsafe_code)]
+unsafe impl Sync for Compensator {}
 
 impl Compensator {
     pub const fn new() -> Self {
-        Compensator { slots: (None, None), second_active: false, staged: false }
-    }
-
-    /// The slot of the set in use.
-    fn active(&self) -> &Option<Installed> {
-        if self.second_active {
-            &self.slots.1
-        } else {
-            &self.slots.0
+        Compensator {
+            slots: [UnsafeCell::new(Installed::EMPTY), UnsafeCell::new(Installed::EMPTY)],
+            active: AtomicU8::new(0),
+            staged: AtomicBool::new(false),
+            beyond_range: AtomicU32::new(0),
+            max_excess: AtomicU32::new(0),
         }
     }
 
-    /// Validates `params` and prepares them, at rest, for [`Compensator::install`]: the slow
-    /// part of staging a set (the range checks, the fast path's constants), done where time
-    /// does not matter (the link's side on a board).
-    pub fn prepare(params: JointParams) -> Result<Prepared, ErrorReply> {
-        params.validate()?;
-        let evaluator = params.model.evaluator(params.direction_band).map_err(|_| ErrorReply::ModelOverflow)?;
-        Ok(Prepared(Installed { params, evaluator, fast: params.model.has_fast_path() }))
+    /// The active set's samples beyond its spring's identified range since it was activated,
+    /// and the largest excess of those, rad.
+    pub fn beyond_range(&self) -> (u32, f32) {
+        (self.beyond_range.load(Ordering::Relaxed), f32::from_bits(self.max_excess.load(Ordering::Relaxed)))
     }
 
-    /// Validates `params` and prepares them, at rest, for the next tick.
+    /// The link's half (staging sets) and the tick's (evaluating them), for a board's two
+    /// priorities.
+    pub fn split(&mut self) -> (Stager<'_>, Ticker<'_>) {
+        let compensator = &*self;
+        (Stager { compensator }, Ticker { compensator })
+    }
+
+    /// The tick's half.
+    pub fn ticker(&mut self) -> Ticker<'_> {
+        self.split().1
+    }
+
+    /// Validates `params` and prepares them, at rest, for the next tick ([`Stager::stage`]).
     pub fn stage(&mut self, params: JointParams) -> Result<(), ErrorReply> {
-        self.install(Self::prepare(params)?);
+        self.split().0.stage(&params)
+    }
+
+    /// One control tick ([`Ticker::tick`]).
+    #[inline(always)]
+    pub fn tick(&mut self, input_angle: f32, output_angle: f32, path: EvalPath) -> Feedforward {
+        self.ticker().tick(input_angle, output_angle, path)
+    }
+
+    /// The slot `index` (0: the first, else the second).
+    fn slot(&self, index: u8) -> &UnsafeCell<Installed> {
+        let [first, second] = &self.slots;
+        if index == 0 {
+            first
+        } else {
+            second
+        }
+    }
+}
+
+impl Default for Compensator {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Clone for Compensator {
+    fn clone(&self) -> Self {
+        // SAFETY: `&self` exists only while no half of `split` does (they borrow `&mut self`),
+        // so nothing writes the slots meanwhile.
+        #[allow(unsafe_code)]
+        let slots = self.slots.each_ref().map(|slot| UnsafeCell::new(unsafe { *slot.get() }));
+        Compensator {
+            slots,
+            active: AtomicU8::new(self.active.load(Ordering::Relaxed)),
+            staged: AtomicBool::new(self.staged.load(Ordering::Relaxed)),
+            beyond_range: AtomicU32::new(self.beyond_range.load(Ordering::Relaxed)),
+            max_excess: AtomicU32::new(self.max_excess.load(Ordering::Relaxed)),
+        }
+    }
+}
+
+impl core::fmt::Debug for Compensator {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Compensator")
+            .field("active", &self.active.load(Ordering::Relaxed))
+            .field("staged", &self.staged.load(Ordering::Relaxed))
+            .finish_non_exhaustive()
+    }
+}
+
+/// The link's half of a [`Compensator`]: stages sets.
+pub struct Stager<'a> {
+    compensator: &'a Compensator,
+}
+
+impl Stager<'_> {
+    /// Whether the tick has taken the last staged set (a new one may be staged).
+    pub fn has_room(&self) -> bool {
+        !self.compensator.staged.load(Ordering::Acquire)
+    }
+
+    /// See [`Compensator::beyond_range`].
+    pub fn beyond_range(&self) -> (u32, f32) {
+        self.compensator.beyond_range()
+    }
+
+    /// Validates `params` and prepares them, at rest, in the slot the tick does not use; the
+    /// next tick switches to it. [`ErrorReply::Busy`] while the tick has not taken the last
+    /// set; a refused set changes nothing.
+    pub fn stage(&mut self, params: &JointParams) -> Result<(), ErrorReply> {
+        if !self.has_room() {
+            return Err(ErrorReply::Busy);
+        }
+        let compensator = self.compensator;
+        // `staged` is down, so `active` stays as it is until it is raised below.
+        let idle = compensator.slot(compensator.active.load(Ordering::Relaxed) ^ 1);
+        // SAFETY: the slot the tick does not use, while `staged` is down: the tick neither
+        // reads nor writes it (see `Compensator`'s `Sync`), nor does anything else.
+        #[allow(unsafe_code)]
+        let idle = unsafe { &mut *idle.get() };
+        idle.prepare(params)?;
+        compensator.staged.store(true, Ordering::Release);
         Ok(())
     }
+}
 
-    /// Stages a prepared set for the next tick, in the slot not in use (a few hundred bytes
-    /// moved: fit for a tick).
-    pub fn install(&mut self, prepared: Prepared) {
-        let idle = if self.second_active { &mut self.slots.0 } else { &mut self.slots.1 };
-        *idle = Some(prepared.0);
-        self.staged = true;
+/// The tick's half of a [`Compensator`]: evaluates the active set.
+pub struct Ticker<'a> {
+    compensator: &'a Compensator,
+}
+
+impl Ticker<'_> {
+    /// The slot the last tick used.
+    fn active(&self) -> &Installed {
+        let compensator = self.compensator;
+        // SAFETY: the active slot, which only the tick's half touches (see `Compensator`'s
+        // `Sync`); `&self` here, `&mut self` in `tick`, never both.
+        #[allow(unsafe_code)]
+        unsafe {
+            &*compensator.slot(compensator.active.load(Ordering::Relaxed)).get()
+        }
     }
 
-    /// The set the next tick will use.
-    pub fn params(&self) -> Option<JointParams> {
-        let next = if self.staged != self.second_active { &self.slots.1 } else { &self.slots.0 };
-        next.as_ref().map(|installed| installed.params)
+    /// Switches to a set the link has staged, if there is one: the one moment the memory is
+    /// reset. Every tick does this first (a board's tick at its start, whether it evaluates
+    /// the model or not, so that the link can stage the next set; [`Ticker::tick`] too).
+    #[inline(always)]
+    pub fn activate_staged(&mut self) {
+        let compensator = self.compensator;
+        // A relaxed load every tick; the fence orders the set's reads only when there is one.
+        if compensator.staged.load(Ordering::Relaxed) {
+            fence(Ordering::Acquire);
+            compensator.active.store(compensator.active.load(Ordering::Relaxed) ^ 1, Ordering::Relaxed);
+            compensator.beyond_range.store(0, Ordering::Relaxed);
+            compensator.max_excess.store(0, Ordering::Relaxed);
+            compensator.staged.store(false, Ordering::Release);
+        }
     }
 
-    /// The gear ratio of the set the last tick used: the controller's, each tick, without
-    /// copying the whole set as [`Compensator::params`] does.
+    /// Counts a sample `excess` rad beyond the spring's identified range, if it is > 0. Rare,
+    /// so out of the tick's straight path.
+    #[cold]
+    #[inline(never)]
+    fn note_beyond_range(&mut self, excess: f32) {
+        // Never NaN: θ was plausible, θ0 and the range finite.
+        if excess <= 0.0 {
+            return;
+        }
+        let compensator = self.compensator;
+        let count = compensator.beyond_range.load(Ordering::Relaxed);
+        compensator.beyond_range.store(count.wrapping_add(1), Ordering::Relaxed);
+        if excess.to_bits() > compensator.max_excess.load(Ordering::Relaxed) {
+            compensator.max_excess.store(excess.to_bits(), Ordering::Relaxed);
+        }
+    }
+
+    /// The gear ratio of the set the last tick used: the controller's, each tick.
     pub fn active_gear_ratio(&self) -> Option<f32> {
-        self.active().as_ref().map(|installed| installed.params.gear_ratio)
+        let active = self.active();
+        active.evaluator.is_some().then_some(active.gear_ratio)
     }
 
     /// One control tick on the two encoder angles (rad; the input side multi-turn).
@@ -128,11 +301,8 @@ impl Compensator {
     /// code, whose instructions per tick the benchmark holds to `crate::budget`.
     #[inline(never)]
     pub fn tick(&mut self, input_angle: f32, output_angle: f32, path: EvalPath) -> Feedforward {
-        // Activation of a staged set, at rest: the one moment the memory is reset.
-        if self.staged {
-            self.staged = false;
-            self.second_active = !self.second_active;
-        }
+        self.activate_staged();
+        let compensator = self.compensator;
         // Built where it is returned: a value made up front was stored to the result on
         // every tick, then overwritten.
         const OFF: Feedforward = Feedforward {
@@ -143,21 +313,33 @@ impl Compensator {
             direction: None,
             memory: 0,
         };
-        let active = if self.second_active { &mut self.slots.1 } else { &mut self.slots.0 };
-        let Some(installed) = active.as_mut() else { return OFF };
-        let deflection = input_angle / installed.params.gear_ratio - output_angle;
-        // One comparison refuses NaN too.
-        let plausible = deflection.abs() <= MAX_DEFLECTION;
-        if !plausible {
-            return OFF;
+        // SAFETY: the active slot, the tick's alone (see `Compensator`'s `Sync`).
+        #[allow(unsafe_code)]
+        let installed = unsafe { &mut *compensator.slot(compensator.active.load(Ordering::Relaxed)).get() };
+        let Some(evaluator) = installed.evaluator.as_mut() else { return OFF };
+        let deflection = input_angle / installed.gear_ratio - output_angle;
+        // One comparison on the usual tick: plausible and within the identified range. Outside
+        // that window: refused where implausible (NaN too), else counted (beyond the range the
+        // spring runs on with its edge's stiffness) and evaluated.
+        if !installed.usual.holds(deflection) {
+            // One comparison refuses NaN too.
+            let plausible = deflection.abs() <= MAX_DEFLECTION;
+            if !plausible {
+                return OFF;
+            }
+            self.note_beyond_range(evaluator.excess(deflection));
         }
-        let (evaluation, memory) = installed.step(deflection, path);
+        // The same state whichever path runs the sample.
+        let fast = installed.fast && path == EvalPath::Fast;
+        let (evaluation, memory) = evaluator.step_reporting_either::<FastMath, Libm>(deflection, fast);
+        // Beyond the identified range the spring runs on with its edge's stiffness; such
+        // samples are counted (the status reports them).
         // At most TURNING_POINTS or SLIP_ELEMENTS, both 16.
         let (direction, memory) = (memory.direction, memory.depth as u8);
-        let Some(evaluation) = evaluation else {
+        let Ok(evaluation) = evaluation else {
             return Feedforward { deflection, direction, memory, ..OFF };
         };
-        let limit = installed.params.torque_limit;
+        let limit = installed.torque_limit;
         if evaluation.torque.abs() <= limit {
             let (torque, stiffness) = (evaluation.torque, evaluation.stiffness);
             return Feedforward {
@@ -262,6 +444,89 @@ mod tests {
     fn tick_theta(compensator: &mut Compensator, theta: f32, path: EvalPath) -> Feedforward {
         // θ_in = N·θ with θ_out = 0, N = 100: exact for these θ up to f32 rounding of N·θ/N.
         compensator.tick(100.0 * theta, 0.0, path)
+    }
+
+    /// S(x) of `spring` in f64, from its definition: the knots' stiffness integrated from 0
+    /// (linear between knots, the end knot's beyond them) plus the polynomial, which beyond the
+    /// identified range runs on as the line of its stiffness at the range's edge.
+    fn spring_torque(spring: &Spring<f32>, x: f64) -> f64 {
+        let knots: Vec<(f64, f64)> = spring.knots().iter().map(|k| (f64::from(k.x), f64::from(k.stiffness))).collect();
+        let stiffness = |u: f64| match knots.iter().position(|&(at, _)| at > u) {
+            None => knots.last().map_or(0.0, |&(_, k)| k),
+            Some(0) => knots[0].1,
+            Some(j) => {
+                let ((a, ka), (b, kb)) = (knots[j - 1], knots[j]);
+                ka + (kb - ka) * (u - a) / (b - a)
+            }
+        };
+        // The midpoint rule is exact but at the knots, for a stiffness linear in between.
+        let steps = 20_000;
+        let knots_part: f64 =
+            (0..steps).map(|i| stiffness((i as f64 + 0.5) * x / steps as f64) * x / steps as f64).sum();
+        let (c1, c2, c3) = (f64::from(spring.c1), f64::from(spring.c2), f64::from(spring.c3));
+        let polynomial = |u: f64| c1 * u + c2 * u.powi(3) + c3 * u.powi(5);
+        let slope = |u: f64| c1 + 3.0 * c2 * u.powi(2) + 5.0 * c3 * u.powi(4);
+        let [lo, hi] = spring.range.map(f64::from);
+        let edge = x.clamp(lo, hi);
+        knots_part + polynomial(edge) + slope(edge) * (x - edge)
+    }
+
+    /// Beyond the spring's identified range the tick runs on along the line of the edge's
+    /// stiffness (the polynomial's runaway would be several times larger here), on both kinds,
+    /// from θ0 ≠ 0; the samples beyond are counted with their largest excess, from the set's
+    /// activation on.
+    #[test]
+    fn beyond_the_range_the_spring_runs_on_with_the_edge_stiffness_and_is_counted() {
+        let knots = [
+            Knot { x: -0.6e-3, stiffness: 3.0e4 },
+            Knot { x: 0.0, stiffness: 1.0e4 },
+            Knot { x: 0.5e-3, stiffness: 1.5e4 },
+        ];
+        let spring = Spring { c2: 2.0e9, c3: 1.0e15, ..Spring::of_knots(&knots, [-1.0e-3, 1.2e-3]).unwrap() };
+        let zero = -3.0e-4;
+        // From rest out to x = 3 mrad, back to x = −2.5 mrad: beyond both edges.
+        let path: Vec<f32> = (0..=300)
+            .map(|i| 3.0e-3 * i as f32 / 300.0)
+            .chain((1..=550).map(|i| 3.0e-3 - 5.5e-3 * i as f32 / 550.0))
+            .map(|x| x + zero)
+            .collect();
+        for base in [paper(), slip()] {
+            let set =
+                |spring| JointParams { model: GearModel { zero, spring, ..base.model }, torque_limit: 1.0e4, ..base };
+            let (mut full, mut bare) = (Compensator::new(), Compensator::new());
+            full.stage(set(spring)).unwrap();
+            bare.stage(set(Spring::polynomial(0.0, 0.0, 0.0))).unwrap();
+            let (mut beyond, mut largest) = (0, 0.0f64);
+            for &theta in &path {
+                let (with, without) =
+                    (tick_theta(&mut full, theta, EvalPath::Fast), tick_theta(&mut bare, theta, EvalPath::Fast));
+                assert_eq!(with.compensation, Compensation::Active);
+                // The same hysteresis in both: the difference is the spring alone.
+                let x = f64::from(with.deflection) - f64::from(zero);
+                let expected = spring_torque(&spring, x);
+                let got = f64::from(with.torque) - f64::from(without.torque);
+                assert!(
+                    (got - expected).abs() <= 2.0e-3 + 1.0e-4 * expected.abs(),
+                    "{:?} x = {x:e}: S = {got}, expected {expected}",
+                    base.model.kind()
+                );
+                let excess = (x - 1.2e-3).max(-1.0e-3 - x);
+                if excess > 0.0 {
+                    beyond += 1;
+                    largest = largest.max(excess);
+                }
+            }
+            let (count, max_excess) = full.split().0.beyond_range();
+            assert!(count.abs_diff(beyond) <= 2, "{count} samples counted, {beyond} beyond");
+            assert!(
+                (f64::from(max_excess) - largest).abs() < 1.0e-7,
+                "largest excess {max_excess}, expected {largest}"
+            );
+            // A new set starts counting afresh.
+            full.stage(set(spring)).unwrap();
+            tick_theta(&mut full, zero, EvalPath::Fast);
+            assert_eq!(full.split().0.beyond_range(), (0, 0.0));
+        }
     }
 
     #[test]
@@ -392,8 +657,8 @@ mod tests {
             }
             assert!(last.unwrap().memory > 0, "{last:?}");
             compensator.stage(second).unwrap();
-            // Staged, not active: reads show it, the memory is untouched until the next tick.
-            assert_eq!(compensator.params(), Some(second));
+            // Staged, not active: the memory is untouched until the next tick.
+            assert!(!compensator.split().0.has_room());
             let theta = motion[700];
             let out = tick_theta(&mut compensator, theta, EvalPath::Direct);
             // That tick starts from rest with the new set: the evaluator's first step.
@@ -408,6 +673,34 @@ mod tests {
                 assert_eq!(out.torque, expected.step(out.deflection).unwrap().torque);
             }
         }
+    }
+
+    /// One set staged at a time: busy until a tick has switched to it, whether that tick
+    /// evaluates the model or not (a board's tick without a sample).
+    #[test]
+    fn one_set_is_staged_at_a_time() {
+        let mut compensator = Compensator::new();
+        compensator.stage(paper()).unwrap();
+        let motion = nested(1.0e-3, 400);
+        for &theta in &motion[..200] {
+            tick_theta(&mut compensator, theta, EvalPath::Fast);
+        }
+        let (mut stager, mut ticker) = compensator.split();
+        stager.stage(&slip()).unwrap();
+        assert_eq!(stager.stage(&paper()), Err(ErrorReply::Busy));
+        assert!(!stager.has_room());
+        // The next tick switches to the staged set at its start, from rest.
+        let out = ticker.tick(100.0 * motion[200], 0.0, EvalPath::Fast);
+        let want = reference(&slip()).step(out.deflection).unwrap();
+        assert_eq!((out.torque, out.stiffness), (want.torque, want.stiffness));
+        assert!(stager.has_room());
+        // A tick that only switches frees the stager too.
+        stager.stage(&paper()).unwrap();
+        ticker.activate_staged();
+        assert!(stager.has_room());
+        assert_eq!(ticker.active_gear_ratio(), Some(paper().gear_ratio));
+        let out = ticker.tick(100.0 * motion[201], 0.0, EvalPath::Direct);
+        assert_eq!(out.torque, reference(&paper()).step(out.deflection).unwrap().torque);
     }
 
     #[test]
@@ -504,7 +797,8 @@ mod tests {
             compensator.stage(overflowing),
             Err(ErrorReply::InvalidParam { field: ParamField::Model(ParamName::C3), fault: ParamFault::OutOfRange })
         );
-        assert_eq!(compensator.params(), Some(paper()));
+        // Nothing staged: the old set stays.
+        assert!(compensator.split().0.has_room());
         assert_eq!(compensator.tick(10.0, 0.0995, EvalPath::Direct).torque, before.torque);
     }
 
@@ -550,7 +844,7 @@ mod tests {
             }
             let refused = Err(ErrorReply::InvalidParam { field, fault: ParamFault::OutOfRange });
             assert_eq!(compensator.stage(bad), refused, "{bad:?}");
-            assert_eq!(compensator.params(), Some(paper()));
+            assert!(compensator.split().0.has_room(), "nothing staged");
             for &theta in &motion[200..] {
                 let out = tick_theta(&mut compensator, theta, EvalPath::Fast);
                 assert_eq!(out, tick_theta(&mut twin, theta, EvalPath::Fast));
@@ -617,7 +911,7 @@ mod tests {
         let c1 = PAPER_TABLE_2.c1 as f32;
         let stiffer = JointParams { model: paper().model.with(ParamName::C1, 2.0 * c1), gear_ratio: 50.0, ..paper() };
         compensator.stage(stiffer).unwrap();
-        assert_eq!(compensator.params(), Some(stiffer), "read-back shows the staged set");
+        assert!(!compensator.split().0.has_room(), "staged for the next tick");
         // Same deflection as before only under the new ratio: both fields changed together.
         let out = compensator.tick(5.0, 0.0995, EvalPath::Direct);
         assert!((out.deflection - 0.5e-3).abs() < 1e-8);

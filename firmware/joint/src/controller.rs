@@ -40,7 +40,8 @@
 //! limit or cannot be evaluated) runs `OpenLoop` (u = T_ref/N), with the integral held and
 //! the rates started afresh. The command is never NaN: a non-finite u (only possible from
 //! non-finite inputs, which the server refuses) becomes 0.
-use crate::{limit, Compensator};
+use crate::compensator::Ticker;
+use crate::limit;
 use swg_protocol::{Compensation, ControlMode, ControlOutput, ControllerConfig, ErrorReply, EvalPath};
 
 /// The gain schedule's range: kp scales by at least ¼ (the gear stiffens about fourfold from no
@@ -111,7 +112,7 @@ impl Controller {
     }
 
     /// One tick at the stored reference (a board's own timer tick).
-    pub fn tick_stored(&mut self, compensator: &mut Compensator, input_angle: f32, output_angle: f32) -> ControlOutput {
+    pub fn tick_stored(&mut self, compensator: &mut Ticker<'_>, input_angle: f32, output_angle: f32) -> ControlOutput {
         self.tick(compensator, input_angle, output_angle, self.reference)
     }
 
@@ -119,7 +120,7 @@ impl Controller {
     /// follows the gear's history whichever mode runs) and computes the motor command.
     pub fn tick(
         &mut self,
-        compensator: &mut Compensator,
+        compensator: &mut Ticker<'_>,
         input_angle: f32,
         output_angle: f32,
         reference: f32,
@@ -212,6 +213,7 @@ fn clamp(value: f32, bound: f32) -> (f32, bool) {
 mod tests {
     extern crate std;
     use super::*;
+    use crate::Compensator;
     use model_core::{checks::micro_slip_set, Hysteretic, MODEL_VERSION};
     use swg_protocol::JointParams;
 
@@ -275,7 +277,7 @@ mod tests {
                 angle += h * velocity;
                 torque = gear.step(angle / ratio).unwrap().torque;
             }
-            let output = controller.tick(compensator, angle as f32, 0.0, reference);
+            let output = controller.tick(&mut compensator.ticker(), angle as f32, 0.0, reference);
             command = f64::from(output.command);
             out.push((torque, output));
         }
@@ -287,18 +289,18 @@ mod tests {
         let mut controller = Controller::new();
         controller.configure(config(ControlMode::Model)).unwrap();
         let mut compensator = Compensator::new();
-        let out = controller.tick(&mut compensator, 0.5, 0.0, 10.0);
+        let out = controller.tick(&mut compensator.ticker(), 0.5, 0.0, 10.0);
         assert_eq!(out, ControlOutput { command: 0.0, estimate: 0.0, mode: ControlMode::Off, saturated: false });
         // Not configured: zero too, with parameters.
         compensator.stage(slip()).unwrap();
-        let out = Controller::new().tick(&mut compensator, 0.5, 0.0, 10.0);
+        let out = Controller::new().tick(&mut compensator.ticker(), 0.5, 0.0, 10.0);
         assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));
     }
 
     #[test]
     fn open_loop_is_the_feedforward_alone() {
         let (mut controller, mut compensator) = installed(ControlMode::OpenLoop);
-        let out = controller.tick(&mut compensator, 0.01, 0.0, 10.0);
+        let out = controller.tick(&mut compensator.ticker(), 0.01, 0.0, 10.0);
         assert_eq!(
             out,
             ControlOutput { command: 10.0 / RATIO, estimate: 0.0, mode: ControlMode::OpenLoop, saturated: false }
@@ -310,17 +312,17 @@ mod tests {
         for mode in [ControlMode::OpenLoop, ControlMode::Linear, ControlMode::Model] {
             let (mut controller, mut compensator) = installed(mode);
             // 1000 N·m asked: far beyond the 1 N·m·50 the motor may give.
-            let out = controller.tick(&mut compensator, 0.0, 0.0, 1000.0);
+            let out = controller.tick(&mut compensator.ticker(), 0.0, 0.0, 1000.0);
             assert_eq!((out.command, out.saturated), (1.0, true), "{mode:?}");
-            let out = controller.tick(&mut compensator, 0.0, 0.0, -1000.0);
+            let out = controller.tick(&mut compensator.ticker(), 0.0, 0.0, -1000.0);
             assert_eq!((out.command, out.saturated), (-1.0, true), "{mode:?}");
             // An encoder fault (deflection beyond MAX_DEFLECTION): open loop for that tick.
-            let out = controller.tick(&mut compensator, 100.0, 0.0, 5.0);
+            let out = controller.tick(&mut compensator.ticker(), 100.0, 0.0, 5.0);
             assert_eq!((out.command, out.mode), (5.0 / RATIO, ControlMode::OpenLoop), "{mode:?}");
             // NaN angles (refused by the server, but the tick itself is safe too).
-            let out = controller.tick(&mut compensator, f32::NAN, 0.0, 5.0);
+            let out = controller.tick(&mut compensator.ticker(), f32::NAN, 0.0, 5.0);
             assert!(out.command.is_finite() && out.command.abs() <= 1.0, "{mode:?} {out:?}");
-            let out = controller.tick(&mut compensator, 0.0, 0.0, f32::NAN);
+            let out = controller.tick(&mut compensator.ticker(), 0.0, 0.0, f32::NAN);
             assert_eq!(out.command, 0.0, "{mode:?} {out:?}");
         }
     }
@@ -329,10 +331,10 @@ mod tests {
     fn the_integral_winds_up_no_further_than_the_limit() {
         let (mut controller, mut compensator) = installed(ControlMode::Linear);
         for _ in 0..10_000 {
-            controller.tick(&mut compensator, 0.0, 0.0, 1000.0);
+            controller.tick(&mut compensator.ticker(), 0.0, 0.0, 1000.0);
         }
         // Back at a reachable reference the command leaves the limit within a few ticks.
-        let ticks = (0..50).position(|_| !controller.tick(&mut compensator, 0.0, 0.0, 0.0).saturated);
+        let ticks = (0..50).position(|_| !controller.tick(&mut compensator.ticker(), 0.0, 0.0, 0.0).saturated);
         assert!(matches!(ticks, Some(t) if t < 5), "{ticks:?}");
     }
 
@@ -340,14 +342,14 @@ mod tests {
     fn model_mode_closes_on_the_models_torque() {
         let (mut controller, mut compensator) = installed(ControlMode::Model);
         // θ = 0.4 mrad from rest.
-        let out = controller.tick(&mut compensator, 0.4e-3 * RATIO, 0.0, 0.0);
+        let out = controller.tick(&mut compensator.ticker(), 0.4e-3 * RATIO, 0.0, 0.0);
         let mut reference = Compensator::new();
         reference.stage(slip()).unwrap();
         let expected = reference.tick(0.4e-3 * RATIO, 0.0, EvalPath::Fast);
         assert_eq!((out.estimate, out.mode), (expected.torque, ControlMode::Model));
         // The linear mode closes on stiffness·θ instead.
         let (mut linear, mut compensator) = installed(ControlMode::Linear);
-        let out = linear.tick(&mut compensator, 0.4e-3 * RATIO, 0.0, 0.0);
+        let out = linear.tick(&mut compensator.ticker(), 0.4e-3 * RATIO, 0.0, 0.0);
         assert!((out.estimate - 9000.0 * 0.4e-3).abs() < 1e-3, "{out:?}");
     }
 
@@ -355,10 +357,10 @@ mod tests {
     fn a_mode_switch_starts_afresh() {
         let (mut controller, mut compensator) = installed(ControlMode::Linear);
         for _ in 0..100 {
-            controller.tick(&mut compensator, 0.0, 0.0, 5.0);
+            controller.tick(&mut compensator.ticker(), 0.0, 0.0, 5.0);
         }
         controller.configure(config(ControlMode::Model)).unwrap();
-        let out = controller.tick(&mut compensator, 0.0, 0.0, 5.0);
+        let out = controller.tick(&mut compensator.ticker(), 0.0, 0.0, 5.0);
         // Integral, velocity and rates reset: u = T_ref/N + s·kp·e on the first tick, with s
         // from the model's K at θ = 0 (the model's memory runs on through the switch).
         let mut reference = Compensator::new();
@@ -369,7 +371,7 @@ mod tests {
         assert!((out.command - expected).abs() < 1e-6, "{out:?} vs {expected}");
         assert_eq!(out.mode, ControlMode::Model);
         controller.configure(config(ControlMode::Off)).unwrap();
-        assert_eq!(controller.tick(&mut compensator, 0.0, 0.0, 5.0).command, 0.0);
+        assert_eq!(controller.tick(&mut compensator.ticker(), 0.0, 0.0, 5.0).command, 0.0);
         // A refused configuration leaves the last one.
         let bad = ControllerConfig { kp: f32::NAN, ..config(ControlMode::Model) };
         assert!(controller.configure(bad).is_err());
@@ -394,9 +396,10 @@ mod tests {
             let deadband = config(mode).integral_deadband / schedule;
             for (error, grows) in [(0.8 * deadband, false), (1.2 * deadband, true)] {
                 let (mut controller, mut compensator) = installed(mode);
-                let first = controller.tick(&mut compensator, theta * RATIO, 0.0, estimate + error).command;
-                let later =
-                    (0..100).map(|_| controller.tick(&mut compensator, theta * RATIO, 0.0, estimate + error)).last();
+                let first = controller.tick(&mut compensator.ticker(), theta * RATIO, 0.0, estimate + error).command;
+                let later = (0..100)
+                    .map(|_| controller.tick(&mut compensator.ticker(), theta * RATIO, 0.0, estimate + error))
+                    .last();
                 let growth = later.unwrap().command - first;
                 let per_tick = config(mode).ki * error * PERIOD;
                 if grows {
@@ -421,8 +424,8 @@ mod tests {
             compensator.stage(slip()).unwrap();
             let mut controller = Controller::new();
             controller.configure(config).unwrap();
-            controller.tick(&mut compensator, thetas[0] * RATIO, 0.0, references[0]);
-            controller.tick(&mut compensator, thetas[1] * RATIO, 0.0, references[1]).command
+            controller.tick(&mut compensator.ticker(), thetas[0] * RATIO, 0.0, references[0]);
+            controller.tick(&mut compensator.ticker(), thetas[1] * RATIO, 0.0, references[1]).command
         };
         let torsion = |thetas: [f32; 2], references: [f32; 2]| {
             second(config(ControlMode::Linear), thetas, references) - second(undamped, thetas, references)

@@ -2,30 +2,30 @@
 //! frames, requests, replies, flash commits; the lowest priority) and the control tick
 //! ([`crate::Joint`]: compensator and controller; a timer interrupt above everything else).
 //!
-//! - Link → tick: one [`Command`] at a time through a single-producer single-consumer queue
-//!   (heapless `spsc`, two atomic indices): a prepared parameter set, a controller
-//!   configuration, a reference, or a lockstep sample. The tick takes it at its start.
+//! - Link → tick: a parameter set, prepared by the link in the [`Compensator`]'s slot the tick
+//!   does not use and switched to by the next tick (the compensator's two halves; the set is
+//!   never copied); and one [`Command`] at a time through a single-producer single-consumer
+//!   queue (heapless `spsc`, two atomic indices): a controller configuration, a reference, or
+//!   a lockstep sample. The tick takes it at its start.
 //! - Tick → link: the answer to a lockstep sample through a second such queue (the link waits
 //!   for it before it reads the next request), and the timing counters ([`TickStatus`]) as
 //!   atomic words that only the tick writes.
 //!
-//! No critical section: the queues' indices and the counters are single words, each written
-//! by one side only. The link never waits on the tick with interrupts masked; the tick never
-//! waits at all (its answer queue cannot be full: the link hands over one sample at a time).
-use crate::compensator::Prepared;
+//! No critical section: the queues' indices, the compensator's flag and the counters are single
+//! words, each written by one side only (the flag raised by the link, lowered by the tick). The
+//! link never waits on the tick with interrupts masked; the tick never waits at all (its answer
+//! queue cannot be full: the link hands over one sample at a time).
+use crate::compensator::{Compensator, Stager, Ticker};
 use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
 use heapless::spsc::{Consumer, Producer, Queue};
 use swg_protocol::{
-    ControlSample, ControllerConfig, DriveErrorKind, EncoderSample, ErrorReply, Response, SensorErrorKind, TickStatus,
+    ControlOutput, ControlSample, ControllerConfig, DriveErrorKind, EncoderSample, ErrorReply, Feedforward,
+    JointParams, SensorErrorKind, TickStatus,
 };
 
-/// What the link hands the tick.
+/// What the link hands the tick besides parameter sets.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[allow(clippy::large_enum_variant)] // the queue's slot holds the largest anyway
 pub enum Command {
-    /// A validated set, prepared at rest: installed at the tick's start, active from the
-    /// first sample it evaluates (the model's memory starts from rest there).
-    Install(Prepared),
     /// A validated controller configuration.
     Configure(ControllerConfig),
     /// A finite joint torque reference, N·m.
@@ -42,6 +42,17 @@ pub enum Sample {
     /// The controller with its compensator, the command to the drive
     /// ([`swg_protocol::Request::Control`]).
     Control(ControlSample),
+}
+
+/// The tick's answer to a lockstep [`Sample`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Answer {
+    /// The compensator's output ([`Sample::Replay`]).
+    Replay(Feedforward),
+    /// The controller's ([`Sample::Control`]).
+    Control(ControlOutput),
+    /// Why the tick did not run the sample, or the drive refused its command.
+    Refused(ErrorReply),
 }
 
 /// The board's tick timer, as the link reports it and the tick measures with it.
@@ -135,44 +146,59 @@ impl Counters {
     }
 }
 
-/// The queues and counters between the link and the tick; split once into the two sides'
-/// ports ([`Handoff::split`]). A board keeps it in a static (`cortex_m::singleton!`).
+/// The compensator, queues and counters between the link and the tick; split once into the two
+/// sides' ports ([`Handoff::split`]). A board keeps it in a static (`cortex_m::singleton!`).
 pub struct Handoff {
+    compensator: Compensator,
     commands: Queue<Command, 2>,
-    answers: Queue<Response, 2>,
+    answers: Queue<Answer, 2>,
     counters: Counters,
     timing: TickTiming,
 }
 
 impl Handoff {
     pub const fn new(timing: TickTiming) -> Self {
-        Handoff { commands: Queue::new(), answers: Queue::new(), counters: Counters::new(), timing }
+        Handoff {
+            compensator: Compensator::new(),
+            commands: Queue::new(),
+            answers: Queue::new(),
+            counters: Counters::new(),
+            timing,
+        }
     }
 
     /// The link's port and the tick's.
     pub fn split(&mut self) -> (LinkPort<'_>, TickPort<'_>) {
+        let (stager, ticker) = self.compensator.split();
         let (command_in, command_out) = self.commands.split();
         let (answer_in, answer_out) = self.answers.split();
         let (counters, timing) = (&self.counters, &self.timing);
         (
-            LinkPort { commands: command_in, answers: answer_out, counters, timing },
-            TickPort { commands: command_out, answers: answer_in, counters, timing },
+            LinkPort { stager, commands: command_in, answers: answer_out, counters, timing },
+            TickPort { ticker, commands: command_out, answers: answer_in, counters, timing },
         )
     }
 }
 
 /// The link's side of the [`Handoff`].
 pub struct LinkPort<'a> {
+    stager: Stager<'a>,
     commands: Producer<'a, Command>,
-    answers: Consumer<'a, Response>,
+    answers: Consumer<'a, Answer>,
     counters: &'a Counters,
     timing: &'a TickTiming,
 }
 
 impl LinkPort<'_> {
-    /// Whether the tick has taken the last command.
+    /// Whether the tick has taken the last command and the last parameter set.
     pub fn has_room(&self) -> bool {
-        self.commands.ready()
+        self.commands.ready() && self.stager.has_room()
+    }
+
+    /// Validates `params` and prepares them for the next tick (the compensator's
+    /// [`Stager::stage`]); [`ErrorReply::Busy`] if the tick has not taken the last set.
+    pub(crate) fn stage(&mut self, params: &JointParams) -> Result<(), ErrorReply> {
+        self.stager.stage(params)
     }
 
     /// Hands `command` to the next tick; [`ErrorReply::Busy`] if the tick has not taken the
@@ -182,7 +208,7 @@ impl LinkPort<'_> {
     }
 
     /// The tick's answer to a lockstep sample, once it ran.
-    pub(crate) fn answer(&mut self) -> Option<Response> {
+    pub(crate) fn answer(&mut self) -> Option<Answer> {
         self.answers.dequeue()
     }
 
@@ -190,6 +216,7 @@ impl LinkPort<'_> {
     pub fn status(&self) -> TickStatus {
         let c = self.counters;
         let load = |counter: &AtomicU32| counter.load(Ordering::Relaxed);
+        let (beyond_range, max_excess_rad) = self.stager.beyond_range();
         TickStatus {
             rate_hz: self.timing.clock_hz.checked_div(self.timing.period).unwrap_or(0),
             ticks: load(&c.ticks),
@@ -203,19 +230,22 @@ impl LinkPort<'_> {
             last_sensor_fault: kind_of(&SENSOR_KINDS, c.last_sensor_fault.load(Ordering::Relaxed)),
             drive_faults: load(&c.drive_faults),
             last_drive_fault: kind_of(&DRIVE_KINDS, c.last_drive_fault.load(Ordering::Relaxed)),
+            beyond_range,
+            max_excess_rad,
         }
     }
 }
 
 /// The tick's side of the [`Handoff`].
 pub struct TickPort<'a> {
+    ticker: Ticker<'a>,
     commands: Consumer<'a, Command>,
-    answers: Producer<'a, Response>,
+    answers: Producer<'a, Answer>,
     counters: &'a Counters,
     timing: &'a TickTiming,
 }
 
-impl TickPort<'_> {
+impl<'a> TickPort<'a> {
     /// The end of a tick, as the board's timer tells it: `elapsed` counts since the timer
     /// expired (measured as the start's latency), and whether the timer expired again
     /// meanwhile — the next tick already due, an overrun (the elapsed time then counts as a
@@ -239,10 +269,15 @@ impl TickPort<'_> {
         self.commands.dequeue()
     }
 
+    /// The compensator's tick half.
+    pub(crate) fn compensator(&mut self) -> &mut Ticker<'a> {
+        &mut self.ticker
+    }
+
     /// Answers a lockstep sample. The queue always has room: the link hands over one sample
     /// and reads no request until its answer is taken.
-    pub(crate) fn answer(&mut self, response: Response) {
-        let _ = self.answers.enqueue(response);
+    pub(crate) fn answer(&mut self, answer: Answer) {
+        let _ = self.answers.enqueue(answer);
     }
 
     pub(crate) fn count_tick(&mut self, latency: Option<u32>, missed: u32) {

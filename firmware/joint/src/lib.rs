@@ -31,7 +31,7 @@ mod server;
 pub mod storage;
 mod tick;
 
-pub use compensator::{Compensator, Prepared, MAX_DEFLECTION};
+pub use compensator::{Compensator, Stager, Ticker, MAX_DEFLECTION};
 pub use controller::Controller;
 pub use drive::{MotorDrive, NoDrive};
 pub use fast::FastModel;

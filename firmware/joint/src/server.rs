@@ -3,16 +3,17 @@
 //! board's lowest priority; the tick ([`Joint`]) preempts it whenever its timer expires, so
 //! nothing here (a slow reply, a range check of a new set, a flash commit) can delay a tick
 //! beyond the few instructions of an exception entry.
-use crate::compensator::Prepared;
 use crate::drive::MotorDrive;
-use crate::handoff::{Command, Handoff, LinkPort, Sample, TickTiming};
+use crate::handoff::{Answer, Command, Handoff, LinkPort, Sample, TickTiming};
 use crate::tick::Joint;
-use crate::{storage::ParamStore, Compensator, FIRMWARE_VERSION};
+use crate::{storage::ParamStore, FIRMWARE_VERSION};
 use embedded_storage::nor_flash::NorFlash;
-use swg_protocol::endpoint::{Commit, Configure, GetDeviceInfo, GetStatus, ReadParams, SetReference, WriteParams};
+use swg_protocol::endpoint::{
+    Commit, Configure, Control, GetDeviceInfo, GetStatus, ReadParams, Replay, SetReference, WriteParams,
+};
 use swg_protocol::{
-    decode, encode, ControlMode, ControllerConfig, DeviceInfo, Endpoint, Envelope, ErrorReply, FrameReader,
-    JointParams, Request, RequestId, Response, MAX_FRAME_LEN, MODEL_VERSION, PROTOCOL_VERSION,
+    decode_request, encode_response, ControlMode, ControllerConfig, DeviceInfo, Endpoint, Envelope, ErrorReply,
+    FrameError, FrameReader, JointParams, Request, RequestId, Response, MAX_FRAME_LEN, MODEL_VERSION, PROTOCOL_VERSION,
 };
 
 /// The device end of the link.
@@ -29,20 +30,23 @@ pub struct Server<F> {
 }
 
 impl<F: NorFlash> Server<F> {
-    /// Starts with the newest valid parameter set in `store`, if any: the server, and the
-    /// joint for the tick with that set installed. A stored set was validated when it was
-    /// written; one that no longer validates (e.g. after a model change) leaves the
-    /// compensation off.
-    pub fn boot(mut store: ParamStore<F>) -> (Self, Joint) {
-        let prepared = store.load().and_then(|stored| Compensator::prepare(stored.params).ok());
-        let server = Server {
-            reader: FrameReader::new(),
-            store,
-            params: prepared.as_ref().map(Prepared::params),
-            driving: false,
-            awaiting: None,
-        };
-        (server, Joint::new(prepared))
+    /// A server on `store`, with no set yet: [`Server::boot`] stages the stored one. (Two
+    /// steps, so that a board builds the server in its static and boots it there.)
+    pub const fn new(store: ParamStore<F>) -> Self {
+        Server { reader: FrameReader::new(), store, params: None, driving: false, awaiting: None }
+    }
+
+    /// Stages the newest valid parameter set in the store, if any, through `port` for the
+    /// first tick. A stored set was validated when it was written; one that no longer
+    /// validates (e.g. after a model change) leaves the compensation off. Not inlined: what
+    /// it needs on the stack is gone when the link runs.
+    #[inline(never)]
+    pub fn boot(&mut self, port: &mut LinkPort) {
+        if let Some(stored) = self.store.load() {
+            if port.stage(&stored.params).is_ok() {
+                self.params = Some(stored.params);
+            }
+        }
     }
 
     /// Whether the server takes the next byte: not while a lockstep sample waits for its
@@ -52,39 +56,76 @@ impl<F: NorFlash> Server<F> {
         self.awaiting.is_none() && port.has_room()
     }
 
-    /// Feeds one received byte; when it completes a frame whose reply is ready, writes the
-    /// reply frame into `out` and returns its length. A lockstep sample's reply comes from
-    /// [`Server::poll`] once the tick has run it. Call only when [`Server::ready`].
-    pub fn receive(&mut self, byte: u8, port: &mut LinkPort, out: &mut [u8; MAX_FRAME_LEN]) -> Option<usize> {
-        let (id, response) = match self.reader.push(byte)? {
-            Ok(frame) => match decode::<Request>(frame) {
-                Ok(Envelope { id, message }) => (id, self.handle(id, message, port)?),
-                Err(error) => (error.request_id(), Response::Error(error.into())),
-            },
-            Err(error) => (error.request_id(), Response::Error(error.into())),
+    /// Feeds one received byte; when it completes a frame whose reply is ready, returns the
+    /// reply frame (in the server's one frame buffer: send it before the next byte). A lockstep
+    /// sample's reply comes from [`Server::poll`] once the tick has run it. Call only when
+    /// [`Server::ready`].
+    pub fn receive(&mut self, byte: u8, port: &mut LinkPort) -> Option<&[u8]> {
+        let frame = self.reader.push(byte)?.map(|frame| frame.len());
+        let len = self.answer(frame, port)?;
+        self.reader.spare()?.get(..len)
+    }
+
+    /// The reply to the lockstep sample the tick has run (in the server's frame buffer, as
+    /// [`Server::receive`]'s).
+    pub fn poll(&mut self, port: &mut LinkPort) -> Option<&[u8]> {
+        let len = self.answer_sample(port)?;
+        self.reader.spare()?.get(..len)
+    }
+
+    /// The reply to the frame of `frame` bytes that the frame buffer holds (or to one that could
+    /// not be read), encoded in that buffer; its length. Not inlined, as the others that make a
+    /// reply: the request and its response are on the stack only while they run.
+    #[inline(never)]
+    fn answer(&mut self, frame: Result<usize, FrameError>, port: &mut LinkPort) -> Option<usize> {
+        let request = match frame {
+            Ok(len) => decode_request(self.reader.spare()?.get_mut(..len)?),
+            Err(error) => Err(error),
         };
-        // Every response fits MAX_FRAME_LEN (tested in the protocol crate).
-        encode(id, &response, out).ok()
+        // By reference throughout: a request or a response moved is a parameter set copied
+        // on the stack.
+        match &request {
+            Ok(Envelope { id, message }) => {
+                let response = self.handle(*id, message, port);
+                self.reply(*id, response.as_ref()?)
+            }
+            Err(error) => self.reply(error.request_id(), &Response::Error((*error).into())),
+        }
     }
 
-    /// The reply to the lockstep sample the tick has run, written into `out`; its length.
-    pub fn poll(&mut self, port: &mut LinkPort, out: &mut [u8; MAX_FRAME_LEN]) -> Option<usize> {
+    /// [`Server::poll`]'s reply, encoded in the frame buffer; its length.
+    #[inline(never)]
+    fn answer_sample(&mut self, port: &mut LinkPort) -> Option<usize> {
         let id = self.awaiting?;
-        let answer = port.answer()?;
+        let response = match port.answer()? {
+            Answer::Replay(feedforward) => Replay::reply(feedforward),
+            Answer::Control(output) => Control::reply(output),
+            Answer::Refused(reason) => Response::Error(reason),
+        };
         self.awaiting = None;
-        encode(id, &answer, out).ok()
+        self.reply(id, &response)
     }
 
-    /// The reply to `request`, or `None` when the tick has been handed its sample.
-    fn handle(&mut self, id: RequestId, request: Request, port: &mut LinkPort) -> Option<Response> {
-        let response = match request {
+    /// `response` to request `id` as a frame, encoded in the frame buffer, which no request's
+    /// bytes occupy now (a whole frame was read, or a lockstep sample's answer awaited); its
+    /// length.
+    fn reply(&mut self, id: RequestId, response: &Response) -> Option<usize> {
+        // Every response fits MAX_FRAME_LEN (tested in the protocol crate).
+        encode_response(id, response, self.reader.spare()?).ok()
+    }
+
+    /// The reply to `request`, or `None` when the tick has been handed its sample. Not inlined:
+    /// what a request needs on the stack (a set staged, a commit) is there only while it runs.
+    #[inline(never)]
+    fn handle(&mut self, id: RequestId, request: &Request, port: &mut LinkPort) -> Option<Response> {
+        let response = match *request {
             Request::GetDeviceInfo => GetDeviceInfo::reply(DeviceInfo {
                 firmware_version: FIRMWARE_VERSION,
                 protocol_version: PROTOCOL_VERSION,
                 model_version: MODEL_VERSION,
             }),
             Request::GetStatus => GetStatus::reply(port.status()),
-            Request::WriteParams(params) => answer::<WriteParams>(self.write_params(params, port)),
+            Request::WriteParams(ref params) => answer::<WriteParams>(self.write_params(params, port)),
             Request::ReadParams => ReadParams::reply(self.params),
             Request::Commit => answer::<Commit>(self.commit()),
             Request::Configure(config) => answer::<Configure>(self.configure(config, port)),
@@ -106,9 +147,9 @@ impl<F: NorFlash> Server<F> {
         Some(response)
     }
 
-    fn write_params(&mut self, params: JointParams, port: &mut LinkPort) -> Result<(), ErrorReply> {
-        port.post(Command::Install(Compensator::prepare(params)?))?;
-        self.params = Some(params);
+    fn write_params(&mut self, params: &JointParams, port: &mut LinkPort) -> Result<(), ErrorReply> {
+        port.stage(params)?;
+        self.params = Some(*params);
         Ok(())
     }
 
@@ -116,11 +157,11 @@ impl<F: NorFlash> Server<F> {
     /// while the controller may drive the motor. With the controller off the command is zero,
     /// and the ticks the erase takes are counted as missed.
     fn commit(&mut self) -> Result<u32, ErrorReply> {
-        let params = self.params.ok_or(ErrorReply::NoParams)?;
+        let params = self.params.as_ref().ok_or(ErrorReply::NoParams)?;
         if self.driving {
             return Err(ErrorReply::CommitWhileDriving);
         }
-        self.store.save(&params).map_err(ErrorReply::Storage)
+        self.store.save(params).map_err(ErrorReply::Storage)
     }
 
     fn configure(&mut self, config: ControllerConfig, port: &mut LinkPort) -> Result<(), ErrorReply> {
@@ -169,19 +210,26 @@ pub struct Device<F, D> {
 
 impl<F: NorFlash, D: MotorDrive> Device<F, D> {
     pub fn new(store: ParamStore<F>, drive: D) -> Self {
-        let (server, joint) = Server::boot(store);
-        Device { handoff: Handoff::new(TickTiming::UNTIMED), server, joint, drive }
+        let mut handoff = Handoff::new(TickTiming::UNTIMED);
+        let mut server = Server::new(store);
+        server.boot(&mut handoff.split().0);
+        Device { handoff, server, joint: Joint::new(), drive }
     }
 
     /// Feeds one received byte; returns the length of the reply frame written into `out`
     /// when the byte completed a request.
     pub fn receive(&mut self, byte: u8, out: &mut [u8; MAX_FRAME_LEN]) -> Option<usize> {
         let (mut link, mut tick) = self.handoff.split();
-        let reply = self.server.receive(byte, &mut link, out);
+        let mut copy = |frame: &[u8]| {
+            let into = out.get_mut(..frame.len())?;
+            into.copy_from_slice(frame);
+            Some(frame.len())
+        };
+        let reply = self.server.receive(byte, &mut link).and_then(&mut copy);
         if !self.server.ready(&link) {
             self.joint.lockstep_tick(&mut tick, None, &mut self.drive);
         }
-        reply.or_else(|| self.server.poll(&mut link, out))
+        reply.or_else(|| self.server.poll(&mut link).and_then(copy))
     }
 
     /// The motor drive, as the ticks left it.
@@ -204,8 +252,8 @@ mod tests {
     use model_core::Params;
     use std::vec::Vec;
     use swg_protocol::{
-        encode_with_version, Compensation, ControlSample, DriveErrorKind, EncoderSample, EvalPath, GainField,
-        GearModel, ParamFault, ParamField, ParamName, SlipElement, Spring, StorageError, SLIP_ELEMENTS,
+        decode, encode, encode_with_version, Compensation, ControlSample, DriveErrorKind, EncoderSample, EvalPath,
+        GainField, GearModel, ParamFault, ParamField, ParamName, SlipElement, Spring, StorageError, SLIP_ELEMENTS,
     };
 
     fn params() -> JointParams {

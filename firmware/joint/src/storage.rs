@@ -141,10 +141,25 @@ pub struct Stored {
     pub sequence: u32,
 }
 
+/// Where the newest valid record is, as far as the store knows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Newest {
+    /// Not looked for yet.
+    Unknown,
+    /// Neither slot holds a valid record.
+    None,
+    /// In this slot, with this sequence number.
+    At { slot: u32, sequence: u32 },
+}
+
 /// Two slots of `ERASE_SIZE`-aligned halves of `flash`.
 pub struct ParamStore<F> {
     flash: F,
     slot_len: u32,
+    /// Found by [`ParamStore::load`] (or the first [`ParamStore::save`]) and kept by each save:
+    /// nothing else writes the slots, so a commit need not read and decode both again (which
+    /// made the link's stack deepest).
+    newest: Newest,
 }
 
 impl<F: NorFlash> ParamStore<F> {
@@ -154,7 +169,7 @@ impl<F: NorFlash> ParamStore<F> {
             return Err(StorageError::Geometry);
         }
         let slot_len = u32::try_from(slot_len).map_err(|_| StorageError::Geometry)?;
-        Ok(ParamStore { flash, slot_len })
+        Ok(ParamStore { flash, slot_len, newest: Newest::Unknown })
     }
 
     /// Gives the flash back, e.g. to simulate a reboot in tests.
@@ -164,21 +179,36 @@ impl<F: NorFlash> ParamStore<F> {
 
     /// The newest valid record, if any.
     pub fn load(&mut self) -> Option<Stored> {
-        self.newest().map(|(_, stored)| stored)
+        self.locate();
+        match self.newest {
+            Newest::At { slot, .. } => self.read_slot(slot).ok(),
+            Newest::None | Newest::Unknown => None,
+        }
     }
 
     /// Stores `params` in the slot not holding the newest record; returns its sequence.
     pub fn save(&mut self, params: &JointParams) -> Result<u32, StorageError> {
-        let (slot, sequence) = match self.newest() {
-            Some((slot, stored)) => (1 - slot, stored.sequence.wrapping_add(1)),
-            None => (0, 1),
+        if self.newest == Newest::Unknown {
+            self.locate();
+        }
+        let (slot, sequence) = match self.newest {
+            Newest::At { slot, sequence } => (1 - slot, sequence.wrapping_add(1)),
+            Newest::None | Newest::Unknown => (0, 1),
         };
+        self.write(slot, sequence, params)?;
+        self.newest = Newest::At { slot, sequence };
+        Ok(sequence)
+    }
+
+    /// Writes the record of `params` with `sequence` into `slot` (erased first) and reads it
+    /// back. Not inlined: its buffer is on the stack only while it runs.
+    #[inline(never)]
+    fn write(&mut self, slot: u32, sequence: u32, params: &JointParams) -> Result<(), StorageError> {
         let mut body = [0xFFu8; MAX_BODY_LEN];
         let (header, payload_area) = body.split_at_mut(HEADER_LEN);
-        let payload_len =
-            postcard::to_slice(params, payload_area.get_mut(..MAX_PAYLOAD_LEN).ok_or(StorageError::Encoding)?)
-                .map_err(|_| StorageError::Encoding)?
-                .len();
+        let payload_len = params
+            .to_postcard(payload_area.get_mut(..MAX_PAYLOAD_LEN).ok_or(StorageError::Encoding)?)
+            .map_err(|_| StorageError::Encoding)?;
         header.copy_from_slice(&header_bytes(sequence, payload_len as u16));
         let body_len = (HEADER_LEN + payload_len).div_ceil(ALIGN) * ALIGN;
         let crc = swg_protocol::crc32(body.get(..HEADER_LEN + payload_len).ok_or(StorageError::Encoding)?);
@@ -192,15 +222,17 @@ impl<F: NorFlash> ParamStore<F> {
         flash.write(start, body).map_err(|_| StorageError::Write)?;
         flash.write(start + body_len as u32, &crc_block).map_err(|_| StorageError::Write)?;
         // Read back: the slot holds exactly the bytes written, so it decodes to `params` (the
-        // bytes compared, not the decoded set: cheaper in flash than comparing every field).
-        let mut record = [0u8; RECORD_LEN];
-        let record = record.get_mut(..body_len + ALIGN).ok_or(StorageError::Encoding)?;
-        flash.read(start, record).map_err(|_| StorageError::Verify)?;
-        let (written_body, written_crc) = record.split_at(body_len);
-        if written_body != body || written_crc != crc_block {
-            return Err(StorageError::Verify);
+        // bytes compared, not the decoded set: cheaper in flash than comparing every field), a
+        // block at a time (no second record's buffer on the stack).
+        let mut written = [0u8; ALIGN];
+        for (at, expected) in (start..).step_by(ALIGN).zip(body.chunks(ALIGN).chain([&crc_block[..]])) {
+            let written = written.get_mut(..expected.len()).ok_or(StorageError::Verify)?;
+            flash.read(at, written).map_err(|_| StorageError::Verify)?;
+            if written != expected {
+                return Err(StorageError::Verify);
+            }
         }
-        Ok(sequence)
+        Ok(())
     }
 
     /// What each of the two slots holds, or why it is not usable (for diagnostics; [`load`]
@@ -211,24 +243,25 @@ impl<F: NorFlash> ParamStore<F> {
         [self.read_slot(0), self.read_slot(1)]
     }
 
-    fn newest(&mut self) -> Option<(u32, Stored)> {
-        let first = self.read_slot(0).ok();
-        let second = self.read_slot(1).ok();
-        match (first, second) {
-            (Some(a), Some(b)) => {
-                // Sequence numbers compare modulo 2³² so that wrapping around is harmless.
-                if (b.sequence.wrapping_sub(a.sequence) as i32) > 0 {
-                    Some((1, b))
-                } else {
-                    Some((0, a))
-                }
-            }
-            (Some(a), None) => Some((0, a)),
-            (None, Some(b)) => Some((1, b)),
-            (None, None) => None,
-        }
+    /// Finds the newest valid record's slot and sequence. Each slot is decoded and checked in
+    /// full (a record that no longer validates does not count), but only its sequence is kept:
+    /// one record at a time on the stack, in frames of their own.
+    #[inline(never)]
+    fn locate(&mut self) {
+        let sequence = |store: &mut Self, slot| store.read_slot(slot).map(|stored| stored.sequence).ok();
+        let (first, second) = (sequence(self, 0), sequence(self, 1));
+        self.newest = match (first, second) {
+            // Sequence numbers compare modulo 2³² so that wrapping around is harmless.
+            (Some(a), Some(b)) if (b.wrapping_sub(a) as i32) > 0 => Newest::At { slot: 1, sequence: b },
+            (Some(a), _) => Newest::At { slot: 0, sequence: a },
+            (None, Some(b)) => Newest::At { slot: 1, sequence: b },
+            (None, None) => Newest::None,
+        };
     }
 
+    /// The record in `slot`, checked and decoded. Not inlined: the record and the set it holds
+    /// are on the stack only while it runs.
+    #[inline(never)]
     fn read_slot(&mut self, slot: u32) -> Result<Stored, SlotFault> {
         let start = slot * self.slot_len;
         let mut record = [0u8; RECORD_LEN];
@@ -265,20 +298,36 @@ fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
         return Err(SlotFault::Corrupt);
     }
     let payload = rest.get(..payload_len).ok_or(SlotFault::Corrupt)?;
-    let params: JointParams = match format {
-        RECORD_FORMAT => postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?,
-        FORMAT_2 => {
-            let v2: LegacyJointParamsV2 = postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?;
-            upgrade(v2.model_version, v2.model, [v2.gear_ratio, v2.torque_limit, v2.direction_band])?
-        }
-        _ => {
-            let v1: LegacyJointParams = postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?;
-            let model = GearModelV1::Genetic(v1.model);
-            upgrade(v1.model_version, model, [v1.gear_ratio, v1.torque_limit, v1.direction_band])?
-        }
+    let params = match format {
+        RECORD_FORMAT => decode_format_3(payload)?,
+        FORMAT_2 => decode_format_2(payload)?,
+        _ => decode_format_1(payload)?,
     };
     params.validate().map_err(SlotFault::Invalid)?;
     Ok(Stored { params, sequence })
+}
+
+// One function per format, none inlined: the stack then holds one format's temporaries at a
+// time, not all three's.
+
+/// The payload of a format 3 record.
+#[inline(never)]
+fn decode_format_3(payload: &[u8]) -> Result<JointParams, SlotFault> {
+    JointParams::from_postcard(payload).map_err(|_| SlotFault::Encoding)
+}
+
+/// The payload of a format 2 record, upgraded.
+#[inline(never)]
+fn decode_format_2(payload: &[u8]) -> Result<JointParams, SlotFault> {
+    let v2: LegacyJointParamsV2 = postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?;
+    upgrade(v2.model_version, v2.model, [v2.gear_ratio, v2.torque_limit, v2.direction_band])
+}
+
+/// The payload of a format 1 (or unversioned) record, upgraded.
+#[inline(never)]
+fn decode_format_1(payload: &[u8]) -> Result<JointParams, SlotFault> {
+    let v1: LegacyJointParams = postcard::from_bytes(payload).map_err(|_| SlotFault::Encoding)?;
+    upgrade(v1.model_version, GearModelV1::Genetic(v1.model), [v1.gear_ratio, v1.torque_limit, v1.direction_band])
 }
 
 fn header_bytes(sequence: u32, payload_len: u16) -> [u8; HEADER_LEN] {

@@ -1,13 +1,12 @@
-//! The control tick's half of the joint: the compensator and the controller, owned by the
-//! board's timer interrupt. The link ([`crate::Server`]) hands it work through the
-//! [`Handoff`](crate::handoff); nothing else touches it.
-use crate::compensator::Prepared;
+//! The control tick's half of the joint: the controller, and the compensator's tick half (in
+//! the [`Handoff`](crate::handoff), where the link stages sets), run by the board's timer
+//! interrupt. The link ([`crate::Server`]) hands it work through the handoff; nothing else
+//! touches it.
 use crate::drive::{self, MotorDrive};
-use crate::handoff::{Command, Sample, TickPort};
+use crate::handoff::{Answer, Command, Sample, TickPort};
 use crate::sensor;
-use crate::{Compensator, Controller};
-use swg_protocol::endpoint::{Control, Replay};
-use swg_protocol::{Endpoint, ErrorReply, Response};
+use crate::Controller;
+use swg_protocol::ErrorReply;
 
 /// When a tick started, from the board's timer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,23 +19,19 @@ pub struct TickStart {
     pub now: u32,
 }
 
-/// The compensator and the controller, run by the control tick.
-#[derive(Clone, Debug)]
+/// The controller, run by the control tick with the compensator's tick half.
+#[derive(Clone, Debug, Default)]
 pub struct Joint {
-    compensator: Compensator,
     controller: Controller,
     /// The clock count at the last timer expiry.
     last_expiry: Option<u32>,
 }
 
 impl Joint {
-    /// With the stored set, if any, active from the first tick.
-    pub fn new(stored: Option<Prepared>) -> Self {
-        let mut compensator = Compensator::new();
-        if let Some(prepared) = stored {
-            compensator.install(prepared);
-        }
-        Joint { compensator, controller: Controller::new(), last_expiry: None }
+    /// At boot: the controller not configured (a stored set is staged by the link's
+    /// [`Server::boot`](crate::Server::boot), active from the first tick).
+    pub const fn new() -> Self {
+        Joint { controller: Controller::new(), last_expiry: None }
     }
 
     /// One tick of a board without encoders of its own (QEMU): runs the sample the link handed
@@ -46,18 +41,14 @@ impl Joint {
         let Some(sample) = self.begin(port, start) else { return };
         let answer = match sample {
             Sample::Replay(sample) => {
-                Replay::reply(self.compensator.tick(sample.input_angle, sample.output_angle, sample.path))
+                Answer::Replay(port.compensator().tick(sample.input_angle, sample.output_angle, sample.path))
             }
             Sample::Control(sample) => {
-                let output = self.controller.tick(
-                    &mut self.compensator,
-                    sample.input_angle,
-                    sample.output_angle,
-                    sample.reference,
-                );
+                let output =
+                    self.controller.tick(port.compensator(), sample.input_angle, sample.output_angle, sample.reference);
                 match drive.apply(output.command) {
-                    Ok(()) => Control::reply(output),
-                    Err(error) => Response::Error(ErrorReply::MotorDrive(drive::Error::kind(&error))),
+                    Ok(()) => Answer::Control(output),
+                    Err(error) => Answer::Refused(ErrorReply::MotorDrive(drive::Error::kind(&error))),
                 }
             }
         };
@@ -77,10 +68,10 @@ impl Joint {
         drive: &mut D,
     ) {
         if self.begin(port, Some(start)).is_some() {
-            port.answer(Response::Error(ErrorReply::NotLockstep));
+            port.answer(Answer::Refused(ErrorReply::NotLockstep));
         }
         let command = match angles {
-            Ok((input, output)) => self.controller.tick_stored(&mut self.compensator, input, output).command,
+            Ok((input, output)) => self.controller.tick_stored(port.compensator(), input, output).command,
             Err(error) => {
                 port.sensor_fault(error.kind());
                 0.0
@@ -91,9 +82,10 @@ impl Joint {
         }
     }
 
-    /// Counts the tick and its timing, applies the link's command; a lockstep sample is
-    /// returned for the caller to run.
+    /// Switches to a set the link staged, counts the tick and its timing, applies the link's
+    /// command; a lockstep sample is returned for the caller to run.
     fn begin(&mut self, port: &mut TickPort, start: Option<TickStart>) -> Option<Sample> {
+        port.compensator().activate_staged();
         let timing = port.timing();
         let mut missed = 0;
         if let (Some(start), true) = (start, timing.period > 0) {
@@ -108,7 +100,6 @@ impl Joint {
         }
         port.count_tick(start.filter(|_| timing.period > 0).map(|start| start.latency), missed);
         match port.command()? {
-            Command::Install(prepared) => self.compensator.install(prepared),
             // Validated by the link already.
             Command::Configure(config) => self.controller.install(config),
             Command::SetReference(reference) => {
@@ -154,7 +145,7 @@ mod tests {
     fn late_ticks_and_missed_periods_are_counted() {
         let mut handoff = Handoff::new(TIMING);
         let (link, mut tick) = handoff.split();
-        let mut joint = Joint::new(None);
+        let mut joint = Joint::new();
         // Expiries at 1000, 1100 (latency 5: on time), 1200 (latency 6: late), then 1500
         // (latency 40: late): two periods without a tick, and the jitter of the latencies
         // makes no missed period of its own.
@@ -165,7 +156,7 @@ mod tests {
         assert_eq!((status.ticks, status.late, status.missed, status.overruns), (5, 2, 2, 0));
         assert_eq!(status.worst_latency_ns, 40_000);
         // The counter wraps between two ticks: still one period.
-        let mut joint = Joint::new(None);
+        let mut joint = Joint::new();
         for now in [u32::MAX - 50, 49] {
             joint.lockstep_tick(&mut tick, Some(TickStart { latency: 0, now }), &mut Recorder::default());
         }
@@ -176,7 +167,7 @@ mod tests {
     fn own_ticks_drive_count_faults_and_refuse_lockstep_samples() {
         let mut handoff = Handoff::new(TIMING);
         let (mut link, mut tick) = handoff.split();
-        let mut joint = Joint::new(None);
+        let mut joint = Joint::new();
         let mut drive = Recorder::default();
         let start = TickStart { latency: 0, now: 0 };
         let config = ControllerConfig {
@@ -202,7 +193,7 @@ mod tests {
         link.post(Command::Sample(Sample::Control(sample))).unwrap();
         drive.refuse = false;
         joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>((0.0, 0.0)), &mut drive);
-        assert_eq!(link.answer(), Some(Response::Error(ErrorReply::NotLockstep)));
+        assert_eq!(link.answer(), Some(Answer::Refused(ErrorReply::NotLockstep)));
         let status = link.status();
         assert_eq!((status.sensor_faults, status.last_sensor_fault), (1, Some(SensorErrorKind::Corrupt)));
         assert_eq!((status.drive_faults, status.last_drive_fault), (1, Some(DriveErrorKind::Fault)));

@@ -82,7 +82,6 @@ use swg_joint::handoff::{Handoff, TickPort, TickTiming};
 use swg_joint::handover::HandOver;
 use swg_joint::{as5047p::As5047p, drive, flash::Region, sensor, storage::ParamStore, AngleSensor, MotorDrive};
 use swg_joint::{Joint, Server, TickStart, TurnCounter};
-use swg_protocol::MAX_FRAME_LEN;
 
 const SYSCLK_HZ: u32 = 168_000_000;
 const TICK_HZ: u32 = 20_000;
@@ -204,7 +203,6 @@ fn main() -> ! {
         panic!("parameter flash region")
     };
     let Ok(store) = ParamStore::new(region) else { panic!("parameter store") };
-    let (mut server, joint) = Server::boot(store);
     // The current reference starts at zero torque before the control tick runs.
     let mut dac = dp.DAC.constrain(gpioa.pa4.into_analog(), &mut rcc);
     dac.enable();
@@ -213,6 +211,9 @@ fn main() -> ! {
 
     let Some(handoff) = cortex_m::singleton!(: Handoff = Handoff::new(TIMING)) else { panic!("handoff taken twice") };
     let (mut link_port, tick_port) = handoff.split();
+    let mut server = Server::new(store);
+    server.boot(&mut link_port);
+    let joint = Joint::new();
     let Some(received) = cortex_m::singleton!(: Queue<u8, 256> = Queue::new()) else { panic!("queue taken twice") };
     let (received_in, mut received) = received.split();
     let Some(to_send) = cortex_m::singleton!(: Queue<u8, 256> = Queue::new()) else { panic!("queue taken twice") };
@@ -241,22 +242,22 @@ fn main() -> ! {
     TICK.put(tick);
 
     // The link, in thread mode below both interrupts.
-    let mut reply = [0u8; MAX_FRAME_LEN];
     loop {
-        let len = match server.poll(&mut link_port, &mut reply) {
-            Some(len) => Some(len),
-            None if server.ready(&link_port) => match received.dequeue() {
-                Some(byte) => server.receive(byte, &mut link_port, &mut reply),
+        // A lockstep sample's answer, else (when ready for the next byte) a request's reply.
+        let reply = if !server.ready(&link_port) {
+            server.poll(&mut link_port)
+        } else {
+            match received.dequeue() {
+                Some(byte) => server.receive(byte, &mut link_port),
                 // Nothing to do until a byte arrives or the tick runs.
                 None => {
                     cortex_m::asm::wfi();
                     None
                 }
-            },
-            None => None,
+            }
         };
-        if let Some(len) = len {
-            for &byte in reply.get(..len).unwrap_or_default() {
+        if let Some(reply) = reply {
+            for &byte in reply {
                 // A full queue (two replies still on the wire) drains at 11.5 bytes per ms.
                 while sending.enqueue(byte).is_err() {
                     NVIC::pend(Interrupt::USART2);

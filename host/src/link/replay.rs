@@ -1,7 +1,9 @@
 //! Streaming encoder samples through the firmware and comparing its T_ff and K with the
 //! host's f64 model run through exactly the deflections the firmware used, from rest.
 use super::{Link, LinkError};
+use crate::gear::run_offline;
 use crate::input::Recording;
+use crate::prepare::segment::reversals;
 use model_core::memory::Hysteretic;
 use model_core::tolerance::{Bound, RELATIVE_TOLERANCE};
 use model_core::{Evaluator, GearModel};
@@ -65,6 +67,14 @@ pub struct ReplayReport {
     pub violations: usize,
     /// The first sample outside the bound, for the report.
     pub first_violation: Option<(usize, Feedforward, Bound)>,
+    /// What the firmware's causal reversal band costs: the RMS of the firmware's T_ff against
+    /// the offline model (reversals found over the whole replay, as `fit` and `predict` follow
+    /// them) on the same deflections, clamped alike, N·m.
+    pub offline_torque_rms: f64,
+    /// The board's count of samples beyond the spring's identified range (its status, since the
+    /// set was written), and the largest excess of those, rad.
+    pub beyond_range: u32,
+    pub max_excess_rad: f32,
 }
 
 impl ReplayReport {
@@ -97,6 +107,11 @@ impl std::fmt::Display for ReplayReport {
             "worst error / f32 tolerance: {:.3} ({} samples outside; tolerance: {:.0e} of the motion's T and K scale plus the f32 rounding sensitivity of the current branch)",
             self.worst_bound_ratio, self.violations, RELATIVE_TOLERANCE
         )?;
+        write!(
+            f,
+            "\nthe causal reversal band against the offline model: T_ff RMS {:.3e} N·m\nbeyond the spring's identified range (board status): {} samples, largest excess {:.3e} rad",
+            self.offline_torque_rms, self.beyond_range, self.max_excess_rad
+        )?;
         if let Some((index, fw, bound)) = &self.first_violation {
             write!(
                 f,
@@ -128,6 +143,10 @@ impl std::fmt::Display for ReplayReport {
 /// quantities it depends on move by their rounding (model-core's `Evaluator::rounding`, which
 /// says how for each kind). The memories are compared too: direction and depth, within the
 /// rounding's allowance.
+///
+/// Beside it, the firmware's T_ff against the offline model on the same deflections (what its
+/// causal band costs), and the board's beyond-range counters, read from its status after the
+/// replay.
 pub fn replay(
     link: &mut Link,
     joint: &JointParams,
@@ -140,7 +159,10 @@ pub fn replay(
         let feedforward = link.call::<endpoint::Replay>(&EncoderSample { input_angle, output_angle, path })?;
         comparison.add(index, &feedforward)?;
     }
-    Ok(comparison.finish())
+    let status = link.call::<endpoint::GetStatus>(&())?;
+    let mut report = comparison.finish()?;
+    (report.beyond_range, report.max_excess_rad) = (status.beyond_range, status.max_excess_rad);
+    Ok(report)
 }
 
 /// Accumulates the comparison, sample by sample: the f64 model with its memory, and the
@@ -157,6 +179,8 @@ struct Comparison {
     last_theta: Option<(f64, f64)>,
     torque_squares: f64,
     stiffness_squares: f64,
+    /// The deflection and T_ff of every sample the firmware evaluated, for the offline model.
+    evaluated: Vec<(f64, f64)>,
     report: ReplayReport,
 }
 
@@ -172,6 +196,7 @@ impl Comparison {
             last_theta: None,
             torque_squares: 0.0,
             stiffness_squares: 0.0,
+            evaluated: Vec::new(),
             report: ReplayReport::default(),
         })
     }
@@ -225,6 +250,7 @@ impl Comparison {
             Compensation::Clamped => self.report.clamped += 1,
         }
         let theta = f64::from(fw.deflection);
+        self.evaluated.push((theta, f64::from(fw.torque)));
         let (bound, same_memory) = self.step(theta, fw)?;
         self.last_theta = Some((theta, self.last_theta.map_or(theta, |(previous, _)| previous)));
         let report = &mut self.report;
@@ -258,11 +284,19 @@ impl Comparison {
         Ok(())
     }
 
-    fn finish(mut self) -> ReplayReport {
+    fn finish(mut self) -> Result<ReplayReport, ReplayError> {
         let compared = (self.report.active + self.report.clamped).max(1) as f64;
         self.report.torque_rms = (self.torque_squares / compared).sqrt();
         self.report.stiffness_rms = (self.stiffness_squares / compared).sqrt();
-        self.report
+        let (theta, firmware): (Vec<f64>, Vec<f64>) = self.evaluated.into_iter().unzip();
+        let offline = run_offline(&self.model, &theta, &reversals(&theta)).map_err(|(_, error)| error)?;
+        let squares: f64 = offline
+            .iter()
+            .zip(&firmware)
+            .map(|(model, fw)| (fw - model.torque.clamp(-self.torque_limit, self.torque_limit)).powi(2))
+            .sum();
+        self.report.offline_torque_rms = (squares / compared).sqrt();
+        Ok(self.report)
     }
 }
 
@@ -377,6 +411,33 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The band costs the genetic kind against the offline model (its reversals are late by
+    /// the band), not the micro-slip kind (which has none); the board counts the samples beyond
+    /// a spring's range narrowed to half the motion's, with their largest excess.
+    #[test]
+    fn the_band_cost_and_the_samples_beyond_the_range_are_reported() {
+        let [_, nested] = motions();
+        let half = 0.5 * AMPLITUDE;
+        let (beyond, largest) = nested.iter().map(|&(input, _)| f64::from(input / 50.0).abs() - half).fold(
+            (0, 0.0f64),
+            |(count, largest), excess| if excess > 0.0 { (count + 1, largest.max(excess)) } else { (count, largest) },
+        );
+        let mut costs = Vec::new();
+        for model in [seed(), slip()] {
+            let narrowed = GearModel { spring: model_core::Spring { range: [-half, half], ..model.spring }, ..model };
+            let (mut link, joint) = pushed(&narrowed, 100.0);
+            let report = replay(&mut link, &joint, &device_model(&joint), &nested, EvalPath::Fast).unwrap();
+            assert!(report.passed(), "{report}");
+            assert!(report.beyond_range.abs_diff(beyond) <= 2, "{} beyond, expected {beyond}", report.beyond_range);
+            assert!((f64::from(report.max_excess_rad) - largest).abs() < 1.0e-3 * AMPLITUDE, "{report}");
+            costs.push(report.offline_torque_rms);
+        }
+        let peak = seed().scales(AMPLITUDE).unwrap().0;
+        let [genetic, micro_slip] = costs[..] else { unreachable!() };
+        assert!(genetic > 1.0e-5 * peak && genetic < 1.0e-2 * peak, "genetic band cost {genetic:e} N·m, peak {peak}");
+        assert!(micro_slip < 1.0e-5 * peak, "micro-slip {micro_slip:e} N·m");
     }
 
     #[test]

@@ -41,11 +41,10 @@ pub fn json(output: &Output) -> serde_json::Value {
 /// A parameter file (the current model version) for the paper's gear of `params` in `dir`.
 pub fn write_params_file(dir: &Path, params: &model_core::Params<f64>) -> PathBuf {
     let path = dir.join("params.json");
-    let json = serde_json::json!({
-        "model": model_core::MODEL_NAME,
-        "model_version": model_core::MODEL_VERSION,
-        "params": model_core::GearModel::paper(*params),
-    });
+    // The model serializes as {"model": kind, "params": {zero, spring, …}}: the file is that
+    // with the model version beside it.
+    let mut json = serde_json::to_value(model_core::GearModel::paper(*params)).expect("the model as JSON");
+    json["model_version"] = model_core::MODEL_VERSION.into();
     std::fs::write(&path, json.to_string()).expect("params file written");
     path
 }

@@ -169,6 +169,25 @@ fn the_evaluator_is_the_spring_plus_the_kinds_own_memory() {
     }
 }
 
+/// A step whose sum overflows (the spring at a huge θ) is an error that leaves the evaluator as
+/// it was: the memory is written only once T = S + H is known to be finite.
+#[test]
+fn a_step_that_overflows_leaves_the_evaluator_as_it_was() {
+    let motion: Vec<f64> = (0..800).map(|i| 1.0e-3 * (f64::from(i) * 0.02).sin()).collect();
+    for model in all() {
+        let mut evaluator = model.evaluator(1.0e-7).unwrap();
+        let mut twin = evaluator;
+        for (i, &theta) in motion.iter().enumerate() {
+            if i % 50 == 0 {
+                let before = evaluator;
+                assert_eq!(evaluator.step(1.0e306), Err(Error::Overflow), "{model:?}");
+                assert_eq!(evaluator, before, "{model:?}");
+            }
+            assert_eq!(evaluator.step(theta), twin.step(theta));
+        }
+    }
+}
+
 #[test]
 fn the_papers_form_is_told_apart() {
     let [genetic, slip, knots] = all();

@@ -132,7 +132,7 @@ fn compensator_step(compensator: &mut Compensator, theta: f32) {
 
 fn controller_step(state: &mut (Controller, Compensator), theta: f32) {
     let (controller, compensator) = state;
-    black_box(controller.tick(compensator, theta * RATIO, 0.0, black_box(12.5)));
+    black_box(controller.tick(&mut compensator.ticker(), theta * RATIO, 0.0, black_box(12.5)));
 }
 
 /// Mean instructions per tick along `motion`, consecutive ticks from rest with no copies (a

@@ -38,10 +38,9 @@ use embedded_io::Write;
 use heapless::spsc::{Consumer, Producer, Queue};
 use swg_firmware_qemu::uart::{Uart0, Uart0Rx};
 use swg_firmware_qemu::{timer::FreeRunning, LinkDrive};
-use swg_joint::handoff::{Handoff, TickPort, TickTiming};
+use swg_joint::handoff::{Handoff, LinkPort, TickPort, TickTiming};
 use swg_joint::handover::HandOver;
 use swg_joint::{flash::RamFlash, storage::ParamStore, Joint, Server, TickStart};
-use swg_protocol::MAX_FRAME_LEN;
 
 /// Two 1 KiB slots; QEMU's machine has no flash controller, so "flash" is RAM here and
 /// lasts until QEMU exits. The storage logic is the same as on a real board.
@@ -68,27 +67,21 @@ static TICK: HandOver<&'static mut Tick> = HandOver::new();
 /// The receive interrupt's end of the received bytes' queue.
 static RECEIVED: HandOver<Producer<'static, u8>> = HandOver::new();
 
+/// What the link runs on, in thread mode.
+struct Link {
+    server: &'static mut Server<&'static mut BoardFlash>,
+    port: LinkPort<'static>,
+    received: Consumer<'static, u8>,
+    uart: Uart0,
+}
+
 #[entry]
 fn main() -> ! {
     swg_firmware_qemu::paint_stack();
-    let (Some(mut uart), Some(clock), Some(core)) = (Uart0::take(), FreeRunning::take(), cortex_m::Peripherals::take())
-    else {
-        swg_firmware_qemu::exit(false)
-    };
-    // In statics, built in place: `size` accounts for them, and they never pass through the
-    // stack.
-    let Some(flash) = cortex_m::singleton!(: BoardFlash = BoardFlash::new()) else { swg_firmware_qemu::exit(false) };
-    let Ok(store) = ParamStore::new(flash) else { swg_firmware_qemu::exit(false) };
-    let Some(handoff) = cortex_m::singleton!(: Handoff = Handoff::new(TIMING)) else { swg_firmware_qemu::exit(false) };
-    // A request's frame (128 bytes at most) and then some.
-    let Some(received) = cortex_m::singleton!(: Queue<u8, 256> = Queue::new()) else { swg_firmware_qemu::exit(false) };
-    let (producer, mut received): (Producer<'static, u8>, Consumer<'static, u8>) = received.split();
-    RECEIVED.put(producer);
-    let (mut link, tick_port) = handoff.split();
-    let (server, joint) = Server::boot(store);
-    let Some(server) = cortex_m::singleton!(: Server<&'static mut BoardFlash> = server) else {
-        swg_firmware_qemu::exit(false)
-    };
+    let (Link { server, mut port, mut received, mut uart }, tick_port, clock, core) = statics();
+    // The stored set, staged for the first tick: from here, not under the frame that built the
+    // statics (the deepest the link's stack gets is decoding a stored set).
+    server.boot(&mut port);
     let version = swg_joint::FIRMWARE_VERSION;
     // The version's numbers as defmt's own integers: its `Display` would pull in core::fmt's
     // number formatting (about 300 bytes of flash).
@@ -103,24 +96,46 @@ fn main() -> ! {
     );
     let syst = start_tick(core.SCB, core.NVIC, core.SYST);
     // The ticks before this handover (a few instructions away) find no state and return.
-    let tick = Tick { joint, port: tick_port, drive: LinkDrive::default(), syst, clock };
+    let tick = Tick { joint: Joint::new(), port: tick_port, drive: LinkDrive::default(), syst, clock };
     let Some(tick) = cortex_m::singleton!(: Tick = tick) else { swg_firmware_qemu::exit(false) };
     TICK.put(tick);
 
-    let mut reply = [0u8; MAX_FRAME_LEN];
     loop {
-        if let Some(len) = server.poll(&mut link, &mut reply) {
-            let _ = uart.write_all(reply.get(..len).unwrap_or_default());
+        if let Some(reply) = server.poll(&mut port) {
+            let _ = uart.write_all(reply);
         }
-        if !server.ready(&link) {
+        if !server.ready(&port) {
             continue;
         }
         if let Some(byte) = received.dequeue() {
-            if let Some(len) = server.receive(byte, &mut link, &mut reply) {
-                let _ = uart.write_all(reply.get(..len).unwrap_or_default());
+            if let Some(reply) = server.receive(byte, &mut port) {
+                let _ = uart.write_all(reply);
             }
         }
     }
+}
+
+/// The statics: the flash, the handoff, the received bytes' queue, the server (without its
+/// stored set yet). Not inlined: building them passes them through the stack, gone before the
+/// link runs.
+#[inline(never)]
+fn statics() -> (Link, TickPort<'static>, FreeRunning, cortex_m::Peripherals) {
+    let (Some(uart), Some(clock), Some(core)) = (Uart0::take(), FreeRunning::take(), cortex_m::Peripherals::take())
+    else {
+        swg_firmware_qemu::exit(false)
+    };
+    let Some(flash) = cortex_m::singleton!(: BoardFlash = BoardFlash::new()) else { swg_firmware_qemu::exit(false) };
+    let Ok(store) = ParamStore::new(flash) else { swg_firmware_qemu::exit(false) };
+    let Some(handoff) = cortex_m::singleton!(: Handoff = Handoff::new(TIMING)) else { swg_firmware_qemu::exit(false) };
+    // A request's frame (512 bytes at most) arrives while the link reads it byte by byte.
+    let Some(received) = cortex_m::singleton!(: Queue<u8, 256> = Queue::new()) else { swg_firmware_qemu::exit(false) };
+    let (producer, received): (Producer<'static, u8>, Consumer<'static, u8>) = received.split();
+    RECEIVED.put(producer);
+    let (port, tick_port) = handoff.split();
+    let Some(server) = cortex_m::singleton!(: Server<&'static mut BoardFlash> = Server::new(store)) else {
+        swg_firmware_qemu::exit(false)
+    };
+    (Link { server, port, received, uart }, tick_port, clock, core)
 }
 
 /// SysTick at [`TICK_HZ`] from the CPU clock, its exception at priority 0, the highest; UART0's
