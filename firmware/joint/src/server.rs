@@ -254,8 +254,9 @@ impl<F: NorFlash, D: MotorDrive> Device<F, D> {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::drive::{self, NoDrive};
+    use crate::drive::NoDrive;
     use crate::flash::RamFlash;
+    use crate::test_support::Recorder;
     use model_core::Params;
     use std::vec::Vec;
     use swg_protocol::{
@@ -284,27 +285,6 @@ mod tests {
         command_limit: 1.0,
         period: 1.0e-3,
     };
-
-    /// A drive that records what it was given, and refuses when told to.
-    #[derive(Default)]
-    struct Recorder {
-        applied: Vec<f32>,
-        refuse: bool,
-    }
-
-    impl drive::ErrorType for Recorder {
-        type Error = DriveErrorKind;
-    }
-
-    impl MotorDrive for Recorder {
-        fn apply(&mut self, torque: f32) -> Result<(), DriveErrorKind> {
-            if self.refuse {
-                return Err(DriveErrorKind::OutOfRange);
-            }
-            self.applied.push(torque);
-            Ok(())
-        }
-    }
 
     type Test<D = NoDrive> = Device<RamFlash<4096>, D>;
 
@@ -476,7 +456,7 @@ mod tests {
         assert_eq!(request(&mut device, &Request::SetReference(-5.0)), Response::ControlAccepted);
         assert_eq!(device.drive().applied.len(), 2);
         // A drive that refuses: the reply says so, with its kind.
-        device.drive.refuse = true;
+        device.drive.refuse = Some(DriveErrorKind::OutOfRange);
         assert_eq!(
             request(&mut device, &Request::Control(sample)),
             Response::Error(ErrorReply::MotorDrive(DriveErrorKind::OutOfRange))
