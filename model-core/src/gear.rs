@@ -261,28 +261,31 @@ impl<F: Real> GearModel<F> {
     /// (rad; negative or NaN counts as 0); the micro-slip kind needs none (noise only makes tiny
     /// reversible loops).
     pub fn evaluator(&self, band: F) -> Result<Evaluator<F>, Error> {
-        let mut evaluator = None;
-        self.evaluator_into(band, &mut evaluator)?;
-        evaluator.ok_or(Error::Overflow)
+        let mut evaluator = Evaluator::idle();
+        self.prepare(band, &mut evaluator)?;
+        Ok(evaluator)
     }
 
-    /// [`GearModel::evaluator`] written into `evaluator`, in place (`None` there on error): a
-    /// joint prepares its next set in its slot, not on its stack and then copied.
-    pub fn evaluator_into(&self, band: F, evaluator: &mut Option<Evaluator<F>>) -> Result<(), Error> {
-        *evaluator = None;
+    /// [`GearModel::evaluator`] written over `evaluator`, field by field in place: a joint
+    /// prepares its next set in its slot, with no evaluator of 700 bytes put together on its
+    /// stack and copied. Where the model is refused, `evaluator` is left in some state of no
+    /// use (the caller keeps it out of service). Never inlined: its frame then does not sit
+    /// under a caller's own deep calls, such as the range checks a joint runs first.
+    #[inline(never)]
+    pub fn prepare(&self, band: F, evaluator: &mut Evaluator<F>) -> Result<(), Error> {
         if let Err((name, fault)) = self.check() {
             return Err(Error::InvalidParameter(name, fault));
         }
-        let hysteresis = match &self.hysteresis {
-            Hysteresis::Genetic(g) => HysteresisState::Genetic(GeneticMemory::new(g.model()?, band)),
-            Hysteresis::MicroSlip(_) => HysteresisState::MicroSlip(MicroSlip::new(self.slip_elements())?),
-        };
-        let prepared = evaluator.insert(Evaluator { zero: self.zero, spring: PreparedSpring::empty(), hysteresis });
-        let spring = self.spring.prepare_into(&mut prepared.spring);
-        if spring.is_err() {
-            *evaluator = None;
+        evaluator.zero = self.zero;
+        match &self.hysteresis {
+            Hysteresis::Genetic(g) => {
+                evaluator.hysteresis = HysteresisState::Genetic(GeneticMemory::new(g.model()?, band));
+            }
+            Hysteresis::MicroSlip(_) => {
+                evaluator.hysteresis = HysteresisState::MicroSlip(MicroSlip::new(self.slip_elements())?);
+            }
         }
-        spring
+        self.spring.prepare_into(&mut evaluator.spring)
     }
 
     /// Whether the model can be evaluated in `F` for every |θ| ≤ `max_deflection` and every
@@ -407,6 +410,13 @@ pub enum HysteresisState<F> {
     MicroSlip(MicroSlip<F, SLIP_ELEMENTS>),
 }
 
+impl<F: Real> HysteresisState<F> {
+    /// No hysteresis: no elasto-slip elements.
+    fn idle() -> Self {
+        HysteresisState::MicroSlip(MicroSlip::none())
+    }
+}
+
 /// The stateful evaluator of a [`GearModel`]: fed θ sample by sample from rest, it keeps what the
 /// motion has left behind. The same on the host (f64, with libm) and on the joint (f32, with
 /// libm or the firmware's fast elementary functions).
@@ -418,6 +428,12 @@ pub struct Evaluator<F> {
 }
 
 impl<F: Real> Evaluator<F> {
+    /// An evaluator of no gear (T = 0 everywhere, no memory): what [`GearModel::prepare`]
+    /// writes over.
+    pub fn idle() -> Self {
+        Evaluator { zero: F::zero(), spring: PreparedSpring::empty(), hysteresis: HysteresisState::idle() }
+    }
+
     /// [`Hysteretic::step`] with the elementary functions of `E` where the kind uses any: the
     /// same state whichever `E` runs a sample.
     #[inline(always)]

@@ -172,8 +172,6 @@ struct Branch<F> {
     span: F,
     /// c = θ_a/2 + θ_b/2.
     centre: F,
-    /// |θ − c| at and beyond the loop's ends, where z is evaluated clamped (and is 0 there).
-    beyond: F,
     /// (H_b − H_a)/(θ_b − θ_a).
     slope: F,
     direction: Direction,
@@ -207,7 +205,6 @@ impl<F: Real> Branch<F> {
             start: zero,
             span: zero,
             centre: zero,
-            beyond: zero,
             slope: zero,
             direction: Direction::Rising,
             scale: None,
@@ -233,18 +230,7 @@ impl<F: Real> Branch<F> {
             let direction = if span > zero { Direction::Rising } else { Direction::Falling };
             let exits = exits(from.theta, to.theta, retracing);
             let (from, to) = ends;
-            return Branch {
-                from,
-                to,
-                start,
-                span,
-                centre: zero,
-                beyond: zero,
-                slope: zero,
-                direction,
-                scale: None,
-                exits,
-            };
+            return Branch { from, to, start, span, centre: zero, slope: zero, direction, scale: None, exits };
         }
         // The span is not 0, so its sign is that of θ_b − θ_a (halving keeps the order).
         let (direction, exits) = if span > zero {
@@ -252,13 +238,10 @@ impl<F: Real> Branch<F> {
         } else {
             (Direction::Falling, (to.theta, if retracing { from.theta } else { F::infinity() }))
         };
-        // θ − c beyond the loop's end (clamped there) at and past the ends, where z = 0; ±∞
-        // where 1.5·span overflows clamps to the end all the same.
-        let beyond = span + span * half;
         let slope = (to.hysteresis * half - from.hysteresis * half) / span;
         let scale = Some(model.scale_of::<E>(width, inv_width));
         let (from, to) = ends;
-        Branch { from, to, start, span, centre: start + end, beyond, slope, direction, scale, exits }
+        Branch { from, to, start, span, centre: start + end, slope, direction, scale, exits }
     }
 
     /// H and dH/dθ at `theta` (finite), with the elementary functions of `E`; not checked for
@@ -273,10 +256,14 @@ impl<F: Real> Branch<F> {
         // s is exactly 0 at θ_a and exactly 1 at θ_b. At and past the ends s is clamped and
         // θ − c is beyond the loop's end (clamped there), where z = 0.
         let s = (theta * half - self.start) / self.span;
+        // θ − c beyond the loop's end (clamped there) at and past the ends, where z = 0; ±∞
+        // where 1.5·span overflows clamps to the end all the same. Made here, on the rare ticks
+        // that need it, rather than kept with the branch.
+        let beyond = || self.span + self.span * half;
         let (s, offset) = if s >= F::one() {
-            (F::one(), self.beyond)
+            (F::one(), beyond())
         } else if s <= F::zero() {
-            (F::zero(), -self.beyond)
+            (F::zero(), -beyond())
         } else {
             (s, theta - self.centre)
         };
@@ -524,7 +511,10 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     /// mirror of a single point).
     #[inline(always)]
     fn current(&self) -> Option<(TurningPoint<F>, TurningPoint<F>, bool)> {
-        self.branch_at(self.depth, None)
+        let below = self.depth.checked_sub(1)?;
+        let from = *self.stack.get(below)?;
+        let (to, stored) = self.target_of(from, below);
+        Some((from, to, stored))
     }
 
     fn push(&mut self, point: TurningPoint<F>) -> bool {
@@ -538,34 +528,13 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
         }
     }
 
-    /// The branch on the stack `stack[..depth]` topped by `pushed`: its start, its target, and
-    /// whether the target is stored (not the mirror of a single point); `None` when empty.
+    /// The target of a branch that starts at `from` with the points `stack[..below]` under it:
+    /// the top of those (stored), or when there are none the mirror of `from` (not stored).
     #[inline(always)]
-    fn branch_at(
-        &self,
-        depth: usize,
-        pushed: Option<TurningPoint<F>>,
-    ) -> Option<(TurningPoint<F>, TurningPoint<F>, bool)> {
-        let mirror = |p: TurningPoint<F>| TurningPoint { theta: -p.theta, hysteresis: -p.hysteresis };
-        match (pushed, self.stack.get(..depth)?) {
-            (Some(from), [.., to]) => Some((from, *to, true)),
-            (Some(from), []) => Some((from, mirror(from), false)),
-            (None, [.., to, from]) => Some((*from, *to, true)),
-            (None, [from]) => Some((*from, mirror(*from), false)),
-            (None, []) => None,
-        }
-    }
-
-    /// θ at the start and the target of the branch on `stack[..depth]` topped by `pushed`, and
-    /// whether the target is stored ([`GeneticMemory::branch_at`] without the H).
-    #[inline(always)]
-    fn ends_at(&self, depth: usize, pushed: Option<TurningPoint<F>>) -> Option<(F, F, bool)> {
-        match (pushed, self.stack.get(..depth)?) {
-            (Some(from), [.., to]) => Some((from.theta, to.theta, true)),
-            (Some(from), []) => Some((from.theta, -from.theta, false)),
-            (None, [.., to, from]) => Some((from.theta, to.theta, true)),
-            (None, [from]) => Some((from.theta, -from.theta, false)),
-            (None, []) => None,
+    fn target_of(&self, from: TurningPoint<F>, below: usize) -> (TurningPoint<F>, bool) {
+        match below.checked_sub(1).and_then(|i| self.stack.get(i)) {
+            Some(to) => (*to, true),
+            None => (TurningPoint { theta: -from.theta, hysteresis: -from.hysteresis }, false),
         }
     }
 
@@ -581,18 +550,29 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     ///
     /// A sample that did not turn left the branch through its exits: if not retracing, past
     /// its target, which the first pass of the wipe-out would only find again.
+    ///
+    /// Written out case by case (the pushed point first, then the stored ones), each point
+    /// read once: this runs on the ticks that change the branch, the joint's dearest.
     #[inline(always)]
     fn restack(&self, theta: F, turned: bool) -> Restack<F> {
-        let (mut depth, mut pushed, mut retracing, mut changed) = (self.depth, None, self.retracing, false);
+        let (mut depth, mut retracing, mut changed) = (self.depth, self.retracing, false);
+        let mut pushed = None;
         if turned {
             if retracing {
                 // Back onto the branch being retraced: nothing to record.
                 retracing = false;
             } else {
                 let point = self.extreme;
-                if let Some((_, to, stored)) = self.ends_at(depth, None) {
+                // The current branch's target (the point under the top, or the top's mirror)
+                // and how many points closing the loop there pops.
+                let target = match depth {
+                    0 => None,
+                    1 => self.stack.first().map(|p| (-p.theta, 1)),
+                    _ => self.stack.get(depth - 2).map(|p| (p.theta, 2)),
+                };
+                if let Some((to, closed)) = target {
                     if point.theta == to {
-                        depth -= if stored { 2 } else { 1 };
+                        depth -= closed;
                     }
                 }
                 if depth < N {
@@ -609,30 +589,49 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
             depth = depth.saturating_sub(2);
             changed = true;
         }
+        // θ past the target of the branch from a pushed point pops it, and the target too;
+        // the push ended any retrace, so θ cannot be back past its start.
+        if let Some(from) = pushed {
+            let (to, stored) = self.target_of(from, depth);
+            if !passes(from.theta, to.theta, theta) {
+                return Restack { depth, pushed, retracing, current: Some((from, to, stored)), changed };
+            }
+            pushed = None;
+            depth -= usize::from(stored);
+        }
         // Each pass pops at least one point, so this ends.
-        while let Some((from, to, stored)) = self.ends_at(depth, pushed) {
-            let rising = to > from;
-            let falling = to < from;
-            let past_target = (rising && theta > to) || (falling && theta < to);
+        let mut points = self.stack.get(..depth).unwrap_or_default();
+        let current = loop {
+            let Some((&from, below)) = points.split_last() else { break None };
+            let (to, stored) = match below.last() {
+                Some(&to) => (to, true),
+                None => (TurningPoint { theta: -from.theta, hysteresis: -from.hysteresis }, false),
+            };
+            let past_target = passes(from.theta, to.theta, theta);
             // Retraced back past the branch's start: θ continues on the branch it lay on.
-            let back_past_start = retracing && ((rising && theta < from) || (falling && theta > from));
+            let back_past_start = retracing && passes(to.theta, from.theta, theta);
             if !(past_target || back_past_start) {
-                break;
+                break Some((from, to, stored));
             }
-            // The start goes (the pushed point if there is one, else the top), and past the
-            // target the target too.
-            if pushed.take().is_none() {
-                depth -= 1;
-            }
+            // The start goes, and past the target the target too.
+            points = below;
             if !past_target {
                 retracing = false;
-            } else if stored {
-                depth -= 1;
+            } else if let Some((_, rest)) = below.split_last() {
+                points = rest;
             }
             changed = true;
-        }
-        Restack { depth, pushed, retracing, current: self.branch_at(depth, pushed), changed }
+        };
+        let depth = points.len();
+        Restack { depth, pushed, retracing, current, changed }
     }
+}
+
+/// Whether θ has passed `to` on the way from `from` (beyond it, on the far side from `from`);
+/// never when the two are equal.
+#[inline(always)]
+fn passes<F: Real>(from: F, to: F, theta: F) -> bool {
+    (to > from && theta > to) || (to < from && theta < to)
 }
 
 /// The stack after a step that changes it ([`GeneticMemory::restack`]): the points
@@ -835,6 +834,12 @@ impl<F: Real, const M: usize> MicroSlip<F, M> {
             (*d, *k) = (element.slip, element.stiffness);
         }
         Ok(MicroSlip { slip, stiffness, elastic: [F::zero(); M], theta: F::zero(), count: elements.len(), slipping: 0 })
+    }
+
+    /// No elements (H = 0 everywhere).
+    pub(crate) fn none() -> Self {
+        let zero = F::zero();
+        MicroSlip { slip: [F::one(); M], stiffness: [zero; M], elastic: [zero; M], theta: zero, count: 0, slipping: 0 }
     }
 
     /// The elements' slip deflections d_i, rad.

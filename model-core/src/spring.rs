@@ -145,7 +145,7 @@ impl<F: Real> Spring<F> {
         // (P_j from knot 0, shifted below so that P(0) = 0); left of knot 0 and right of the last,
         // the end knot's stiffness. Each piece as a + b·x + c·x², from the previous knot (−∞
         // for the first) to the next (+∞ for the last). Without knots, one piece of 0 everywhere.
-        *prepared = PreparedSpring::empty();
+        prepared.clear();
         let segments = &mut prepared.segments;
         let mut torque = F::zero();
         for (j, knot) in knots.iter().enumerate() {
@@ -154,13 +154,12 @@ impl<F: Real> Spring<F> {
                 Some(next) => (next.stiffness - knot.stiffness) / (next.x - knot.x),
                 None => F::zero(),
             };
-            let end = next.map_or_else(F::infinity, |next| next.x);
             if let Some(segment) = segments.get_mut(j + 1) {
-                *segment = Segment::from_start(knot.x, torque, knot.stiffness, slope, end);
+                *segment = Segment::from_start(knot.x, torque, knot.stiffness, slope);
             }
             if j == 0 {
                 if let Some(segment) = segments.first_mut() {
-                    *segment = Segment::from_start(knot.x, F::zero(), knot.stiffness, F::zero(), knot.x);
+                    *segment = Segment::from_start(knot.x, F::zero(), knot.stiffness, F::zero());
                     segment.start = F::neg_infinity();
                 }
             }
@@ -191,11 +190,11 @@ impl<F: Real> Spring<F> {
     }
 }
 
-/// One piece of the knots' part: for `start` ≤ x < `end`, P = a + b·x + c·x² and k = b + 2c·x.
+/// One piece of the knots' part: from `start` to where the next piece starts, P = a + b·x + c·x²
+/// and k = b + 2c·x.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Segment<F> {
     start: F,
-    end: F,
     a: F,
     b: F,
     c: F,
@@ -203,9 +202,9 @@ struct Segment<F> {
 
 impl<F: Real> Segment<F> {
     /// The piece from `start` with P = `torque`, k = `stiffness` and dk/dx = `slope` there.
-    fn from_start(start: F, torque: F, stiffness: F, slope: F, end: F) -> Self {
+    fn from_start(start: F, torque: F, stiffness: F, slope: F) -> Self {
         let c = slope / (F::one() + F::one());
-        Segment { start, end, a: torque - stiffness * start + c * start * start, b: stiffness - slope * start, c }
+        Segment { start, a: torque - stiffness * start + c * start * start, b: stiffness - slope * start, c }
     }
 }
 
@@ -216,9 +215,12 @@ impl<F: Real> Segment<F> {
 pub struct PreparedSpring<F> {
     /// The odd polynomial, where it is there.
     polynomial: Option<Polynomial<F>>,
-    /// The pieces in order of x, each starting where the one before ends: the first from −∞,
-    /// the last in use to +∞; those not in use lie at +∞ (so the ends never decrease).
-    segments: [Segment<F>; MAX_KNOTS + 1],
+    /// The pieces in order of x, each ending where the next starts: the first from −∞, the
+    /// last in use to +∞, where those not in use start (so the starts never decrease), and one
+    /// more of those after the most pieces there can be, where the last one ends. (No end of
+    /// its own: a tick compares x with the next piece's start, at the same address plus one
+    /// piece, and the slot of each set is 20 % smaller.)
+    segments: [Segment<F>; MAX_KNOTS + 2],
     range: [F; 2],
     /// The polynomial and its stiffness at the range's two edges.
     at_range: [Evaluation<F>; 2],
@@ -228,8 +230,8 @@ pub struct PreparedSpring<F> {
 impl<F: Real> PreparedSpring<F> {
     /// No knots, no polynomial: S = 0 everywhere (what [`Spring::prepare_into`] starts from).
     pub(crate) fn empty() -> Self {
-        let unused = Segment { start: F::infinity(), end: F::infinity(), ..Segment::default() };
-        let mut segments = [unused; MAX_KNOTS + 1];
+        let unused = Segment { start: F::infinity(), ..Segment::default() };
+        let mut segments = [unused; MAX_KNOTS + 2];
         if let Some(only) = segments.first_mut() {
             *only = Segment { start: F::neg_infinity(), ..unused };
         }
@@ -241,6 +243,24 @@ impl<F: Real> PreparedSpring<F> {
             at_range: [Evaluation::default(); 2],
             cursor: 0,
         }
+    }
+}
+
+impl<F: Real> PreparedSpring<F> {
+    /// Back to [`PreparedSpring::empty`], in place (no spring of 400 bytes made on the stack
+    /// and copied: the joint prepares its sets in place).
+    fn clear(&mut self) {
+        let unused = Segment { start: F::infinity(), ..Segment::default() };
+        for segment in self.segments.iter_mut() {
+            *segment = unused;
+        }
+        if let Some(only) = self.segments.first_mut() {
+            only.start = F::neg_infinity();
+        }
+        self.polynomial = None;
+        self.range = [F::zero(); 2];
+        self.at_range = [Evaluation::default(); 2];
+        self.cursor = 0;
     }
 }
 
@@ -299,14 +319,19 @@ impl<F: Real> PreparedSpring<F> {
     /// instructions wherever x jumps to). NaN for an x that is not finite.
     #[inline(always)]
     fn knots_part(&mut self, x: F) -> Evaluation<F> {
-        let holds = |s: &&Segment<F>| x >= s.start && x < s.end;
+        // Piece i ends where piece i + 1 starts. A neighbour starts (ends) where the cursor's
+        // piece ends (starts), so x is on its side of that end already: only its far end is
+        // compared.
+        let piece = |i: usize| Some((self.segments.get(i)?, self.segments.get(i + 1)?.start));
         let cursor = self.cursor;
-        let segment = match self.segments.get(cursor) {
-            Some(s) if x >= s.end => self.segments.get(cursor + 1).filter(holds).map(|s| (cursor + 1, s)),
-            Some(s) if x < s.start => {
-                cursor.checked_sub(1).and_then(|i| self.segments.get(i)).filter(holds).map(|s| (cursor - 1, s))
-            }
-            Some(s) => Some((cursor, s)),
+        let segment = match piece(cursor) {
+            Some((_, end)) if x >= end => piece(cursor + 1).filter(|(_, end)| x < *end).map(|(s, _)| (cursor + 1, s)),
+            Some((s, _)) if x < s.start => cursor
+                .checked_sub(1)
+                .and_then(|i| self.segments.get(i))
+                .filter(|previous| x >= previous.start)
+                .map(|s| (cursor - 1, s)),
+            Some((s, _)) => Some((cursor, s)),
             None => None,
         };
         let segment = match segment {
@@ -319,7 +344,7 @@ impl<F: Real> PreparedSpring<F> {
                 // the last piece in use and those after it end at +∞).
                 let mut index = 0;
                 for step in [16, 8, 4, 2, 1] {
-                    if self.segments.get(index + step - 1).is_some_and(|s| x >= s.end) {
+                    if self.segments.get(index + step).is_some_and(|s| x >= s.start) {
                         index += step;
                     }
                 }

@@ -314,15 +314,14 @@ impl JointParams {
     }
 
     /// The set validated ([`JointParams::validate`]) and its model's evaluator at rest, with the
-    /// direction band as the genetic kind's reversal band, written into `evaluator` (`None`
-    /// there where the set is refused): what a joint installs, in place. Not inlined (nor
-    /// generic): compiled once, with this crate's settings (for size; the joint prepares a set
-    /// on its link's side, where time does not matter).
+    /// direction band as the genetic kind's reversal band, written over `evaluator` in place
+    /// (model-core's `GearModel::prepare`; of no use where the set is refused): what a joint
+    /// installs. Not inlined (nor generic): compiled once, with this crate's settings (for
+    /// size; the joint prepares a set on its link's side, where time does not matter).
     #[inline(never)]
-    pub fn prepare_evaluator(&self, evaluator: &mut Option<model_core::Evaluator<f32>>) -> Result<(), ErrorReply> {
-        *evaluator = None;
+    pub fn prepare_evaluator(&self, evaluator: &mut model_core::Evaluator<f32>) -> Result<(), ErrorReply> {
         self.validate()?;
-        self.model.evaluator_into(self.direction_band, evaluator).map_err(|_| ErrorReply::ModelOverflow)
+        self.model.prepare(self.direction_band, evaluator).map_err(|_| ErrorReply::ModelOverflow)
     }
 
     /// The set as postcard writes it (a record's payload in flash); its length in `out`.

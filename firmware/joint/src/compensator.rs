@@ -11,11 +11,14 @@ use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams}
 pub const MAX_DEFLECTION: f32 = swg_protocol::MAX_DEFLECTION;
 
 /// A slot for a validated parameter set as the tick uses it: its evaluator, prepared at rest
-/// (`None`: no set), and the two numbers of the joint the tick needs (the link keeps the whole
-/// set for reads and commits).
+/// (in service only when `ready`), and the two numbers of the joint the tick needs (the link
+/// keeps the whole set for reads and commits).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Installed {
-    evaluator: Option<Evaluator<f32>>,
+    /// Written over in place by each set staged here (never put together on the link's stack).
+    evaluator: Evaluator<f32>,
+    /// The evaluator holds a validated set: the tick evaluates it.
+    ready: bool,
     gear_ratio: f32,
     torque_limit: f32,
     /// [`EvalPath::Fast`] runs the evaluator with [`FastMath`] (model-core's `has_fast_path`).
@@ -48,20 +51,25 @@ impl Window {
 }
 
 impl Installed {
-    const EMPTY: Installed = Installed {
-        evaluator: None,
-        gear_ratio: 0.0,
-        torque_limit: 0.0,
-        fast: false,
-        usual: Window { centre: 0.0, half_width: 0.0 },
-    };
+    fn empty() -> Self {
+        Installed {
+            evaluator: Evaluator::idle(),
+            ready: false,
+            gear_ratio: 0.0,
+            torque_limit: 0.0,
+            fast: false,
+            usual: Window { centre: 0.0, half_width: 0.0 },
+        }
+    }
 
     /// Validates `params` and prepares their evaluator at rest in this slot: the slow part of
     /// staging a set (the range checks, the fast path's constants), done where time does not
-    /// matter, in place (no second set on the link's stack). The slot is left empty where the
-    /// set is refused.
+    /// matter, in place (no second set on the link's stack). The slot is left out of service
+    /// where the set is refused.
     fn prepare(&mut self, params: &JointParams) -> Result<(), ErrorReply> {
+        self.ready = false;
         params.prepare_evaluator(&mut self.evaluator)?;
+        self.ready = true;
         (self.gear_ratio, self.torque_limit) = (params.gear_ratio, params.torque_limit);
         self.fast = params.model.has_fast_path();
         let [lo, hi] = params.model.spring.range.map(|edge| edge + params.model.zero);
@@ -109,19 +117,32 @@ pub struct Compensator {
     max_excess: AtomicU32,
 }
 
-// SAFETY: the slots are reached only through the two halves of `split` (or through `&mut self`
-// and `&self` when no halves exist): the `Ticker` touches only the active slot, the `Stager`
-// only the other one and only while `staged` is down, and `active` changes only when the
-// `Ticker` finds `staged` up (the `Stager` then leaves both slots alone). `staged` is raised
-// with release ordering after the slot is written and read with acquire ordering (a fence)
-// before the slot is used, so the tick sees the whole set.
+// SAFETY: `Sync` lets the two halves of `split` (each holding `&Compensator`) live at two
+// interrupt priorities. The invariant that makes their `UnsafeCell` accesses exclusive:
+// - Ownership. The `Ticker` is the only one to touch the slot `active` names, and the only
+//   writer of `active`; the `Stager` touches the other slot, and only while `staged` is down.
+//   `split` takes `&mut self`, so there is one `Stager` and one `Ticker` (neither is `Clone`),
+//   and no other `&Compensator` while they exist: `Clone` and `Debug` (through `&self`) run
+//   only when no half does.
+// - A slot changes hands only at `Ticker::activate_staged`, and only when `staged` is up,
+//   while the `Stager` leaves both slots alone (it stages nothing until `staged` is down).
+// - Link → tick: the `Stager` raises `staged` with release ordering after its last write to
+//   the slot; the tick reads it and, when up, fences with acquire ordering before it switches
+//   to the slot: the tick sees the whole set.
+// - Tick → link: the tick lowers `staged` with release ordering after switching, and every
+//   access it made to the slot it gave up came before that (in its previous ticks); the
+//   `Stager` reads `staged` with acquire ordering (`has_room`) before it writes that slot, and
+//   reads `active` after it, so it picks the slot the tick gave up and writes it only after
+//   the tick's last access.
+// The tick's `&mut Installed` lives within one `tick` call and `Ticker::active`'s `&Installed`
+// within a `&self` call of the `Ticker`: never both.
 #[allow(unsafe_code)]
 unsafe impl Sync for Compensator {}
 
 impl Compensator {
-    pub const fn new() -> Self {
+    pub fn new() -> Self {
         Compensator {
-            slots: [UnsafeCell::new(Installed::EMPTY), UnsafeCell::new(Installed::EMPTY)],
+            slots: [UnsafeCell::new(Installed::empty()), UnsafeCell::new(Installed::empty())],
             active: AtomicU8::new(0),
             staged: AtomicBool::new(false),
             beyond_range: AtomicU32::new(0),
@@ -289,7 +310,7 @@ impl Ticker<'_> {
     /// The gear ratio of the set the last tick used: the controller's, each tick.
     pub fn active_gear_ratio(&self) -> Option<f32> {
         let active = self.active();
-        active.evaluator.is_some().then_some(active.gear_ratio)
+        active.ready.then_some(active.gear_ratio)
     }
 
     /// One control tick on the two encoder angles (rad; the input side multi-turn).
@@ -316,7 +337,10 @@ impl Ticker<'_> {
         // SAFETY: the active slot, the tick's alone (see `Compensator`'s `Sync`).
         #[allow(unsafe_code)]
         let installed = unsafe { &mut *compensator.slot(compensator.active.load(Ordering::Relaxed)).get() };
-        let Some(evaluator) = installed.evaluator.as_mut() else { return OFF };
+        if !installed.ready {
+            return OFF;
+        }
+        let evaluator = &mut installed.evaluator;
         let deflection = input_angle / installed.gear_ratio - output_angle;
         // One comparison on the usual tick: plausible and within the identified range. Outside
         // that window: refused where implausible (NaN too), else counted (beyond the range the

@@ -105,46 +105,38 @@ impl Elementary<f32> for FastMath {
 }
 
 /// √v with the FPU's `vsqrt.f32` on the Cortex-M4F; libm (also correctly rounded) elsewhere.
+///
+/// Inline, not a call: a call lets the tick keep values only in the 16 callee-saved FPU
+/// registers across it, and the ticks that change branch then spilled a dozen of them to the
+/// stack and back (`bench/firmware.sh`).
 #[inline(always)]
 pub fn sqrt(v: f32) -> f32 {
     #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
     {
-        // SAFETY: `swg_vsqrtf` below follows the AAPCS-VFP calling convention of `extern "C"`
-        // on this target (argument and result in s0) and touches nothing else.
+        // Inline `asm!` cannot take an f32 operand in a single-precision register on this
+        // target (its `sreg` class demands the double-precision `vfp2`), but it may clobber
+        // one: the value goes in and out through a core register, s0 as the scratch.
+        let mut bits = v.to_bits();
+        // SAFETY: the three instructions read and write only `bits` (a core register) and s0,
+        // which is declared clobbered; no memory, no stack.
         #[allow(unsafe_code)]
         unsafe {
-            swg_vsqrtf(v)
+            core::arch::asm!(
+                "vmov s0, {bits}",
+                "vsqrt.f32 s0, s0",
+                "vmov {bits}, s0",
+                bits = inout(reg) bits,
+                out("s0") _,
+                options(pure, nomem, nostack),
+            );
         }
+        f32::from_bits(bits)
     }
     #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
     {
         libm::sqrtf(v)
     }
 }
-
-// Rust has no stable `f32::sqrt` without std, and inline `asm!` cannot name single-precision
-// registers on this target (its `sreg` class demands the double-precision `vfp2`), so the
-// one instruction lives in a two-instruction function.
-#[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
-#[allow(unsafe_code)]
-mod vsqrt {
-    core::arch::global_asm!(
-        ".section .text.swg_vsqrtf,\"ax\",%progbits",
-        ".global swg_vsqrtf",
-        ".type swg_vsqrtf,%function",
-        ".fpu fpv4-sp-d16",
-        ".thumb_func",
-        "swg_vsqrtf:",
-        "vsqrt.f32 s0, s0",
-        "bx lr",
-    );
-
-    extern "C" {
-        pub fn swg_vsqrtf(v: f32) -> f32;
-    }
-}
-#[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
-use vsqrt::swg_vsqrtf;
 
 /// asin x for x ∈ [−1, 1]: π/2 − √(1 − |x|)·P7(|x|), |error| ≤ 2·10⁻⁸ before f32 rounding
 /// (Abramowitz & Stegun 4.4.46).

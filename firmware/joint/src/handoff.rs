@@ -157,7 +157,7 @@ pub struct Handoff {
 }
 
 impl Handoff {
-    pub const fn new(timing: TickTiming) -> Self {
+    pub fn new(timing: TickTiming) -> Self {
         Handoff {
             compensator: Compensator::new(),
             commands: Queue::new(),

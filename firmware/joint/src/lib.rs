@@ -1,5 +1,7 @@
 //! Everything of the joint firmware that does not touch a register, so that it runs and is
-//! tested on the host: the boards only move bytes and encoder readings in and out.
+//! tested on the host: the boards only move bytes and encoder readings in and out. The one
+//! exception, `systick` (compiled for the Cortex-M only), is the SysTick set-up and tick
+//! timing both boards share.
 //!
 //! Per control tick ([`Compensator::tick`]): deflection θ = θ_in/N − θ_out, then one step of
 //! the installed model's stateful evaluator from model-core (`GeneticMemory`: the genetic model
@@ -29,6 +31,10 @@ pub mod handover;
 pub mod sensor;
 mod server;
 pub mod storage;
+#[cfg(target_arch = "arm")]
+pub mod systick;
+#[cfg(test)]
+mod test_support;
 mod tick;
 
 pub use compensator::{Compensator, Stager, Ticker, MAX_DEFLECTION};

@@ -75,7 +75,9 @@ impl<F: NorFlash> Server<F> {
 
     /// The reply to the frame of `frame` bytes that the frame buffer holds (or to one that could
     /// not be read), encoded in that buffer; its length. Not inlined, as the others that make a
-    /// reply: the request and its response are on the stack only while they run.
+    /// reply: the request and its response are on the stack only while they run, and never in
+    /// the same frame (a request decoded and a response made are a parameter set each; the
+    /// link's stack is deepest while a request's set is decoded).
     #[inline(never)]
     fn answer(&mut self, frame: Result<usize, FrameError>, port: &mut LinkPort) -> Option<usize> {
         let request = match frame {
@@ -85,11 +87,8 @@ impl<F: NorFlash> Server<F> {
         // By reference throughout: a request or a response moved is a parameter set copied
         // on the stack.
         match &request {
-            Ok(Envelope { id, message }) => {
-                let response = self.handle(*id, message, port);
-                self.reply(*id, response.as_ref()?)
-            }
-            Err(error) => self.reply(error.request_id(), &Response::Error((*error).into())),
+            Ok(Envelope { id, message }) => self.handle(*id, message, port),
+            Err(error) => self.refuse(error.request_id(), (*error).into()),
         }
     }
 
@@ -114,10 +113,18 @@ impl<F: NorFlash> Server<F> {
         encode_response(id, response, self.reader.spare()?).ok()
     }
 
-    /// The reply to `request`, or `None` when the tick has been handed its sample. Not inlined:
-    /// what a request needs on the stack (a set staged, a commit) is there only while it runs.
+    /// The error reply to request `id`, encoded as [`Server::reply`]'s. Not inlined: its
+    /// response is not on the stack under a request being decoded.
     #[inline(never)]
-    fn handle(&mut self, id: RequestId, request: &Request, port: &mut LinkPort) -> Option<Response> {
+    fn refuse(&mut self, id: RequestId, reason: ErrorReply) -> Option<usize> {
+        self.reply(id, &Response::Error(reason))
+    }
+
+    /// The reply to `request`, encoded as [`Server::reply`]'s, or `None` when the tick has been
+    /// handed its sample. Not inlined: what a request needs on the stack (a set staged, a
+    /// commit, a response) is there only while it runs.
+    #[inline(never)]
+    fn handle(&mut self, id: RequestId, request: &Request, port: &mut LinkPort) -> Option<usize> {
         let response = match *request {
             Request::GetDeviceInfo => GetDeviceInfo::reply(DeviceInfo {
                 firmware_version: FIRMWARE_VERSION,
@@ -136,15 +143,15 @@ impl<F: NorFlash> Server<F> {
             }),
             Request::Replay(sample) => {
                 let finite = sample.input_angle.is_finite() && sample.output_angle.is_finite();
-                return self.lockstep(id, finite, Sample::Replay(sample), port);
+                self.lockstep(id, finite, Sample::Replay(sample), port)?
             }
             Request::Control(sample) => {
                 let finite = [sample.input_angle, sample.output_angle, sample.reference];
                 let finite = finite.iter().all(|value| value.is_finite());
-                return self.lockstep(id, finite, Sample::Control(sample), port);
+                self.lockstep(id, finite, Sample::Control(sample), port)?
             }
         };
-        Some(response)
+        self.reply(id, &response)
     }
 
     fn write_params(&mut self, params: &JointParams, port: &mut LinkPort) -> Result<(), ErrorReply> {
@@ -247,8 +254,9 @@ impl<F: NorFlash, D: MotorDrive> Device<F, D> {
 mod tests {
     extern crate std;
     use super::*;
-    use crate::drive::{self, NoDrive};
+    use crate::drive::NoDrive;
     use crate::flash::RamFlash;
+    use crate::test_support::Recorder;
     use model_core::Params;
     use std::vec::Vec;
     use swg_protocol::{
@@ -277,27 +285,6 @@ mod tests {
         command_limit: 1.0,
         period: 1.0e-3,
     };
-
-    /// A drive that records what it was given, and refuses when told to.
-    #[derive(Default)]
-    struct Recorder {
-        applied: Vec<f32>,
-        refuse: bool,
-    }
-
-    impl drive::ErrorType for Recorder {
-        type Error = DriveErrorKind;
-    }
-
-    impl MotorDrive for Recorder {
-        fn apply(&mut self, torque: f32) -> Result<(), DriveErrorKind> {
-            if self.refuse {
-                return Err(DriveErrorKind::OutOfRange);
-            }
-            self.applied.push(torque);
-            Ok(())
-        }
-    }
 
     type Test<D = NoDrive> = Device<RamFlash<4096>, D>;
 
@@ -469,7 +456,7 @@ mod tests {
         assert_eq!(request(&mut device, &Request::SetReference(-5.0)), Response::ControlAccepted);
         assert_eq!(device.drive().applied.len(), 2);
         // A drive that refuses: the reply says so, with its kind.
-        device.drive.refuse = true;
+        device.drive.refuse = Some(DriveErrorKind::OutOfRange);
         assert_eq!(
             request(&mut device, &Request::Control(sample)),
             Response::Error(ErrorReply::MotorDrive(DriveErrorKind::OutOfRange))

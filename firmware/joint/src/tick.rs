@@ -116,28 +116,8 @@ mod tests {
     extern crate std;
     use super::*;
     use crate::handoff::{Handoff, TickTiming};
+    use crate::test_support::Recorder;
     use swg_protocol::{ControlMode, ControlSample, ControllerConfig, DriveErrorKind, SensorErrorKind};
-
-    /// A drive that records what it was given, and refuses when told to.
-    #[derive(Default)]
-    struct Recorder {
-        applied: std::vec::Vec<f32>,
-        refuse: bool,
-    }
-
-    impl drive::ErrorType for Recorder {
-        type Error = DriveErrorKind;
-    }
-
-    impl MotorDrive for Recorder {
-        fn apply(&mut self, torque: f32) -> Result<(), DriveErrorKind> {
-            if self.refuse {
-                return Err(DriveErrorKind::Fault);
-            }
-            self.applied.push(torque);
-            Ok(())
-        }
-    }
 
     const TIMING: TickTiming = TickTiming { clock_hz: 1_000_000, period: 100, late_bound: 5 };
 
@@ -187,11 +167,11 @@ mod tests {
         assert_eq!(drive.applied, [0.0]);
         joint.own_tick(&mut tick, start, Err(SensorErrorKind::Corrupt), &mut drive);
         assert_eq!(drive.applied, [0.0, 0.0]);
-        drive.refuse = true;
+        drive.refuse = Some(DriveErrorKind::Fault);
         joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>((0.0, 0.0)), &mut drive);
         let sample = ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 1.0 };
         link.post(Command::Sample(Sample::Control(sample))).unwrap();
-        drive.refuse = false;
+        drive.refuse = None;
         joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>((0.0, 0.0)), &mut drive);
         assert_eq!(link.answer(), Some(Answer::Refused(ErrorReply::NotLockstep)));
         let status = link.status();

@@ -40,8 +40,8 @@
 //!   plus the chip-select gaps (≥ 350 ns, the sensor's) and the HAL's polling, about 1 µs per
 //!   frame: about 24 µs.
 //! - Controller + evaluator: ≤ 600 instructions per tick in the QEMU benchmark
-//!   (`bench/firmware.sh`, model mode, the worst of its measured ticks; about 620 on average
-//!   along a nested motion for the genetic kind). The whole lockstep tick under QEMU — the
+//!   (`bench/firmware.sh`, model mode: at most 546 over its measured ticks, a full genetic
+//!   memory wiped out; about 418 on average along a nested motion for the genetic kind). The whole lockstep tick under QEMU — the
 //!   handoff, the timing, a sample's answer, a new set's install included — measured at most
 //!   1,600 instructions (`worst_tick_ns` in `host/tests/tick_e2e.rs`, one instruction per ns
 //!   under `-icount shift=0`). At ≤ 2 cycles per instruction (flash wait states behind the
@@ -58,8 +58,6 @@
 #[cfg(not(target_arch = "arm"))]
 compile_error!("the firmware runs on thumbv7em-none-eabihf: build it from firmware/ (see firmware/.cargo/config.toml)");
 
-use cortex_m::peripheral::scb::SystemHandler;
-use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::{DWT, NVIC, SYST};
 use cortex_m_rt::{entry, exception};
 use defmt_rtt as _;
@@ -272,19 +270,14 @@ fn main() -> ! {
 /// SysTick at [`TICK_HZ`] from the core clock at priority 0, USART2 below it, both enabled.
 #[allow(unsafe_code)]
 fn start(scb: &mut cortex_m::peripheral::SCB, nvic: &mut NVIC, mut syst: SYST) -> SYST {
-    // SAFETY: no code relies on these priorities for memory safety (the handlers share only
+    swg_joint::systick::start(scb, &mut syst, &TIMING);
+    // SAFETY: no code relies on this priority for memory safety (the handlers share only
     // lock-free queues and atomics with the link); unmasking USART2 runs its handler, which
     // expects it.
     unsafe {
-        scb.set_priority(SystemHandler::SysTick, 0);
         nvic.set_priority(Interrupt::USART2, LINK_PRIORITY);
         NVIC::unmask(Interrupt::USART2);
     }
-    syst.set_clock_source(SystClkSource::Core);
-    syst.set_reload(TIMING.period - 1);
-    syst.clear_current();
-    syst.enable_interrupt();
-    syst.enable_counter();
     syst
 }
 
@@ -294,24 +287,21 @@ fn start(scb: &mut cortex_m::peripheral::SCB, nvic: &mut NVIC, mut syst: SYST) -
 fn SysTick() {
     static mut STATE: Option<&'static mut Tick> = None;
     // First: the counts since the expiry.
-    let latency = TIMING.since_expiry(SYST::get_current());
+    let latency = swg_joint::systick::latency(&TIMING);
     if STATE.is_none() {
         *STATE = TICK.take();
     }
     let Some(tick) = STATE.as_deref_mut() else { return };
     let start = TickStart { latency, now: DWT::cycle_count() };
-    // Reading COUNTFLAG clears it: set from here on means a new expiry during this tick.
-    tick.syst.has_wrapped();
-    let angles = tick
-        .input_encoder
-        .read_angle()
-        .and_then(|input| Ok((input, tick.output_encoder.read_angle()?)))
-        .map(|(input, output)| (tick.input_turns.update(input), tick.output_turns.update(output)))
-        .map_err(|error| sensor::Error::kind(&error));
-    tick.joint.own_tick(&mut tick.port, start, angles, &mut tick.drive);
-    let elapsed = TIMING.since_expiry(SYST::get_current());
-    let overran = tick.syst.has_wrapped();
-    tick.port.finish(elapsed, overran);
+    let Tick { joint, port, drive, syst, input_encoder, output_encoder, input_turns, output_turns } = tick;
+    swg_joint::systick::timed(syst, &TIMING, start, port, |port, start| {
+        let angles = input_encoder
+            .read_angle()
+            .and_then(|input| Ok((input, output_encoder.read_angle()?)))
+            .map(|(input, output)| (input_turns.update(input), output_turns.update(output)))
+            .map_err(|error| sensor::Error::kind(&error));
+        joint.own_tick(port, start, angles, drive);
+    });
 }
 
 /// USART2: received bytes into the link's queue (a full queue drops the byte: its frame then

@@ -30,8 +30,6 @@
 #![no_std]
 #![no_main]
 
-use cortex_m::peripheral::scb::SystemHandler;
-use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::{NVIC, SYST};
 use cortex_m_rt::{entry, exception};
 use embedded_io::Write;
@@ -142,20 +140,14 @@ fn statics() -> (Link, TickPort<'static>, FreeRunning, cortex_m::Peripherals) {
 /// receive interrupt below it.
 #[allow(unsafe_code)]
 fn start_tick(mut scb: cortex_m::peripheral::SCB, mut nvic: NVIC, mut syst: SYST) -> SYST {
-    // SAFETY: no code relies on these priorities for memory safety (the tick and the link share
-    // only lock-free queues and atomics; the receive interrupt touches one UART register);
-    // SysTick's 0 is its value at reset, set here to say so. Unmasking IRQ 0 runs
-    // `DefaultHandler`, which expects it.
+    swg_joint::systick::start(&mut scb, &mut syst, &TIMING);
+    // SAFETY: no code relies on this priority for memory safety (the receive interrupt touches
+    // one UART register and a lock-free queue); unmasking IRQ 0 runs `DefaultHandler`, which
+    // expects it.
     unsafe {
-        scb.set_priority(SystemHandler::SysTick, 0);
         nvic.set_priority(Uart0Rx, 0x80);
         NVIC::unmask(Uart0Rx);
     }
-    syst.set_clock_source(SystClkSource::Core);
-    syst.set_reload(TIMING.period - 1);
-    syst.clear_current();
-    syst.enable_interrupt();
-    syst.enable_counter();
     syst
 }
 
@@ -165,18 +157,16 @@ fn start_tick(mut scb: cortex_m::peripheral::SCB, mut nvic: NVIC, mut syst: SYST
 fn SysTick() {
     static mut STATE: Option<&'static mut Tick> = None;
     // First: the counts since the expiry.
-    let latency = TIMING.since_expiry(SYST::get_current());
+    let latency = swg_joint::systick::latency(&TIMING);
     if STATE.is_none() {
         *STATE = TICK.take();
     }
     let Some(tick) = STATE.as_deref_mut() else { return };
     let start = TickStart { latency, now: tick.clock.now() };
-    // Reading COUNTFLAG clears it: set from here on means a new expiry during this tick.
-    tick.syst.has_wrapped();
-    tick.joint.lockstep_tick(&mut tick.port, Some(start), &mut tick.drive);
-    let elapsed = TIMING.since_expiry(SYST::get_current());
-    let overran = tick.syst.has_wrapped();
-    tick.port.finish(elapsed, overran);
+    let (joint, drive) = (&mut tick.joint, &mut tick.drive);
+    swg_joint::systick::timed(&mut tick.syst, &TIMING, start, &mut tick.port, |port, start| {
+        joint.lockstep_tick(port, Some(start), drive)
+    });
 }
 
 /// The interrupts without a handler of their own: UART0's receive interrupt, the only one
