@@ -13,7 +13,7 @@ fn ratios(physics: &Physics, trained_on: &'static str, predicted: &'static str) 
     let fitted = fit_all(&case(physics, trained_on).measured);
     let target = case(physics, predicted);
     let floor = target.rms(&target.floor, &target.truth);
-    predictions(&fitted, &target).map(|p| target.rms(&p, &target.truth) / floor)
+    predictions(&fitted, &target).map(|p| target.rms(&p.torque, &target.truth) / floor)
 }
 
 #[test]

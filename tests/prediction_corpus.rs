@@ -1,6 +1,11 @@
 //! The prediction corpus shared by the benchmark (`prediction_bench.rs`, every case, figures)
 //! and the system test (`prediction.rs`, the goals on a few cases): gears of three truth
 //! physics recorded under five motions, the models fitted on one motion, run along another.
+//!
+//! The stiffness K a model predicts (its dT/dθ along the measured angles, as `predict` writes it)
+//! is scored where the truth has a tangent (micro-slip, catalogue): RMS of the predicted minus
+//! the truth's tangent along the true deflection, over the tangent's RMS (as
+//! `bench/opensees/score.py` scores OpenSees' `getTangent`).
 // The benchmark and the test each use their own part of it.
 #![allow(dead_code)]
 use model_core::{GearModel, Identifiable, Kind, Model, Params};
@@ -85,12 +90,19 @@ pub fn fit_all(recording: &Recording) -> Fitted {
     Fitted { symmetric, genetic: stateful(Kind::Genetic), micro_slip: stateful(Kind::MicroSlip) }
 }
 
-/// Torque of the symmetric rule along a recording: each sample on the loop of its leg.
-pub fn symmetric_prediction(params: &Params<f64>, recording: &Recording) -> Vec<f64> {
+/// The symmetric rule along a recording: each sample on the loop of its leg.
+pub fn symmetric_prediction(params: &Params<f64>, recording: &Recording) -> Predicted {
     let prepared = from_recording(recording).expect("segmentation");
     let model = Model::new(*params).expect("valid");
     let d = &prepared.data;
-    (0..d.theta.len()).map(|i| model.torque(d.theta[i], d.direction[i], d.amplitude[i]).unwrap_or(0.0)).collect()
+    let (torque, stiffness) = (0..d.theta.len())
+        .map(|i| {
+            let (theta, direction, amplitude) = (d.theta[i], d.direction[i], d.amplitude[i]);
+            let torque = model.torque(theta, direction, amplitude).unwrap_or(0.0);
+            (torque, model.stiffness(theta, direction, amplitude).unwrap_or(0.0))
+        })
+        .unzip();
+    Predicted { torque, stiffness }
 }
 
 /// One motion of one gear: measured, the noise-free truth, and the truth on the measured angles.
@@ -99,6 +111,8 @@ pub struct Case {
     pub measured: Recording,
     pub truth: Vec<f64>,
     pub floor: Vec<f64>,
+    /// The truth's tangent stiffness along the true deflection, N·m/rad, where it has one.
+    pub tangent: Option<Vec<f64>>,
     /// The first sample scored: `predict`'s start rule (the sine of the genetic gear starts on
     /// its loop, not at rest).
     pub scored_from: usize,
@@ -109,23 +123,40 @@ impl Case {
     pub fn rms(&self, a: &[f64], b: &[f64]) -> f64 {
         rms(&a[self.scored_from..], &b[self.scored_from..])
     }
+
+    /// The stiffness error of `stiffness` (N·m/rad, one a sample): RMS of it minus the truth's
+    /// tangent over the tangent's RMS, on the scored samples; `None` without a tangent.
+    pub fn stiffness_error(&self, stiffness: &[f64]) -> Option<f64> {
+        let tangent = &self.tangent.as_ref()?[self.scored_from..];
+        let zero = vec![0.0; tangent.len()];
+        Some(rms(&stiffness[self.scored_from..], tangent) / rms(tangent, &zero))
+    }
 }
 
 pub fn case(physics: &Physics, name: &'static str) -> Case {
     let measured = record(physics, motion(name), true);
-    let truth = record(physics, motion(name), false).torque;
+    let exact = record(physics, motion(name), false);
+    let tangent = physics.tangent_along(&exact.deflection).expect("valid physics");
+    let truth = exact.torque;
     let trajectory =
         Trajectory::new("measured angles", measured.time.clone(), measured.deflection.clone()).expect("a trajectory");
     let floor = record(physics, Motion::File(trajectory), false).torque;
     let scored_from = OfflineRun::of(&measured).scored_from;
-    Case { motion: name, measured, truth, floor, scored_from }
+    Case { motion: name, measured, truth, floor, tangent, scored_from }
 }
 
-/// The torque of the symmetric rule, the genetic and the micro-slip model along `case`.
-pub fn predictions(fitted: &Fitted, case: &Case) -> [Vec<f64>; 3] {
+/// A model's torque and stiffness along a recording.
+pub struct Predicted {
+    pub torque: Vec<f64>,
+    pub stiffness: Vec<f64>,
+}
+
+/// The symmetric rule, the genetic and the micro-slip model along `case`.
+pub fn predictions(fitted: &Fitted, case: &Case) -> [Predicted; 3] {
     let measured = &case.measured;
-    let stateful = |model: &GearModel<f64>| -> Vec<f64> {
-        predict(model, measured, None, Zeroing::RestWindow).expect("runs").torque
+    let stateful = |model: &GearModel<f64>| -> Predicted {
+        let prediction = predict(model, measured, None, Zeroing::RestWindow).expect("runs");
+        Predicted { torque: prediction.torque, stiffness: prediction.stiffness }
     };
     [symmetric_prediction(&fitted.symmetric, measured), stateful(&fitted.genetic), stateful(&fitted.micro_slip)]
 }
