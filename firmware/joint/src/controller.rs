@@ -213,7 +213,7 @@ mod tests {
     extern crate std;
     use super::*;
     use model_core::{checks::micro_slip_set, Hysteretic, MODEL_VERSION};
-    use swg_protocol::{GearModel, JointParams};
+    use swg_protocol::JointParams;
 
     const RATIO: f32 = 50.0;
     const PERIOD: f32 = 1.0e-3;

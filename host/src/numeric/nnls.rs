@@ -41,17 +41,21 @@ fn lawson_hanson(gram: &[f64], h: &[f64], nonnegative: &[bool]) -> Option<Vec<f6
         let Some(entering) = entering else { break };
         passive[entering] = true;
         // Inner loop: step towards the passive solution until no bounded unknown goes negative.
-        loop {
+        // Each pass drops at least the blocking unknown (set to 0 exactly: its step's end can
+        // round to a hair above 0), so it ends within n passes.
+        for _ in 0..n {
             let z = solve_passive(gram, h, &passive)?;
-            let blocking = (0..n).filter(|&j| passive[j] && nonnegative[j] && z[j] <= 0.0);
-            let alpha = blocking.map(|j| x[j] / (x[j] - z[j])).fold(f64::INFINITY, f64::min);
-            if !alpha.is_finite() {
+            let blocking = (0..n)
+                .filter(|&j| passive[j] && nonnegative[j] && z[j] <= 0.0)
+                .map(|j| (x[j] / (x[j] - z[j]), j))
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            let Some((alpha, blocked)) = blocking.filter(|(alpha, _)| alpha.is_finite()) else {
                 x = z;
                 break;
-            }
+            };
             for j in 0..n {
                 x[j] += alpha * (z[j] - x[j]);
-                if passive[j] && nonnegative[j] && x[j] <= 0.0 {
+                if passive[j] && nonnegative[j] && (x[j] <= 0.0 || j == blocked) {
                     passive[j] = false;
                     x[j] = 0.0;
                 }
