@@ -79,7 +79,8 @@ fn main() {
                     std::fs::write(&path, svg).expect("docs/ is writable");
                 }
             }
-            let (slip_tangent, slip_k) = (percent(worst_slip_k), percent(centre_stiffness_error(physics, &fitted.micro_slip)));
+            let (slip_tangent, slip_k) =
+                (percent(worst_slip_k), percent(centre_stiffness_error(physics, &fitted.micro_slip)));
             let case = format!("{name}, trained on {trained_on}");
             worst.push((case, worst_symmetric, worst_genetic, worst_slip, slip_k, slip_tangent));
         }

@@ -176,7 +176,7 @@ const CENTRE_GRID: usize = 95;
 /// torque `torque`, `per_cycle` samples a cycle) at the midpoints of the grid: see [`CENTRE_GRID`].
 pub fn centre_slope(theta: &[f64], torque: &[f64], per_cycle: usize, amplitude: f64) -> Vec<f64> {
     let start = theta.len() - per_cycle;
-    let (mut rising, mut falling): (Vec<(f64, f64)>, Vec<(f64, f64)>) = (Vec::new(), Vec::new());
+    let (mut rising, mut falling) = (Vec::new(), Vec::new());
     for i in start..theta.len() - 1 {
         let point = (theta[i], torque[i]);
         if theta[i + 1] > theta[i] {

@@ -985,7 +985,9 @@ fn placed_knots(motion: &Motion, sub: &Subsample, rule: SpringBasis) -> Result<S
     let (lo, hi) = (knots.first().copied().unwrap_or(0.0), knots.last().copied().unwrap_or(0.0));
     let mut best = rss(&rule)?;
     for _ in 0..KNOT_PASSES {
-        for j in 1..knots.len().saturating_sub(1) {
+        // Not the knots next to the edges: the outermost segment's stiffness is the one that
+        // extrapolates, fitted on the rule's full spacing of real travel.
+        for j in 2..knots.len().saturating_sub(2) {
             if knots[j] == 0.0 {
                 continue;
             }

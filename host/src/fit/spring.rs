@@ -13,7 +13,8 @@
 //!   4/8/12 knots) were second order there and uniform is the simplest to state.
 //! - 8 a side: the seed gear's quintic spring is then within 0.006 % of its peak torque.
 //! - **Then placed (the micro-slip kind, `fit::motion::placed_knots`)**: each interior knot is
-//!   moved in turn, twice over, to the point of a 64-step grid of its side where the kind's
+//!   but the two next to the range's edges (the outermost segment extrapolates) moved in turn,
+//!   twice over, to the point of a 64-step grid of its side where the kind's
 //!   solve on an 8192-sample subsample has the least RSS, still ≥ 10σθ from its neighbours:
 //!   free knots. A catalogue gear's stiffness steps at two torques; uniform knots E/8 apart smear
 //!   each step over a segment (the simulator's catalogue gear, fitted on the sine: nested

@@ -839,11 +839,8 @@ mod tests {
         path.extend((0..=400).map(|i| A - 0.3e-3 * (TAU * i as f64 / 800.0).sin()));
         let catalogue = Catalogue::default();
         let k_e = catalogue.slip_stiffness / catalogue.elements as f64;
-        let worst = tangent_against_secant(
-            &Physics::Catalogue(catalogue),
-            CatalogueGear::new(catalogue).unwrap(),
-            &path,
-        );
+        let worst =
+            tangent_against_secant(&Physics::Catalogue(catalogue), CatalogueGear::new(catalogue).unwrap(), &path);
         assert!(worst <= k_e * 1.000001, "catalogue: {worst}");
         let micro_slip = MicroSlip::default();
         let worst =
