@@ -943,7 +943,7 @@ pub fn fit_kind(kind: Kind, motion: &Motion, options: &FitOptions) -> Result<Mot
 /// on a subsample; the last round solves on every sample.
 pub fn fit_micro_slip(motion: &Motion, _options: &FitOptions) -> Result<MotionFit, FitError> {
     motion.check()?;
-    let spring = placed_knots(motion, &motion.subsample(KNOT_SAMPLES), motion.spring_basis())?;
+    let spring = motion.spring_basis();
     let mut sub = motion.subsample(POLISH_SAMPLES);
     let (columns, elements) = slip_columns(motion, &spring, &[], Source::Stored(&sub), Weighting::Carried)?;
     let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
@@ -962,52 +962,6 @@ pub fn fit_micro_slip(motion: &Motion, _options: &FitOptions) -> Result<MotionFi
     // The knots' stiffnesses and each element's k and d.
     let parameters = spring.len() + 2 * model.slip_elements().len();
     motion.score(model, offset, parameters, rounds)
-}
-
-/// Points a side's knots may move to: the side's extent in this many steps.
-const KNOT_GRID: usize = 64;
-/// Passes over the knots.
-const KNOT_PASSES: usize = 2;
-/// Samples the knots are placed on (a subsample: the shape needs no more).
-const KNOT_SAMPLES: usize = 1 << 13;
-
-/// The knot rule's knots, each interior one (not x = 0, not the range's edges) moved in turn to
-/// the point of a fine grid between its neighbours (at least the rule's 10σθ from them) where
-/// the micro-slip solve on the subsample has the least RSS: free knots, so that a stiffness that
-/// steps (a catalogue gear's kinks) gets a pair of knots close around each step.
-fn placed_knots(motion: &Motion, sub: &Subsample, rule: SpringBasis) -> Result<SpringBasis, FitError> {
-    let rss = |basis: &SpringBasis| -> Result<f64, FitError> {
-        let (columns, elements) = slip_columns(motion, basis, &[], Source::Stored(sub), Weighting::Carried)?;
-        Ok(slip_solve(Source::Stored(sub), Weighting::Carried, &columns, &elements)?.rss)
-    };
-    let gap = super::spring::KNOT_SPACING_IN_NOISE * motion.noise.map_or(0.0, |n| n.deflection_rad);
-    let mut knots = rule.knots().to_vec();
-    let (lo, hi) = (knots.first().copied().unwrap_or(0.0), knots.last().copied().unwrap_or(0.0));
-    let mut best = rss(&rule)?;
-    for _ in 0..KNOT_PASSES {
-        // Not the knots next to the edges: the outermost segment's stiffness is the one that
-        // extrapolates, fitted on the rule's full spacing of real travel.
-        for j in 2..knots.len().saturating_sub(2) {
-            if knots[j] == 0.0 {
-                continue;
-            }
-            let extent = if knots[j] > 0.0 { hi } else { lo };
-            let (left, right) = (knots[j - 1] + gap, knots[j + 1] - gap);
-            for step in 1..KNOT_GRID {
-                let candidate = extent * step as f64 / KNOT_GRID as f64;
-                if candidate <= left || candidate >= right || candidate == knots[j] {
-                    continue;
-                }
-                let mut trial = knots.clone();
-                trial[j] = candidate;
-                let trial_rss = rss(&rule.with_knots(trial.clone()))?;
-                if trial_rss < best {
-                    (best, knots) = (trial_rss, trial);
-                }
-            }
-        }
-    }
-    Ok(rule.with_knots(knots))
 }
 
 #[cfg(test)]

@@ -12,16 +12,6 @@
 //! - Uniform, because the variants tried on the measured runs (quantiles of |x|, denser near 0,
 //!   4/8/12 knots) were second order there and uniform is the simplest to state.
 //! - 8 a side: the seed gear's quintic spring is then within 0.006 % of its peak torque.
-//! - **Then placed (the micro-slip kind, `fit::motion::placed_knots`)**: each interior knot is
-//!   but the two next to the range's edges (the outermost segment extrapolates) moved in turn,
-//!   twice over, to the point of a 64-step grid of its side where the kind's
-//!   solve on an 8192-sample subsample has the least RSS, still ≥ 10σθ from its neighbours:
-//!   free knots. A catalogue gear's stiffness steps at two torques; uniform knots E/8 apart smear
-//!   each step over a segment (the simulator's catalogue gear, fitted on the sine: nested
-//!   motion 1.47× the floor, centre-curve K 5.5 % off), a pair of knots around each step follows
-//!   it (1.04×, 2.5 %; knots set by hand at ±10 µrad of the kinks: 1.03×, 0.8 %). On the
-//!   measured runs (fit on 1-4, 3-4, 5-1) no held-out run got worse (4-4 1.096 → 1.083, 5-2
-//!   0.633 → 0.582 N·m). The cost: 400–900 extra solves on the subsample, ≈ 1.3 s a fit.
 //! - Separate sides: the spring's asymmetry. K ≥ 0 at every knot (the solves ask it) keeps the
 //!   spring monotone, as the physics asks.
 use crate::gear::Projected;
@@ -62,11 +52,6 @@ impl SpringBasis {
     pub fn new(range: [f64; 2], noise: f64) -> Self {
         let [lo, hi] = [range[0].min(0.0), range[1].max(0.0)];
         SpringBasis { knots: knot_rule(lo, hi, noise), range: [lo, hi] }
-    }
-
-    /// The same range with other knots (increasing, holding x = 0).
-    pub fn with_knots(&self, knots: Vec<f64>) -> Self {
-        SpringBasis { knots, range: self.range }
     }
 
     /// Columns: one per knot.
