@@ -6,14 +6,14 @@
 mod corpus;
 
 use corpus::*;
-use swg_host::simulate::{MicroSlip, Physics};
+use swg_host::simulate::{Catalogue, MicroSlip, Physics};
 
 /// RMS against the truth of [symmetric, genetic, micro-slip], divided by the floor's.
 fn ratios(physics: &Physics, trained_on: &'static str, predicted: &'static str) -> [f64; 3] {
     let fitted = fit_all(&case(physics, trained_on).measured);
     let target = case(physics, predicted);
     let floor = target.rms(&target.floor, &target.truth);
-    predictions(&fitted, &target).map(|p| target.rms(&p, &target.truth) / floor)
+    predictions(&fitted, &target).map(|p| target.rms(&p.torque, &target.truth) / floor)
 }
 
 #[test]
@@ -28,4 +28,27 @@ fn the_genetic_model_with_memory_predicts_a_genetic_gear_near_the_floor() {
     let [symmetric, genetic, _] = ratios(&Physics::Model, "random", "biased");
     assert!(genetic <= 1.3, "genetic model: {genetic:.2}× the floor");
     assert!(symmetric > 3.0 * genetic, "today's rule {symmetric:.2}× against {genetic:.2}×");
+}
+
+/// Issue 16's catalogue goal, unmet by the uniform knot rule (fitted on the sine: nested 1.47×
+/// the floor, K 5.5 % off). Free knots met it (commit 3c5cd0d: 1.04×, 1.17×, 2.5 %) but made
+/// the random-trained cases worse elsewhere; see that commit and the next.
+#[test]
+#[ignore = "issue 16 goal unmet: the uniform knots smear the catalogue spring's stiffness steps"]
+fn the_micro_slip_model_predicts_a_catalogue_gear_and_its_stiffness_near_the_truth() {
+    // The spring's stiffness steps at two torques: the knots must follow them for the torque to
+    // come near the floor and the stiffness K (the loop's centre-curve slope) near the truth's.
+    let physics = Physics::Catalogue(Catalogue::default());
+    let fitted = fit_all(&case(&physics, "sine").measured);
+    let k_err = centre_stiffness_error(&physics, &fitted.micro_slip).expect("the catalogue gear has a tangent");
+    println!("catalogue, trained on sine: K err {:.2} %", 100.0 * k_err);
+    for predicted in ["nested", "hold"] {
+        let target = case(&physics, predicted);
+        let floor = target.rms(&target.floor, &target.truth);
+        let [_, _, micro_slip] = predictions(&fitted, &target);
+        let ratio = target.rms(&micro_slip.torque, &target.truth) / floor;
+        println!("catalogue, {predicted}: {ratio:.2}× the floor");
+        assert!(ratio <= 1.3, "{predicted}: {ratio:.2}× the floor");
+    }
+    assert!(k_err <= 0.03, "K err {:.2} %", 100.0 * k_err);
 }
