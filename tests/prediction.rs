@@ -30,11 +30,9 @@ fn the_genetic_model_with_memory_predicts_a_genetic_gear_near_the_floor() {
     assert!(symmetric > 3.0 * genetic, "today's rule {symmetric:.2}× against {genetic:.2}×");
 }
 
-/// Issue 16's catalogue goal, unmet by the uniform knot rule (fitted on the sine: nested 1.47×
-/// the floor, K 5.5 % off). Free knots met it (commit 3c5cd0d: 1.04×, 1.17×, 2.5 %) but made
-/// the random-trained cases worse elsewhere; see that commit and the next.
+/// Issue 16's catalogue goal: met by the free knots (nested 1.04×, hold 1.04×, K 2.5 % off);
+/// the uniform knot rule alone misses it (1.47×, 5.5 %).
 #[test]
-#[ignore = "issue 16 goal unmet: the uniform knots smear the catalogue spring's stiffness steps"]
 fn the_micro_slip_model_predicts_a_catalogue_gear_and_its_stiffness_near_the_truth() {
     // The spring's stiffness steps at two torques: the knots must follow them for the torque to
     // come near the floor and the stiffness K (the loop's centre-curve slope) near the truth's.
