@@ -6,14 +6,14 @@
 mod corpus;
 
 use corpus::*;
-use swg_host::simulate::{MicroSlip, Physics};
+use swg_host::simulate::{Catalogue, MicroSlip, Physics};
 
 /// RMS against the truth of [symmetric, genetic, micro-slip], divided by the floor's.
 fn ratios(physics: &Physics, trained_on: &'static str, predicted: &'static str) -> [f64; 3] {
     let fitted = fit_all(&case(physics, trained_on).measured);
     let target = case(physics, predicted);
     let floor = target.rms(&target.floor, &target.truth);
-    predictions(&fitted, &target).map(|p| target.rms(&p, &target.truth) / floor)
+    predictions(&fitted, &target).map(|p| target.rms(&p.torque, &target.truth) / floor)
 }
 
 #[test]
@@ -23,9 +23,48 @@ fn the_micro_slip_model_predicts_a_micro_slip_gear_near_the_floor() {
     assert!(symmetric > 3.0 * micro_slip, "today's rule {symmetric:.2}× against {micro_slip:.2}×");
 }
 
+/// The random motion reaches +1.00 mrad and −1.17: predicting the sine (±1.17) runs the + side
+/// beyond the samples, where the gear stiffens (k3); the shorter side continued with the longer
+/// one's gain in stiffness follows it (1.04×; the edge's straight line: 5.05×). Its slowly
+/// starting biased motion is read at rest where it is (a rest window that took in the s-ramp's
+/// first 0.2 s put the prediction at 2.08×).
+#[test]
+fn the_micro_slip_model_fitted_on_random_motion_predicts_the_wider_sine_and_a_slow_start() {
+    let physics = Physics::MicroSlip(MicroSlip::default());
+    let fitted = fit_all(&case(&physics, "random").measured);
+    for predicted in ["sine", "biased"] {
+        let target = case(&physics, predicted);
+        let floor = target.rms(&target.floor, &target.truth);
+        let [_, _, micro_slip] = predictions(&fitted, &target);
+        let ratio = target.rms(&micro_slip.torque, &target.truth) / floor;
+        assert!(ratio <= 1.3, "{predicted}: {ratio:.2}× the floor");
+    }
+}
+
 #[test]
 fn the_genetic_model_with_memory_predicts_a_genetic_gear_near_the_floor() {
     let [symmetric, genetic, _] = ratios(&Physics::Model, "random", "biased");
     assert!(genetic <= 1.3, "genetic model: {genetic:.2}× the floor");
     assert!(symmetric > 3.0 * genetic, "today's rule {symmetric:.2}× against {genetic:.2}×");
+}
+
+/// Issue 16's catalogue goal: met by the free knots (nested 1.04×, hold 1.04×, K 2.5 % off);
+/// the uniform knot rule alone misses it (1.47×, 5.5 %).
+#[test]
+fn the_micro_slip_model_predicts_a_catalogue_gear_and_its_stiffness_near_the_truth() {
+    // The spring's stiffness steps at two torques: the knots must follow them for the torque to
+    // come near the floor and the stiffness K (the loop's centre-curve slope) near the truth's.
+    let physics = Physics::Catalogue(Catalogue::default());
+    let fitted = fit_all(&case(&physics, "sine").measured);
+    let k_err = centre_stiffness_error(&physics, &fitted.micro_slip).expect("the catalogue gear has a tangent");
+    println!("catalogue, trained on sine: K err {:.2} %", 100.0 * k_err);
+    for predicted in ["nested", "hold"] {
+        let target = case(&physics, predicted);
+        let floor = target.rms(&target.floor, &target.truth);
+        let [_, _, micro_slip] = predictions(&fitted, &target);
+        let ratio = target.rms(&micro_slip.torque, &target.truth) / floor;
+        println!("catalogue, {predicted}: {ratio:.2}× the floor");
+        assert!(ratio <= 1.3, "{predicted}: {ratio:.2}× the floor");
+    }
+    assert!(k_err <= 0.03, "K err {:.2} %", 100.0 * k_err);
 }

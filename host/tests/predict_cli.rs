@@ -5,26 +5,37 @@ use common::{json, ok, repo, swg_host};
 
 /// A recording of `physics` under `motion`, 20-bit encoders, 0.02 N·m torque noise.
 fn simulate(dir: &std::path::Path, name: &str, physics: &str, motion: &str) -> std::path::PathBuf {
+    simulate_with(dir, name, physics, motion, &[])
+}
+
+/// [`simulate`] with further options.
+fn simulate_with(dir: &std::path::Path, name: &str, physics: &str, motion: &str, more: &[&str]) -> std::path::PathBuf {
     let path = dir.join(name);
-    ok(swg_host(&[
-        "simulate",
-        "--out",
-        path.to_str().unwrap(),
-        "--physics",
-        physics,
-        "--motion",
-        motion,
-        "--cycles",
-        "4",
-        "--frequency",
-        "0.5",
-        "--output-bits",
-        "20",
-        "--input-bits",
-        "20",
-        "--torque-noise",
-        "0.02",
-    ]));
+    ok(swg_host(
+        &[
+            &[
+                "simulate",
+                "--out",
+                path.to_str().unwrap(),
+                "--physics",
+                physics,
+                "--motion",
+                motion,
+                "--cycles",
+                "4",
+                "--frequency",
+                "0.5",
+                "--output-bits",
+                "20",
+                "--input-bits",
+                "20",
+                "--torque-noise",
+                "0.02",
+            ][..],
+            more,
+        ]
+        .concat(),
+    ));
     path
 }
 
@@ -40,7 +51,8 @@ fn auto_picks_micro_slip_for_a_micro_slip_gear_and_predicts_other_motions() {
     assert!(report["held_out"]["samples"].as_u64().unwrap() > 0);
     assert!(!report["params"]["elements"].as_array().unwrap().is_empty());
 
-    let other = simulate(dir.path(), "nested.csv", "micro-slip", "nested");
+    // 1.3 mrad: beyond the random motion's 1.168 mrad on both sides.
+    let other = simulate_with(dir.path(), "nested.csv", "micro-slip", "nested", &["--amplitude", "1.3e-3"]);
     let pred = dir.path().join("pred.csv");
     let summary = json(&swg_host(&[
         "predict",
@@ -52,8 +64,8 @@ fn auto_picks_micro_slip_for_a_micro_slip_gear_and_predicts_other_motions() {
     ]));
     let n = summary["n"].as_u64().unwrap() as usize;
     // Near the noise (0.02 N·m and 20-bit encoders through a stiffness of ≈ 10⁴ N·m/rad) where
-    // the random motion identified the spring; the nested motion reaches beyond that range,
-    // where the spring continues with its edge's stiffness, and that is reported.
+    // the random motion identified the spring; the wider nested motion reaches beyond that
+    // range, where the spring continues with its edge's stiffness, and that is reported.
     assert!(summary["within_range_rms"].as_f64().unwrap() < 0.1, "{summary:#}");
     assert!(summary["beyond_range_samples"].as_u64().unwrap() > 0, "{summary:#}");
     assert!(summary["max_excess_rad"].as_f64().unwrap() > 0.0, "{summary:#}");

@@ -41,11 +41,14 @@ pub struct FitOptions {
     /// A model of the same kind fitted to part of the same data, whose searched parameters the
     /// search may start from instead of searching globally (the refit on every sample).
     pub start: Option<GearModel<f64>>,
+    /// Whether the micro-slip kind places its knots freely (`fit::spring`); else the knot
+    /// rule's. The θ0 search compares its candidates on the rule's knots (`fit::zero`).
+    pub free_knots: bool,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None, start: None }
+        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None, start: None, free_knots: true }
     }
 }
 

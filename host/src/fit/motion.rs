@@ -846,7 +846,17 @@ fn slip_solve(
     columns: &Columns,
     elements: &Elements,
 ) -> Result<Solved, FitError> {
-    let equations = normal_equations(source, columns.len(), weighting, || {
+    columns.solve(&slip_equations(source, weighting, columns, elements)?)
+}
+
+/// The weighted normal equations of [`slip_solve`].
+fn slip_equations(
+    source: Source<'_>,
+    weighting: Weighting<'_>,
+    columns: &Columns,
+    elements: &Elements,
+) -> Result<Equations, FitError> {
+    normal_equations(source, columns.len(), weighting, || {
         let mut all = SlipElements::new(elements.grid)?;
         Ok(move |sample: &Sample, x: &mut [f64]| {
             all.step(sample.at.theta_m)?;
@@ -864,8 +874,7 @@ fn slip_solve(
             );
             Ok(())
         })
-    })?;
-    columns.solve(&equations)
+    })
 }
 
 /// The micro-slip model (θ0 = 0) of a solve.
@@ -946,9 +955,13 @@ pub fn fit_kind(kind: Kind, motion: &Motion, options: &FitOptions) -> Result<Mot
 /// Fits the micro-slip kind to `motion` (one solve a round: the swarm's options are not used).
 /// The candidates are chosen and the rounds whose model only sets the next round's weights run
 /// on a subsample; the last round solves on every sample.
-pub fn fit_micro_slip(motion: &Motion, _options: &FitOptions) -> Result<MotionFit, FitError> {
+pub fn fit_micro_slip(motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {
     motion.check()?;
-    let spring = motion.spring_basis();
+    let spring = if options.free_knots {
+        placed_knots(motion, &motion.subsample(KNOT_SAMPLES), motion.spring_basis())?
+    } else {
+        motion.spring_basis()
+    };
     let mut sub = motion.subsample(POLISH_SAMPLES);
     let (columns, elements) = slip_columns(motion, &spring, &[], Source::Stored(&sub), Weighting::Carried)?;
     let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
@@ -967,6 +980,133 @@ pub fn fit_micro_slip(motion: &Motion, _options: &FitOptions) -> Result<MotionFi
     // The knots' stiffnesses and each element's k and d.
     let parameters = spring.len() + 2 * model.slip_elements().len();
     motion.score(model, offset, parameters, rounds)
+}
+
+/// Points a side's knots may move to: the side's extent in this many steps.
+const KNOT_GRID: usize = 64;
+/// Passes over the knots.
+const KNOT_PASSES: usize = 2;
+/// Samples the knots are placed on (a subsample: the shape needs no more).
+const KNOT_SAMPLES: usize = 1 << 13;
+/// The shortest segment at an edge, as a fraction of the knot rule's there. Its stiffness is the
+/// one the spring extrapolates with; fitted on a shorter stretch it followed the last samples'
+/// noise and curvature (micro-slip gear trained on the random motion, sine predicted: the whole
+/// segment 1.04× the floor, half of it 1.04×, free 2.46×; the catalogue gear, whose step at
+/// 0.96 mrad lies in the + side's last segment there: 3.66×, 1.21×, 2.34×).
+const EDGE_SEGMENT: f64 = 0.5;
+
+/// The knot rule's knots, each interior one (not x = 0, not the range's edges) moved in turn to
+/// the point of a fine grid between its neighbours (at least the rule's 10σθ from them) where
+/// the micro-slip solve on the subsample has the least RSS: free knots, so that a stiffness that
+/// steps (a catalogue gear's kinks) gets a pair of knots close around each step.
+///
+/// One pass over the subsample: its normal equations on the fine grid's knots (every point a
+/// knot may sit at) and the slipping candidates. A spring on knots that are grid points is a
+/// spring on the grid (its stiffness is piecewise linear between grid points too), so each
+/// trial's equations are the fine ones mapped onto its knots, Mᵀ·G·M with M the trial's hats at
+/// the grid points: a solve of ≤ 47 unknowns, not a pass over the samples.
+fn placed_knots(motion: &Motion, sub: &Subsample, rule: SpringBasis) -> Result<SpringBasis, FitError> {
+    let [lo, hi] = rule.range();
+    let mut fine: Vec<f64> = rule.knots().to_vec();
+    for step in 1..=KNOT_GRID {
+        for extent in [lo, hi] {
+            if extent != 0.0 {
+                fine.push(extent * step as f64 / KNOT_GRID as f64);
+            }
+        }
+    }
+    fine.sort_by(f64::total_cmp);
+    fine.dedup();
+    let fine_basis = rule.with_knots(fine.clone());
+    let elements = Elements::slipping(motion)?;
+    fn columns<'a>(spring: &'a SpringBasis, motion: &Motion, elements: &Elements) -> Columns<'a> {
+        Columns {
+            spring,
+            own: vec![true; elements.kept.len()],
+            extra: &[],
+            free_offset: motion.free_offset,
+            scale: motion.scale(),
+        }
+    }
+    let fine_columns = columns(&fine_basis, motion, &elements);
+    let equations = slip_equations(Source::Stored(sub), Weighting::Carried, &fine_columns, &elements)?;
+    let rss = |knots: &[f64]| -> Result<f64, FitError> {
+        let trial = rule.with_knots(knots.to_vec());
+        let mapped = equations.mapped(&fine, knots, fine_columns.len());
+        columns(&trial, motion, &elements).solve(&mapped).map(|solved| solved.rss)
+    };
+    let gap = super::spring::KNOT_SPACING_IN_NOISE * motion.noise.map_or(0.0, |n| n.deflection_rad);
+    let mut knots = rule.knots().to_vec();
+    let mut best = rss(&knots)?;
+    for _ in 0..KNOT_PASSES {
+        for j in 1..knots.len().saturating_sub(1) {
+            if knots[j] == 0.0 {
+                continue;
+            }
+            // The edge's segment gives the stiffness the spring extrapolates with: at least
+            // EDGE_SEGMENT of the rule's.
+            let (mut left, mut right) = (knots[j - 1] + gap, knots[j + 1] - gap);
+            if j == 1 {
+                left = left.max(knots[0] + EDGE_SEGMENT * (rule.knots()[1] - knots[0]));
+            }
+            if j + 2 == knots.len() {
+                right = right.min(knots[j + 1] - EDGE_SEGMENT * (knots[j + 1] - rule.knots()[j]));
+            }
+            for &candidate in fine.iter().filter(|&&x| x > left && x < right && x != 0.0) {
+                if candidate == knots[j] {
+                    continue;
+                }
+                let mut trial = knots.clone();
+                trial[j] = candidate;
+                let trial_rss = rss(&trial)?;
+                if trial_rss < best {
+                    (best, knots) = (trial_rss, trial);
+                }
+            }
+        }
+    }
+    Ok(rule.with_knots(knots))
+}
+
+impl Equations {
+    /// These equations, on columns whose first `fine.len()` are a spring's on the knots `fine`,
+    /// mapped onto the spring on `knots` (each a point of `fine`): column c of the new spring is
+    /// Σ_f h_c(fine_f)·column f; the columns after the spring's (of `n` in all) are kept.
+    fn mapped(&self, fine: &[f64], knots: &[f64], n: usize) -> Equations {
+        let (springs, coarse) = (fine.len(), knots.len());
+        let m = coarse + n - springs;
+        // M as (fine column, new column, weight): each grid point lies on at most two hats.
+        let mut map: Vec<(usize, usize, f64)> = Vec::with_capacity(2 * springs + n);
+        for (f, &x) in fine.iter().enumerate() {
+            let right = knots.partition_point(|&k| k < x).min(coarse - 1);
+            if knots[right] == x || right == 0 {
+                map.push((f, right, 1.0));
+            } else if x > knots[coarse - 1] {
+                map.push((f, coarse - 1, 1.0));
+            } else {
+                let left = right - 1;
+                let t = (x - knots[left]) / (knots[right] - knots[left]);
+                map.push((f, left, 1.0 - t));
+                map.push((f, right, t));
+            }
+        }
+        map.extend((springs..n).map(|f| (f, f - springs + coarse, 1.0)));
+        // G·M (n × m), then Mᵀ·(G·M) (m × m) and Mᵀ·r.
+        let mut gm = vec![0.0; n * m];
+        for &(f, c, w) in &map {
+            for a in 0..n {
+                gm[a * m + c] += self.gram[a * n + f] * w;
+            }
+        }
+        let (mut gram, mut rhs) = (vec![0.0; m * m], vec![0.0; m]);
+        for &(f, c, w) in &map {
+            for b in 0..m {
+                gram[c * m + b] += w * gm[f * m + b];
+            }
+            rhs[c] += w * self.rhs[f];
+        }
+        Equations { gram, rhs, tt: self.tt, count: self.count }
+    }
 }
 
 #[cfg(test)]
@@ -1028,6 +1168,43 @@ mod tests {
         let mut spring = fitted.model.spring.prepare().unwrap();
         let (plus, minus) = (spring.evaluate(1.0e-3).stiffness, spring.evaluate(-1.0e-3).stiffness);
         assert!((plus - minus - 1000.0).abs() < 1.0, "{plus} / {minus}");
+    }
+
+    /// The knot placement's shortcut: the normal equations on the fine grid mapped onto knots
+    /// that are grid points are the normal equations on those knots.
+    #[test]
+    fn equations_on_the_fine_grid_map_exactly_onto_knots_among_its_points() {
+        let theta = nested(6000, 1.2e-3);
+        let reversals = crate::prepare::reversals(&theta);
+        let truth =
+            GearModel::micro_slip(0.0, asymmetric_spring(&theta), &elements_on_grid(&theta, &reversals)).unwrap();
+        let torque = torque_of(&truth, &theta, &reversals);
+        let motion = Motion::training_prefix(&theta, &torque, &reversals, theta.len(), None);
+        let rule = motion.spring_basis();
+        let [lo, hi] = rule.range();
+        let grid = KNOT_GRID as i32;
+        let mut fine: Vec<f64> =
+            (-grid..=grid).map(|s| if s < 0 { -lo * s as f64 } else { hi * s as f64 } / KNOT_GRID as f64).collect();
+        fine.sort_by(f64::total_cmp);
+        // Knots among the grid's points, unevenly spaced.
+        let knots: Vec<f64> = [0, 5, 30, 64, 70, 71, 100, 128].iter().map(|&f| fine[f]).collect();
+        let elements = Elements::slipping(&motion).unwrap();
+        let columns = |spring| Columns {
+            spring,
+            own: vec![true; elements.kept.len()],
+            extra: &[],
+            free_offset: false,
+            scale: motion.scale(),
+        };
+        let (fine_basis, coarse) = (rule.with_knots(fine.clone()), rule.with_knots(knots.clone()));
+        let on_fine = slip_equations(Source::Full(&motion), Weighting::Carried, &columns(&fine_basis), &elements);
+        let mapped = on_fine.unwrap().mapped(&fine, &knots, columns(&fine_basis).len());
+        let direct = slip_equations(Source::Full(&motion), Weighting::Carried, &columns(&coarse), &elements).unwrap();
+        let largest = direct.gram.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+        for (a, b) in mapped.gram.iter().zip(&direct.gram).chain(mapped.rhs.iter().zip(&direct.rhs)) {
+            assert!((a - b).abs() <= 1e-9 * largest, "{a} vs {b}");
+        }
+        assert_eq!((mapped.gram.len(), mapped.rhs.len()), (direct.gram.len(), direct.rhs.len()));
     }
 
     /// Two runs, each from rest: the first ends loaded at its minimum, the second is a small

@@ -16,8 +16,33 @@
 //! - Uniform, because the variants tried on the measured runs (quantiles of |x|, denser near 0,
 //!   4/8/12 knots) were second order there and uniform is the simplest to state.
 //! - 8 a side: the seed gear's quintic spring is then within 0.006 % of its peak torque.
+//! - **Then placed (the micro-slip kind, `fit::motion::placed_knots`)**: each interior knot is
+//!   moved in turn, twice over, to the point of a 64-step grid of its side where the kind's
+//!   solve on an 8192-sample subsample has the least RSS, still ≥ 10σθ from its neighbours, and
+//!   the segment at an edge at least half the rule's (its stiffness is the one the spring
+//!   extrapolates with: see `EDGE_SEGMENT` there). Free knots: a catalogue gear's stiffness steps
+//!   at two torques, uniform knots E/8 apart smear each step over a segment (fitted on the sine:
+//!   nested motion 1.47× the floor, centre-curve K 5.5 % off), a pair of knots around each step
+//!   follows it (1.04×, 2.5 %). Each trial is the fine grid's normal equations mapped onto the
+//!   trial's knots (exact: a spring on grid points is one on the grid), one pass over the
+//!   subsample in all.
 //! - Separate sides: the spring's asymmetry. K ≥ 0 at every knot (the solves ask it) keeps the
 //!   spring monotone, as the physics asks.
+//!
+//! **The shorter side, continued.** Where one side's extent falls short of the other's by more
+//! than 10σθ, that side gets one knot fewer of its own and one at the mirror of the longer
+//! side's edge, beyond its samples, so that the spring's range is symmetric: there its stiffness
+//! is its own edge's plus what the longer side's stiffness gains over the same stretch,
+//! K(−e_l) = K(e_s) + K(e_l) − K(−e_s) (e_s, e_l the shorter and longer side's edges; ≥ 0). No
+//! sample identifies it (no column in the solves); it carries the shape a gear's two sides share
+//! (stiffening or softening) rather than the edge's straight line. Why: a recording rarely
+//! reaches the same extent on both sides (`simulate`'s random motion: −1.1685, +1.0007 mrad), a
+//! gear's stiffness curve is much alike on its two sides, and a motion that reaches the longer
+//! side's extent on both is the next one a user records. The micro-slip gear (k3 = 1.2·10¹⁰
+//! N·m/rad³) fitted on the random motion predicted the sine 5.05× and the nested motion 3.28× the
+//! floor with the edge's line (1.01× within the fitted range), 1.04× and 1.03× continued. The odd
+//! polynomial of model version 1 had that shape by construction. Beyond the longer side's extent
+//! both sides continue with their edge's stiffness, as before.
 use crate::gear::Projected;
 use model_core::spring::MAX_KNOTS;
 use model_core::{Knot, Spring};
@@ -30,14 +55,19 @@ pub const KNOT_SPACING_IN_NOISE: f64 = 10.0;
 /// The knots of a spring fitted on x within `[lo, hi]` (lo ≤ 0 ≤ hi), the deflection noise σθ
 /// being `noise`: see the module's documentation.
 pub fn knot_rule(lo: f64, hi: f64, noise: f64) -> Vec<f64> {
-    let per_side = |extent: f64| -> usize {
+    knots_within(lo, hi, noise, [KNOTS_PER_SIDE; 2])
+}
+
+/// [`knot_rule`] with at most `most` = [− side, + side] knots a side.
+fn knots_within(lo: f64, hi: f64, noise: f64, most: [usize; 2]) -> Vec<f64> {
+    let per_side = |extent: f64, most: usize| -> usize {
         if !(extent > 0.0) {
             return 0;
         }
         let limit = if noise > 0.0 { (extent / (KNOT_SPACING_IN_NOISE * noise)).floor() } else { f64::INFINITY };
-        (limit.max(0.0) as usize).min(KNOTS_PER_SIDE)
+        (limit.max(0.0) as usize).min(most)
     };
-    let (minus, plus) = (per_side(-lo), per_side(hi));
+    let (minus, plus) = (per_side(-lo, most[0]), per_side(hi, most[1]));
     let at = |extent: f64, j: usize, n: usize| extent * j as f64 / n as f64;
     let mut knots: Vec<f64> = (1..=minus).rev().map(|j| at(lo, j, minus)).collect();
     knots.push(0.0);
@@ -45,18 +75,57 @@ pub fn knot_rule(lo: f64, hi: f64, noise: f64) -> Vec<f64> {
     knots
 }
 
+/// The shorter side's continuation out to the longer side's extent: a knot at the mirror of
+/// the longer side's edge, whose stiffness the shorter side's edge gets plus what the longer
+/// side's stiffness gains over the same stretch (see the module's documentation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Mirrored {
+    /// The shorter side's edge (the fitted range's), x rad.
+    short_edge: f64,
+    /// The longer side's edge, x rad (the other sign).
+    long_edge: f64,
+}
+
 /// The spring's columns for a fit: one per knot, its stiffness K_j ≥ 0.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpringBasis {
     knots: Vec<f64>,
     range: [f64; 2],
+    mirrored: Option<Mirrored>,
 }
 
 impl SpringBasis {
-    /// The knots of [`knot_rule`] over the fitted range `[lo, hi]` of x.
+    /// The knots of [`knot_rule`] over the fitted range `[lo, hi]` of x, the shorter side with
+    /// one knot fewer where it is continued to the longer side's extent.
     pub fn new(range: [f64; 2], noise: f64) -> Self {
         let [lo, hi] = [range[0].min(0.0), range[1].max(0.0)];
-        SpringBasis { knots: knot_rule(lo, hi, noise), range: [lo, hi] }
+        // Continued where the sides differ by more than the knots' least spacing (and the shorter
+        // side has knots of its own to continue from).
+        let spacing = KNOT_SPACING_IN_NOISE * noise;
+        let mirrored = if -lo - hi > spacing && hi > spacing {
+            Some(Mirrored { short_edge: hi, long_edge: lo })
+        } else if hi + lo > spacing && -lo > spacing {
+            Some(Mirrored { short_edge: lo, long_edge: hi })
+        } else {
+            None
+        };
+        let most = match mirrored {
+            Some(m) if m.short_edge > 0.0 => [KNOTS_PER_SIDE, KNOTS_PER_SIDE - 1],
+            Some(_) => [KNOTS_PER_SIDE - 1, KNOTS_PER_SIDE],
+            None => [KNOTS_PER_SIDE; 2],
+        };
+        SpringBasis { knots: knots_within(lo, hi, noise, most), range: [lo, hi], mirrored }
+    }
+
+    /// The same range with other knots (increasing, holding x = 0 and the range's edges).
+    pub fn with_knots(&self, knots: Vec<f64>) -> Self {
+        SpringBasis { knots, ..self.clone() }
+    }
+
+    /// The fitted range, [lo, hi] of x: the samples' (the spring's own may reach further, see
+    /// [`SpringBasis::spring`]).
+    pub fn range(&self) -> [f64; 2] {
+        self.range
     }
 
     /// Columns: one per knot.
@@ -84,6 +153,15 @@ impl SpringBasis {
     /// carried to x along their slopes, B_j(x_m) + h_j(x_m)·(x − x_m), each divided by `scale`.
     #[inline]
     pub fn row(&self, at: Projected, scale: f64, out: &mut [f64]) {
+        if self.knots.len() > MAX_KNOTS {
+            // The fine grid knots are placed on (`fit::motion::placed_knots`), not a model's.
+            let (mut torque, mut stiffness) = (vec![0.0; self.knots.len()], vec![0.0; self.knots.len()]);
+            model_core::spring::basis(&self.knots, at.theta_m, &mut torque, &mut stiffness);
+            for ((value, b), h) in out.iter_mut().zip(torque).zip(stiffness) {
+                *value = (b + h * at.offset) / scale;
+            }
+            return;
+        }
         let (mut torque, mut stiffness) = ([0.0; MAX_KNOTS], [0.0; MAX_KNOTS]);
         model_core::spring::basis(&self.knots, at.theta_m, &mut torque, &mut stiffness);
         for ((value, b), h) in out.iter_mut().zip(torque).zip(stiffness) {
@@ -92,11 +170,34 @@ impl SpringBasis {
     }
 
     /// The spring of the knots' stiffnesses `weights` (N·m/rad, one per knot), over the fitted
-    /// range. A weight that the solve left a hair below 0 is 0.
+    /// range, or with the shorter side continued out to the longer side's extent. A weight that
+    /// the solve left a hair below 0 is 0.
     pub fn spring(&self, weights: &[f64]) -> Result<Spring<f64>, model_core::Error> {
-        let knots: Vec<Knot<f64>> =
+        let mut knots: Vec<Knot<f64>> =
             self.knots.iter().zip(weights).map(|(&x, &k)| Knot { x, stiffness: k.max(0.0) }).collect();
-        Spring::of_knots(&knots, self.range)
+        let Some(Mirrored { short_edge, long_edge }) = self.mirrored else {
+            return Spring::of_knots(&knots, self.range);
+        };
+        // The stiffness at x, linear between the knots (the solve's knots hold both edges).
+        let at = |x: f64| -> f64 {
+            let right = knots.partition_point(|k| k.x < x).clamp(1, knots.len().saturating_sub(1).max(1));
+            match (knots.get(right - 1), knots.get(right)) {
+                (Some(a), Some(b)) if b.x > a.x => {
+                    a.stiffness + (b.stiffness - a.stiffness) * ((x - a.x) / (b.x - a.x)).clamp(0.0, 1.0)
+                }
+                (Some(a), _) => a.stiffness,
+                _ => 0.0,
+            }
+        };
+        let gained = at(long_edge) - at(-short_edge);
+        let continued = Knot { x: -long_edge, stiffness: (at(short_edge) + gained).max(0.0) };
+        let range = if short_edge > 0.0 { [long_edge, -long_edge] } else { [-long_edge, long_edge] };
+        if short_edge > 0.0 {
+            knots.push(continued);
+        } else {
+            knots.insert(0, continued);
+        }
+        Spring::of_knots(&knots, range)
     }
 }
 
@@ -120,14 +221,14 @@ mod tests {
 
     #[test]
     fn a_fitted_spring_is_its_knots_with_the_range_as_given() {
-        let basis = SpringBasis::new([-1.0e-3, 2.0e-3], 1.0e-6);
+        let basis = SpringBasis::new([-2.0e-3, 2.0e-3], 1.0e-6);
         let weights: Vec<f64> = (0..basis.len()).map(|j| 1000.0 + 10.0 * j as f64).collect();
         let spring = basis.spring(&weights).unwrap();
-        assert_eq!(spring.range, [-1.0e-3, 2.0e-3]);
+        assert_eq!(spring.range, [-2.0e-3, 2.0e-3]);
         // The spring evaluates to the columns' weighted sum.
         let mut prepared = spring.prepare().unwrap();
         let mut row = vec![0.0; basis.len()];
-        for x in [-9.0e-4, -1.0e-4, 0.0, 3.0e-4, 1.9e-3] {
+        for x in [-1.9e-3, -1.0e-4, 0.0, 3.0e-4, 1.9e-3] {
             basis.torque_row(x, &mut row);
             let sum: f64 = row.iter().zip(&weights).map(|(b, k)| b * k).sum();
             let torque = prepared.evaluate(x).torque;
@@ -137,5 +238,35 @@ mod tests {
         let mut tiny = weights.clone();
         tiny[3] = -1.0e-18;
         assert_eq!(basis.spring(&tiny).unwrap().knots()[3].stiffness, 0.0);
+    }
+
+    #[test]
+    fn the_shorter_side_continues_with_the_longer_sides_gain_in_stiffness() {
+        // + side to 1 mrad, − side to 2 mrad: 8 knots −, 7 knots +, one more at +2 mrad.
+        let basis = SpringBasis::new([-2.0e-3, 1.0e-3], 1.0e-6);
+        assert_eq!(basis.len(), 16);
+        assert_eq!(basis.range(), [-2.0e-3, 1.0e-3]);
+        // A stiffening spring, 1000 N·m/rad softer on the + side: K = 5000 + 4·10⁶·|x| (− side).
+        let weights: Vec<f64> =
+            basis.knots().iter().map(|&x| if x < 0.0 { 5000.0 - 4.0e6 * x } else { 4000.0 + 4.0e6 * x }).collect();
+        let spring = basis.spring(&weights).unwrap();
+        assert_eq!(spring.range, [-2.0e-3, 2.0e-3]);
+        let last = *spring.knots().last().unwrap();
+        assert_eq!(last.x, 2.0e-3);
+        // K(1 mrad) + K(−2 mrad) − K(−1 mrad) = 8000 + 13000 − 9000.
+        assert!((last.stiffness - 12_000.0).abs() < 1e-6, "{last:?}");
+        // Within the samples' range the spring is the solve's.
+        let mut prepared = spring.prepare().unwrap();
+        let mut row = vec![0.0; basis.len()];
+        for x in [-1.5e-3, 0.5e-3, 1.0e-3] {
+            basis.torque_row(x, &mut row);
+            let sum: f64 = row.iter().zip(&weights).map(|(b, k)| b * k).sum();
+            assert!((prepared.evaluate(x).torque - sum).abs() <= 1e-12 * sum.abs().max(1.0));
+        }
+        // Sides within 10σθ of each other: no continuation.
+        assert_eq!(
+            SpringBasis::new([-1.0e-3, 0.995e-3], 1.0e-6).spring(&[1.0; 17]).unwrap().range,
+            [-1.0e-3, 0.995e-3]
+        );
     }
 }

@@ -45,6 +45,21 @@ impl Physics {
             Physics::Catalogue(params) => Some(Box::new(CatalogueGear::new(*params)?)),
         })
     }
+
+    /// The truth's tangent stiffness dT/dθ, N·m/rad, at each deflection of `deflection` (rad),
+    /// stepped from rest: what a model's stiffness is scored against. `None` where the state
+    /// does not fix it: the params file's model (its evaluator has its own) and Bouc–Wen, whose
+    /// tangent depends on the direction of the next step.
+    pub fn tangent_along(&self, deflection: &[f64]) -> Result<Option<Vec<f64>>, PhysicsParamError> {
+        let Some(mut gear) = self.gear()? else { return Ok(None) };
+        Ok(deflection
+            .iter()
+            .map(|&theta| {
+                gear.step(theta);
+                gear.tangent()
+            })
+            .collect())
+    }
 }
 
 /// Bouc–Wen (n = 1): T = a·k·θ + k3·θ³ + (1 − a)·k·z with
@@ -394,6 +409,10 @@ pub trait Gear {
     fn step(&mut self, theta: f64) -> f64;
     /// The linear stiffness that `thermal_drift` scales, N·m/rad.
     fn linear_stiffness(&self) -> f64;
+    /// The tangent stiffness at the present state, N·m/rad, where the state fixes it (the
+    /// sticking slip elements' plus the spring's; `None` for Bouc–Wen, see
+    /// [`Physics::tangent_along`]).
+    fn tangent(&self) -> Option<f64>;
 }
 
 /// A Bouc–Wen gear and its state.
@@ -460,6 +479,10 @@ impl Gear for BoucWenGear {
     fn linear_stiffness(&self) -> f64 {
         self.params.a * self.params.k
     }
+
+    fn tangent(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// A Maxwell-slip gear and its state.
@@ -492,6 +515,10 @@ impl Gear for MicroSlipGear {
 
     fn linear_stiffness(&self) -> f64 {
         self.params.k1
+    }
+
+    fn tangent(&self) -> Option<f64> {
+        Some(self.stiffness())
     }
 }
 
@@ -526,6 +553,10 @@ impl Gear for CatalogueGear {
     /// K1 of the − side (the + side's is σ·K1).
     fn linear_stiffness(&self) -> f64 {
         self.params.k1
+    }
+
+    fn tangent(&self) -> Option<f64> {
+        Some(self.stiffness())
     }
 }
 
@@ -784,6 +815,40 @@ mod tests {
             // Within one element that may start slipping on the way.
             assert!((gear.stiffness() - before - jump).abs() <= k_e * 1.000001, "{}", gear.stiffness() - before);
         }
+    }
+
+    /// The largest gap between the tangent `tangent_along` gives after each sample of `path` and
+    /// the secant of a 1 nrad step on from there in the same direction.
+    fn tangent_against_secant<G: Gear + Clone>(physics: &Physics, mut gear: G, path: &[f64]) -> f64 {
+        let tangent = physics.tangent_along(path).unwrap().expect("a tangent");
+        let mut worst: f64 = 0.0;
+        for (i, (&theta, &k)) in path.iter().zip(&tangent).enumerate().skip(1) {
+            let at = gear.step(theta);
+            let step = 1e-9 * (theta - path[i - 1]).signum();
+            let secant = (gear.clone().step(theta + step) - at) / step;
+            worst = worst.max((secant - k).abs());
+        }
+        worst
+    }
+
+    #[test]
+    fn the_truths_tangent_is_the_slope_of_its_next_small_step() {
+        // A sine from rest, then an inner reversal: within one element that starts slipping on
+        // the probe's step (k_e), or a kink crossed by it (the secant then mixes two sides').
+        let mut path: Vec<f64> = (0..=1500).map(|i| A * (TAU * i as f64 / 1200.0).sin()).collect();
+        path.extend((0..=400).map(|i| A - 0.3e-3 * (TAU * i as f64 / 800.0).sin()));
+        let catalogue = Catalogue::default();
+        let k_e = catalogue.slip_stiffness / catalogue.elements as f64;
+        let worst =
+            tangent_against_secant(&Physics::Catalogue(catalogue), CatalogueGear::new(catalogue).unwrap(), &path);
+        assert!(worst <= k_e * 1.000001, "catalogue: {worst}");
+        let micro_slip = MicroSlip::default();
+        let worst =
+            tangent_against_secant(&Physics::MicroSlip(micro_slip), MicroSlipGear::new(micro_slip).unwrap(), &path);
+        // Plus the cubic spring's curvature over the probe's step, 3·k3·θ·1 nrad < 0.05 N·m/rad.
+        assert!(worst <= micro_slip.slip_stiffness / micro_slip.elements as f64 + 0.05, "micro-slip: {worst}");
+        assert_eq!(Physics::BoucWen(BoucWen::default()).tangent_along(&path).unwrap(), None);
+        assert_eq!(Physics::Model.tangent_along(&path).unwrap(), None);
     }
 
     #[test]
