@@ -41,11 +41,15 @@ pub struct FitOptions {
     /// A model of the same kind fitted to part of the same data, whose searched parameters the
     /// search may start from instead of searching globally (the refit on every sample).
     pub start: Option<GearModel<f64>>,
+    /// With `start`, keep its nonlinear parameters (the genetic kind's r) and solve only the
+    /// linear ones, weighted by its total noise: the points of a θ0 profile, and the fits of long
+    /// recordings whose r a fit on a subsample of the same data found.
+    pub hold_start: bool,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None, start: None }
+        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None, start: None, hold_start: false }
     }
 }
 
@@ -241,7 +245,9 @@ pub enum FitDatasetError {
     NoInput,
     #[error(
         "{fitted} samples fitted and {held_out} held out: too few to judge the kinds for --model auto (it holds out \
-         {rule}); record more cycles or runs, or name a model"
+         {rule}); record at least one whole cycle (to one extreme, the other and back) after the scored start (from \
+         rest, or after the motion has visited both its extremes), or three or more runs; or name a model \
+         (--model micro-slip or genetic)"
     )]
     TooFewToHoldOut { fitted: usize, held_out: usize, rule: String },
     #[error("parameter set {index} to compare cannot be evaluated on this data: {source}")]
@@ -408,7 +414,9 @@ fn fit_recordings(
             // on the training samples (its search is the costly part of a fit without rest).
             let kind = best.model.kind();
             progress(Stage::Refit { kind });
-            let refit = FitOptions { start: Some(best.model), ..options };
+            // Long recordings keep the training fit's r, polished on a subsample of 3/4 of the
+            // same samples (a polish on all of them would run on a subsample too).
+            let refit = FitOptions { start: Some(best.model), hold_start: all_fitted.is_long(), ..options };
             let known: Vec<Option<RunOrigin>> = best_origins.iter().copied().map(Some).collect();
             let (chosen, origins) = with_zero(fit_with_zero(kind, &all_fitted, &known, &refit)?);
             let candidates = candidates.into_iter().map(|(fit, _)| fit).collect();

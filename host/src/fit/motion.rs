@@ -93,13 +93,16 @@ pub struct Run<'a> {
     pub zero: f64,
     /// The torque sensor's offset in this run, N·m.
     pub torque_offset: f64,
+    /// Each sample's total-noise weight, where fixed in advance ([`Motion::with_weights`]): the
+    /// θ0 search weighs every θ0 it tries alike.
+    pub weights: Option<&'a [f64]>,
 }
 
 impl<'a> Run<'a> {
     /// Every sample from `scored_from` on fitted; θ0 and the torque offset 0.
     pub fn fitted_from(theta: &'a [f64], torque: &'a [f64], reversals: &'a Reversals, scored_from: usize) -> Self {
         let spans = vec![Span { range: scored_from.min(theta.len())..theta.len(), held_out: false }];
-        Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0 }
+        Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0, weights: None }
     }
 
     /// The same run with θ0 `zero` (rad) and the torque sensor's offset `torque_offset` (N·m).
@@ -124,6 +127,7 @@ impl<'a> Run<'a> {
             torque: self.torque,
             zero: self.zero,
             torque_offset: self.torque_offset,
+            weights: self.weights,
             spans: &self.spans,
             span: 0,
             index: 0,
@@ -164,6 +168,7 @@ struct FullSamples<'a> {
     torque: &'a [f64],
     zero: f64,
     torque_offset: f64,
+    weights: Option<&'a [f64]>,
     spans: &'a [Span],
     span: usize,
     index: usize,
@@ -191,7 +196,8 @@ impl Iterator for FullSamples<'_> {
             }
             _ => Role::Unscored,
         };
-        Some(Sample { index, at, torque: *self.torque.get(index)? - self.torque_offset, role, weight: 1.0 })
+        let weight = self.weights.and_then(|w| w.get(index).copied()).unwrap_or(1.0);
+        Some(Sample { index, at, torque: *self.torque.get(index)? - self.torque_offset, role, weight })
     }
 }
 
@@ -404,6 +410,9 @@ pub struct MotionFit {
     pub n: usize,
     /// Unweighted RSS over the fitted samples, (N·m)².
     pub rss: f64,
+    /// The weighted RSS the last solve minimised (weights of mean 1 over the fitted samples),
+    /// (N·m)²: what a search over a parameter outside the solve (θ0) compares.
+    pub misfit: f64,
     /// Unweighted RMS over the fitted samples, N·m.
     pub rms: f64,
     /// The held-out samples (none when every scored sample was fitted).
@@ -441,7 +450,7 @@ impl<'a> Motion<'a> {
             spans.push(Span { range: training..theta.len(), held_out: true });
         }
         Motion {
-            runs: vec![Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0 }],
+            runs: vec![Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0, weights: None }],
             noise,
             free_offset: false,
             rest_jitter: 0.0,
@@ -455,6 +464,47 @@ impl<'a> Motion<'a> {
             run.spans.iter_mut().for_each(|span| span.held_out = false);
         }
         all
+    }
+
+    /// Each run's total-noise weights 1/(σ_T² + σ_θ²·K²) along it, K the stiffness of `model`
+    /// (on x) run from rest; none without a noise model.
+    pub fn noise_weights(&self, model: &GearModel<f64>) -> Result<Option<Vec<Vec<f64>>>, FitError> {
+        let Some(noise) = self.noise else { return Ok(None) };
+        let weighting = Weighting::Model(model, noise);
+        let per_run = Source::Full(self).map_runs(|samples| -> Result<Vec<f64>, FitError> {
+            let mut weigher = weighting.start()?;
+            samples.map(|sample| weigher.weight(&sample)).collect()
+        });
+        per_run.into_iter().collect::<Result<Vec<_>, _>>().map(Some)
+    }
+
+    /// The same runs with each sample's weight fixed to `weights` (one vector per run).
+    pub fn with_weights<'w>(&self, weights: &'w [Vec<f64>]) -> Motion<'w>
+    where
+        'a: 'w,
+    {
+        let mut weighted = self.clone();
+        for (run, weights) in weighted.runs.iter_mut().zip(weights) {
+            run.weights = Some(weights);
+        }
+        weighted
+    }
+
+    /// The weighting of a fit that holds its start's nonlinear parameters: the weights the runs
+    /// carry where fixed in advance, else those of the start `model` (on x).
+    fn held_weighting<'m>(&self, model: &'m GearModel<f64>) -> Weighting<'m> {
+        if self.runs.iter().all(|run| run.weights.is_some()) {
+            Weighting::Carried
+        } else {
+            self.weighting(Some(model))
+        }
+    }
+
+    /// Whether the searches of a fit run on a subsample of it ([`POLISH_SAMPLES`]): a refit of a
+    /// kind fitted to most of its samples gains nothing from searching its nonlinear
+    /// parameters again.
+    pub fn is_long(&self) -> bool {
+        self.runs.iter().map(|run| run.theta.len()).sum::<usize>() > POLISH_SAMPLES
     }
 
     /// Samples fitted, over every run.
@@ -530,6 +580,58 @@ impl<'a> Motion<'a> {
         Subsample { runs, whole: stride == 1 }
     }
 
+    /// Every `stride`-th sample of each run and its turning points, as owned runs whose
+    /// samples keep their roles (a sample kept only as a turning point is not scored), so that
+    /// at most about `most` samples remain; none when the motion has at most `most`. A search
+    /// that fits many times (θ0's) runs on it: the model's states at the samples kept are those
+    /// of the full motion, up to the projection's running extreme over the samples dropped.
+    pub fn strided(&self, most: usize) -> Option<StridedRuns> {
+        let total: usize = self.runs.iter().map(|run| run.theta.len()).sum();
+        let stride = total.div_ceil(most.max(1));
+        if stride <= 1 {
+            return None;
+        }
+        let runs = self
+            .runs
+            .iter()
+            .map(|run| {
+                let mut turns = run.reversals.indices.iter().copied().peekable();
+                let mut strided = StridedRun {
+                    theta: Vec::with_capacity(run.theta.len().div_ceil(stride)),
+                    torque: Vec::with_capacity(run.theta.len().div_ceil(stride)),
+                    reversals: Reversals { indices: Vec::new(), rising_first: run.reversals.rising_first },
+                    spans: Vec::new(),
+                };
+                let mut roles = run.samples().map(|sample| sample.role);
+                for (index, (&theta, &torque)) in run.theta.iter().zip(run.torque).enumerate() {
+                    let role = roles.next().unwrap_or(Role::Unscored);
+                    let on_grid = index % stride == 0;
+                    let turning = turns.next_if_eq(&index).is_some();
+                    if !(on_grid || turning) {
+                        continue;
+                    }
+                    let at = strided.theta.len();
+                    if turning {
+                        strided.reversals.indices.push(at);
+                    }
+                    strided.theta.push(theta);
+                    strided.torque.push(torque);
+                    let role = if on_grid { role } else { Role::Unscored };
+                    if role == Role::Unscored {
+                        continue;
+                    }
+                    let held_out = role == Role::HeldOut;
+                    match strided.spans.last_mut() {
+                        Some(span) if span.range.end == at && span.held_out == held_out => span.range.end = at + 1,
+                        _ => strided.spans.push(Span { range: at..at + 1, held_out }),
+                    }
+                }
+                strided
+            })
+            .collect();
+        Some(StridedRuns { runs })
+    }
+
     /// Errors of `model` (θ0 = 0: it runs on x) plus `offset` run along every run from rest,
     /// summed as the evaluator steps.
     fn score(
@@ -538,6 +640,7 @@ impl<'a> Motion<'a> {
         offset: Option<FreeOffset>,
         parameters: usize,
         evaluations: usize,
+        misfit: f64,
     ) -> Result<MotionFit, FitError> {
         let per_run = Source::Full(self).map_runs(|samples| -> Result<(f64, f64), FitError> {
             let mut evaluator = model.evaluator(0.0)?;
@@ -561,6 +664,7 @@ impl<'a> Motion<'a> {
             parameters,
             n,
             rss,
+            misfit,
             rms: (rss / n.max(1) as f64).sqrt(),
             held_out_samples,
             held_out_rms: (held_out_samples > 0).then(|| (held / held_out_samples as f64).sqrt()),
@@ -576,6 +680,39 @@ impl<'a> Motion<'a> {
             (Some(model), Some(noise)) => Weighting::Model(model, noise),
             _ => Weighting::Carried,
         }
+    }
+}
+
+/// A strided copy of a motion's runs ([`Motion::strided`]): owned samples, turning points kept.
+pub struct StridedRuns {
+    runs: Vec<StridedRun>,
+}
+
+struct StridedRun {
+    theta: Vec<f64>,
+    torque: Vec<f64>,
+    reversals: Reversals,
+    spans: Vec<Span>,
+}
+
+impl StridedRuns {
+    /// The strided runs as a motion with `like`'s noise, θ0s and torque offsets.
+    pub fn motion<'s>(&'s self, like: &Motion) -> Motion<'s> {
+        let runs = self
+            .runs
+            .iter()
+            .zip(&like.runs)
+            .map(|(strided, run)| Run {
+                theta: &strided.theta,
+                torque: &strided.torque,
+                reversals: &strided.reversals,
+                spans: strided.spans.clone(),
+                zero: run.zero,
+                torque_offset: run.torque_offset,
+                weights: None,
+            })
+            .collect();
+        Motion { runs, noise: like.noise, free_offset: like.free_offset, rest_jitter: like.rest_jitter }
     }
 }
 
@@ -724,6 +861,12 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
         genetic_at(Source::Stored(sub), Weighting::Carried, &columns, s.sinh()).map_or(f64::INFINITY, |fit| fit.rss)
     };
     let start = options.start.as_ref().and_then(|model| model.identifiable(1.0)).map(|id| id.r.asinh());
+    if let (Some(s), Some(start), true) = (start, &options.start, options.hold_start) {
+        let weighed_by = GearModel { zero: 0.0, ..*start };
+        let solved = genetic_at(Source::Full(motion), motion.held_weighting(&weighed_by), &columns, s.sinh())?;
+        let model = genetic_model(&columns, &solved, s.sinh())?;
+        return motion.score(model, columns.offset(&solved), spring.len() + 2, 0, solved.rss);
+    }
     let (mut s, mut half_width, mut evaluations) = match start {
         Some(s) => (s, START_HALF_WIDTH, 0),
         None => {
@@ -747,9 +890,9 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
     let mut polish = motion.subsample(POLISH_SAMPLES);
     // The model whose weights the last round used, and that round's model and constant.
     let mut weighed_by: Option<GearModel<f64>> = None;
-    let mut fitted: Option<(GearModel<f64>, Option<FreeOffset>)> = None;
+    let mut fitted: Option<(GearModel<f64>, Option<FreeOffset>, f64)> = None;
     for _ in 0..rounds {
-        let previous = fitted.map(|(model, _)| model);
+        let previous = fitted.map(|(model, _, _)| model);
         polish.reweigh(motion.weighting(previous.as_ref()))?;
         let (lo, hi) = ((s - half_width).max(-s_limit), (s + half_width).min(s_limit));
         let (polished, _, used) = brent(|s| objective(&polish, s), lo, hi, POLISH_TOLERANCE);
@@ -757,17 +900,17 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
         s = polished;
         half_width = 0.05;
         let solved = genetic_at(Source::Stored(&polish), Weighting::Carried, &columns, s.sinh())?;
-        fitted = Some((genetic_model(&columns, &solved, s.sinh())?, columns.offset(&solved)));
+        fitted = Some((genetic_model(&columns, &solved, s.sinh())?, columns.offset(&solved), solved.rss));
         weighed_by = previous;
     }
-    let (mut model, mut offset) = fitted.ok_or(FitError::Degenerate)?;
+    let (mut model, mut offset, mut misfit) = fitted.ok_or(FitError::Degenerate)?;
     if !polish.whole {
         // The linear parameters at the polished r on every sample, with the same weights.
         let solved = genetic_at(Source::Full(motion), motion.weighting(weighed_by.as_ref()), &columns, s.sinh())?;
-        (model, offset) = (genetic_model(&columns, &solved, s.sinh())?, columns.offset(&solved));
+        (model, offset, misfit) = (genetic_model(&columns, &solved, s.sinh())?, columns.offset(&solved), solved.rss);
     }
     // The knots. stiffnesses, h and r.
-    motion.score(model, offset, spring.len() + 2, evaluations)
+    motion.score(model, offset, spring.len() + 2, evaluations, misfit)
 }
 
 /// The range of the candidate slip deflections for `motion`: from 3σ of the deflection noise
@@ -946,27 +1089,34 @@ pub fn fit_kind(kind: Kind, motion: &Motion, options: &FitOptions) -> Result<Mot
 /// Fits the micro-slip kind to `motion` (one solve a round: the swarm's options are not used).
 /// The candidates are chosen and the rounds whose model only sets the next round's weights run
 /// on a subsample; the last round solves on every sample.
-pub fn fit_micro_slip(motion: &Motion, _options: &FitOptions) -> Result<MotionFit, FitError> {
+pub fn fit_micro_slip(motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {
     motion.check()?;
     let spring = motion.spring_basis();
     let mut sub = motion.subsample(POLISH_SAMPLES);
     let (columns, elements) = slip_columns(motion, &spring, &[], Source::Stored(&sub), Weighting::Carried)?;
+    if let (Some(start), true) = (&options.start, options.hold_start) {
+        let weighed_by = GearModel { zero: 0.0, ..*start };
+        let solved = slip_solve(Source::Full(motion), motion.held_weighting(&weighed_by), &columns, &elements)?;
+        let model = slip_model(&columns, &elements, &solved)?;
+        let parameters = spring.len() + 2 * model.slip_elements().len();
+        return motion.score(model, columns.offset(&solved), parameters, 1, solved.rss);
+    }
     let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
-    let mut fitted: Option<(GearModel<f64>, Option<FreeOffset>)> = None;
+    let mut fitted: Option<(GearModel<f64>, Option<FreeOffset>, f64)> = None;
     for round in 1..=rounds {
-        let weighting = motion.weighting(fitted.as_ref().map(|(model, _)| model));
+        let weighting = motion.weighting(fitted.as_ref().map(|(model, _, _)| model));
         let solved = if round == rounds {
             slip_solve(Source::Full(motion), weighting, &columns, &elements)?
         } else {
             sub.reweigh(weighting)?;
             slip_solve(Source::Stored(&sub), Weighting::Carried, &columns, &elements)?
         };
-        fitted = Some((slip_model(&columns, &elements, &solved)?, columns.offset(&solved)));
+        fitted = Some((slip_model(&columns, &elements, &solved)?, columns.offset(&solved), solved.rss));
     }
-    let (model, offset) = fitted.ok_or(FitError::Degenerate)?;
+    let (model, offset, misfit) = fitted.ok_or(FitError::Degenerate)?;
     // The knots' stiffnesses and each element's k and d.
     let parameters = spring.len() + 2 * model.slip_elements().len();
-    motion.score(model, offset, parameters, rounds)
+    motion.score(model, offset, parameters, rounds, misfit)
 }
 
 #[cfg(test)]
