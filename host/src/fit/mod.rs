@@ -352,7 +352,6 @@ fn fit_recordings(
             .map(|(r, o)| Run::fitted_from(&r.deflection, &r.torque, &o.reversals, o.scored_from))
             .collect(),
         noise: Some(noise),
-        free_offset: false,
         rest_jitter: rest_jitter(&offline),
     };
     let at_rest: Vec<Option<RunOrigin>> = offline.iter().map(RunOrigin::at_rest).collect();

@@ -31,7 +31,6 @@
 use super::spring::SpringBasis;
 use super::{FitError, FitOptions, R_LIMIT};
 use crate::gear::{step_offline, Projected, Projection, Reversals};
-use crate::numeric::linalg::Cholesky;
 use crate::numeric::nnls::nnls_normal;
 use crate::numeric::optimize::{brent, pso, PsoOptions};
 use crate::prepare::NoiseModel;
@@ -140,9 +139,6 @@ impl<'a> Run<'a> {
 pub struct Motion<'a> {
     pub runs: Vec<Run<'a>>,
     pub noise: Option<NoiseModel>,
-    /// Whether the fits add a constant torque, free, to every run ([`MotionFit::offset_nm`]):
-    /// where no rest window gave θ0, the spring's zero torque moves θ0 to where the data put it.
-    pub free_offset: bool,
     /// The deflection's spread at rest, pooled over the runs' rest windows, rad (0 without):
     /// the knot rule's σθ where it exceeds the noise ([`super::spring`]).
     pub rest_jitter: f64,
@@ -305,13 +301,12 @@ impl Weigher<'_> {
     }
 }
 
-/// The normal equations of a solve: the Gram matrix, the right-hand side, Σ w·T² (the weights'
-/// mean 1) and how many samples.
+/// The normal equations of a solve: the Gram matrix, the right-hand side and Σ w·T² (the
+/// weights' mean 1).
 struct Equations {
     gram: Vec<f64>,
     rhs: Vec<f64>,
     tt: f64,
-    count: usize,
 }
 
 /// Weighted normal equations of the fitted samples: Σ w·x·xᵀ (upper triangle while summing),
@@ -366,7 +361,7 @@ impl Normal {
         let mean = if self.weight > 0.0 { self.weight / self.count as f64 } else { 1.0 };
         self.gram.iter_mut().for_each(|g| *g /= mean);
         self.rhs.iter_mut().for_each(|r| *r /= mean);
-        Equations { gram: self.gram, rhs: self.rhs, tt: self.tt / mean, count: self.count }
+        Equations { gram: self.gram, rhs: self.rhs, tt: self.tt / mean }
     }
 }
 
@@ -421,17 +416,6 @@ pub struct MotionFit {
     pub held_out_rms: Option<f64>,
     /// Evaluations of the model along the motion or a subsample of it (swarm and polish).
     pub evaluations: usize,
-    /// The constant torque the fit added to the model ([`Motion::free_offset`]).
-    pub offset: Option<FreeOffset>,
-}
-
-/// A constant torque fitted beside the model.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FreeOffset {
-    /// N·m.
-    pub nm: f64,
-    /// Its least-squares standard error, N·m (residuals taken as independent: a lower bound).
-    pub se_nm: Option<f64>,
 }
 
 impl<'a> Motion<'a> {
@@ -452,7 +436,6 @@ impl<'a> Motion<'a> {
         Motion {
             runs: vec![Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0, weights: None }],
             noise,
-            free_offset: false,
             rest_jitter: 0.0,
         }
     }
@@ -632,12 +615,11 @@ impl<'a> Motion<'a> {
         Some(StridedRuns { runs })
     }
 
-    /// Errors of `model` (θ0 = 0: it runs on x) plus `offset` run along every run from rest,
-    /// summed as the evaluator steps.
+    /// Errors of `model` (θ0 = 0: it runs on x) run along every run from rest, summed as the
+    /// evaluator steps.
     fn score(
         &self,
         model: GearModel<f64>,
-        offset: Option<FreeOffset>,
         parameters: usize,
         evaluations: usize,
         misfit: f64,
@@ -646,7 +628,7 @@ impl<'a> Motion<'a> {
             let mut evaluator = model.evaluator(0.0)?;
             let (mut rss, mut held) = (0.0, 0.0);
             for sample in samples {
-                let predicted = step_offline(&mut evaluator, sample.at)?.torque + offset.map_or(0.0, |o| o.nm);
+                let predicted = step_offline(&mut evaluator, sample.at)?.torque;
                 let square = (sample.torque - predicted).powi(2);
                 match sample.role {
                     Role::Fitted => rss += square,
@@ -669,7 +651,6 @@ impl<'a> Motion<'a> {
             held_out_samples,
             held_out_rms: (held_out_samples > 0).then(|| (held / held_out_samples as f64).sqrt()),
             evaluations,
-            offset,
         })
     }
 
@@ -712,7 +693,7 @@ impl StridedRuns {
                 weights: None,
             })
             .collect();
-        Motion { runs, noise: like.noise, free_offset: like.free_offset, rest_jitter: like.rest_jitter }
+        Motion { runs, noise: like.noise, rest_jitter: like.rest_jitter }
     }
 }
 
@@ -724,65 +705,42 @@ fn unit_hysteresis(r: f64) -> Result<GeneticMemory<f64, TURNING_POINTS>, FitErro
 }
 
 /// The linear part of a fit: the spring's columns (K_j ≥ 0), the kind's own (`own`, with which
-/// of them are ≥ 0), the diagnosis' `extra` free columns, and with a free offset a constant.
+/// of them are ≥ 0) and the diagnosis' `extra` free columns.
 struct Columns<'a> {
     spring: &'a SpringBasis,
     own: Vec<bool>,
     extra: &'a [&'a [f64]],
-    free_offset: bool,
     scale: f64,
 }
 
-/// What one solve found: its coefficients (on the columns' scales), weighted RSS, and with a
-/// free offset the offset's standard error (N·m).
+/// What one solve found: its coefficients (on the columns' scales) and weighted RSS.
 struct Solved {
     coef: Vec<f64>,
     rss: f64,
-    offset_se: Option<f64>,
-}
-
-/// The least-squares standard error of the last coefficient (the constant), N·m: over the
-/// coefficients off their bounds, √(s²·(G⁻¹)_cc) with s² = RSS/(n − p). It takes the residuals as
-/// independent, which a model's misfit is not: a lower bound.
-fn offset_standard_error(gram: &[f64], coef: &[f64], rss: f64, count: usize) -> Option<f64> {
-    let n = coef.len();
-    let last = n.checked_sub(1)?;
-    let free: Vec<usize> = (0..n).filter(|&j| coef[j] != 0.0 || j == last).collect();
-    let m = free.len();
-    let sub: Vec<f64> = free.iter().flat_map(|&a| free.iter().map(move |&b| gram[a * n + b])).collect();
-    let mut unit = vec![0.0; m];
-    unit[m - 1] = 1.0;
-    let variance = Cholesky::new(m, &sub)?.solve(&unit)[m - 1];
-    let dof = count.checked_sub(m).filter(|&d| d > 0)?;
-    Some((rss / dof as f64 * variance).sqrt()).filter(|se| se.is_finite())
 }
 
 impl Columns<'_> {
     fn len(&self) -> usize {
-        self.spring.len() + self.own.len() + self.extra.len() + usize::from(self.free_offset)
+        self.spring.len() + self.own.len() + self.extra.len()
     }
 
     /// The columns of sample `sample` into `x`, the kind's own given by `own`: the spring's at
-    /// x_m carried to x along their slopes, the kind's, the extras, the constant.
+    /// x_m carried to x along their slopes, the kind's, the extras.
     #[inline]
     fn row(&self, sample: &Sample, own: impl FnOnce(&mut [f64]), x: &mut [f64]) {
         let (spring, rest) = x.split_at_mut(self.spring.len());
         self.spring.row(sample.at, self.scale, spring);
         let (kind, rest) = rest.split_at_mut(self.own.len());
         own(kind);
-        let (extra, constant) = rest.split_at_mut(self.extra.len());
-        for (value, column) in extra.iter_mut().zip(self.extra) {
+        for (value, column) in rest.iter_mut().zip(self.extra) {
             *value = column.get(sample.index).copied().unwrap_or(0.0);
-        }
-        if let Some(c) = constant.first_mut() {
-            *c = 1.0;
         }
     }
 
     /// Solves `equations` with K_j ≥ 0 and the kind's bounds.
     fn solve(&self, equations: &Equations) -> Result<Solved, FitError> {
-        let Equations { gram, rhs, tt, count } = equations;
-        let (tt, count) = (*tt, *count);
+        let Equations { gram, rhs, tt } = equations;
+        let tt = *tt;
         let n = self.len();
         let spring = self.spring.len();
         let nonnegative: Vec<bool> =
@@ -795,8 +753,7 @@ impl Columns<'_> {
         let quadratic: f64 = (0..n).map(|a| coef[a] * (0..n).map(|b| gram[a * n + b] * coef[b]).sum::<f64>()).sum();
         let linear: f64 = coef.iter().zip(rhs).map(|(c, r)| c * r).sum();
         let rss = (tt - 2.0 * linear + quadratic).max(0.0);
-        let offset_se = self.free_offset.then(|| offset_standard_error(gram, &coef, rss, count)).flatten();
-        Ok(Solved { rss, coef, offset_se })
+        Ok(Solved { rss, coef })
     }
 
     /// The spring of a solve's coefficients.
@@ -809,15 +766,9 @@ impl Columns<'_> {
     fn own<'c>(&self, coef: &'c [f64]) -> &'c [f64] {
         coef.get(self.spring.len()..self.spring.len() + self.own.len()).unwrap_or(&[])
     }
-
-    /// The constant of a solve, with a free offset.
-    fn offset(&self, solved: &Solved) -> Option<FreeOffset> {
-        let nm = solved.coef.last().copied().filter(|_| self.free_offset)?;
-        Some(FreeOffset { nm, se_nm: solved.offset_se })
-    }
 }
 
-/// The exact least-squares genetic coefficients at r over `source` (spring, k, the offset) and
+/// The exact least-squares genetic coefficients at r over `source` (spring, k) and
 /// their weighted RSS.
 fn genetic_at(source: Source<'_>, weighting: Weighting<'_>, columns: &Columns, r: f64) -> Result<Solved, FitError> {
     let equations = normal_equations(source, columns.len(), weighting, || {
@@ -849,13 +800,7 @@ fn genetic_model(columns: &Columns, solved: &Solved, r: f64) -> Result<GearModel
 pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {
     motion.check()?;
     let spring = motion.spring_basis();
-    let columns = Columns {
-        spring: &spring,
-        own: vec![false],
-        extra: &[],
-        free_offset: motion.free_offset,
-        scale: motion.scale(),
-    };
+    let columns = Columns { spring: &spring, own: vec![false], extra: &[], scale: motion.scale() };
     let s_limit = R_LIMIT.asinh();
     let objective = |sub: &Subsample, s: f64| {
         genetic_at(Source::Stored(sub), Weighting::Carried, &columns, s.sinh()).map_or(f64::INFINITY, |fit| fit.rss)
@@ -865,7 +810,7 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
         let weighed_by = GearModel { zero: 0.0, ..*start };
         let solved = genetic_at(Source::Full(motion), motion.held_weighting(&weighed_by), &columns, s.sinh())?;
         let model = genetic_model(&columns, &solved, s.sinh())?;
-        return motion.score(model, columns.offset(&solved), spring.len() + 2, 0, solved.rss);
+        return motion.score(model, spring.len() + 2, 0, solved.rss);
     }
     let (mut s, mut half_width, mut evaluations) = match start {
         Some(s) => (s, START_HALF_WIDTH, 0),
@@ -890,9 +835,9 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
     let mut polish = motion.subsample(POLISH_SAMPLES);
     // The model whose weights the last round used, and that round's model and constant.
     let mut weighed_by: Option<GearModel<f64>> = None;
-    let mut fitted: Option<(GearModel<f64>, Option<FreeOffset>, f64)> = None;
+    let mut fitted: Option<(GearModel<f64>, f64)> = None;
     for _ in 0..rounds {
-        let previous = fitted.map(|(model, _, _)| model);
+        let previous = fitted.map(|(model, _)| model);
         polish.reweigh(motion.weighting(previous.as_ref()))?;
         let (lo, hi) = ((s - half_width).max(-s_limit), (s + half_width).min(s_limit));
         let (polished, _, used) = brent(|s| objective(&polish, s), lo, hi, POLISH_TOLERANCE);
@@ -900,17 +845,17 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
         s = polished;
         half_width = 0.05;
         let solved = genetic_at(Source::Stored(&polish), Weighting::Carried, &columns, s.sinh())?;
-        fitted = Some((genetic_model(&columns, &solved, s.sinh())?, columns.offset(&solved), solved.rss));
+        fitted = Some((genetic_model(&columns, &solved, s.sinh())?, solved.rss));
         weighed_by = previous;
     }
-    let (mut model, mut offset, mut misfit) = fitted.ok_or(FitError::Degenerate)?;
+    let (mut model, mut misfit) = fitted.ok_or(FitError::Degenerate)?;
     if !polish.whole {
         // The linear parameters at the polished r on every sample, with the same weights.
         let solved = genetic_at(Source::Full(motion), motion.weighting(weighed_by.as_ref()), &columns, s.sinh())?;
-        (model, offset, misfit) = (genetic_model(&columns, &solved, s.sinh())?, columns.offset(&solved), solved.rss);
+        (model, misfit) = (genetic_model(&columns, &solved, s.sinh())?, solved.rss);
     }
     // The knots. stiffnesses, h and r.
-    motion.score(model, offset, spring.len() + 2, evaluations, misfit)
+    motion.score(model, spring.len() + 2, evaluations, misfit)
 }
 
 /// The range of the candidate slip deflections for `motion`: from 3σ of the deflection noise
@@ -1027,13 +972,8 @@ fn slip_columns<'a>(
     weighting: Weighting<'_>,
 ) -> Result<(Columns<'a>, Elements), FitError> {
     let candidates = Elements::slipping(motion)?;
-    let columns = |elements: &Elements| Columns {
-        spring,
-        own: vec![true; elements.kept.len()],
-        extra,
-        free_offset: motion.free_offset,
-        scale: motion.scale(),
-    };
+    let columns =
+        |elements: &Elements| Columns { spring, own: vec![true; elements.kept.len()], extra, scale: motion.scale() };
     let first = columns(&candidates);
     let solved = slip_solve(source, weighting, &first, &candidates)?;
     let elements = candidates.strongest(first.own(&solved.coef));
@@ -1099,24 +1039,24 @@ pub fn fit_micro_slip(motion: &Motion, options: &FitOptions) -> Result<MotionFit
         let solved = slip_solve(Source::Full(motion), motion.held_weighting(&weighed_by), &columns, &elements)?;
         let model = slip_model(&columns, &elements, &solved)?;
         let parameters = spring.len() + 2 * model.slip_elements().len();
-        return motion.score(model, columns.offset(&solved), parameters, 1, solved.rss);
+        return motion.score(model, parameters, 1, solved.rss);
     }
     let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
-    let mut fitted: Option<(GearModel<f64>, Option<FreeOffset>, f64)> = None;
+    let mut fitted: Option<(GearModel<f64>, f64)> = None;
     for round in 1..=rounds {
-        let weighting = motion.weighting(fitted.as_ref().map(|(model, _, _)| model));
+        let weighting = motion.weighting(fitted.as_ref().map(|(model, _)| model));
         let solved = if round == rounds {
             slip_solve(Source::Full(motion), weighting, &columns, &elements)?
         } else {
             sub.reweigh(weighting)?;
             slip_solve(Source::Stored(&sub), Weighting::Carried, &columns, &elements)?
         };
-        fitted = Some((slip_model(&columns, &elements, &solved)?, columns.offset(&solved), solved.rss));
+        fitted = Some((slip_model(&columns, &elements, &solved)?, solved.rss));
     }
-    let (model, offset, misfit) = fitted.ok_or(FitError::Degenerate)?;
+    let (model, misfit) = fitted.ok_or(FitError::Degenerate)?;
     // The knots' stiffnesses and each element's k and d.
     let parameters = spring.len() + 2 * model.slip_elements().len();
-    motion.score(model, offset, parameters, rounds, misfit)
+    motion.score(model, parameters, rounds, misfit)
 }
 
 #[cfg(test)]
@@ -1197,7 +1137,6 @@ mod tests {
                 Run::fitted_from(&second, &torque[1], &reversals[1], 0),
             ],
             noise: None,
-            free_offset: false,
             rest_jitter: 0.0,
         };
         let fitted = fit_micro_slip(&motion, &FitOptions::default()).unwrap();
