@@ -29,7 +29,7 @@ use held_out::{HeldOutRule, RunShape};
 use model_core::{GearModel, Identifiable, Kind, Model, Params};
 pub use motion::MotionFit;
 use motion::{Motion, Run};
-use zero::{fit_with_zero, RunOrigin};
+use zero::{fit_with_zero, FinalSolve, RunOrigin};
 
 #[derive(Clone, Debug)]
 pub struct FitOptions {
@@ -378,7 +378,8 @@ fn fit_recordings(
         }
         ModelChoice::Kind(kind) => {
             progress(Stage::Kind { kind, index: 1, of: 1 });
-            let (chosen, origins) = with_zero(fit_with_zero(kind, &all_fitted, &at_rest, &options)?);
+            let (chosen, origins) =
+                with_zero(fit_with_zero(kind, &all_fitted, &at_rest, &options, FinalSolve::EverySample)?);
             (None, Identified::Motion(Box::new(motion_outcome(chosen.clone(), vec![chosen], None, origins))))
         }
         ModelChoice::Auto => {
@@ -402,7 +403,7 @@ fn fit_recordings(
                 .enumerate()
                 .map(|(k, &kind)| {
                     progress(Stage::Kind { kind, index: k + 1, of: Kind::ALL.len() });
-                    fit_with_zero(kind, &training, &at_rest, &options).map(with_zero)
+                    fit_with_zero(kind, &training, &at_rest, &options, FinalSolve::Strided).map(with_zero)
                 })
                 .collect::<Result<Vec<_>, _>>()?;
             let (best, best_origins) = candidates
@@ -417,7 +418,8 @@ fn fit_recordings(
             // same samples (a polish on all of them would run on a subsample too).
             let refit = FitOptions { start: Some(best.model), hold_start: all_fitted.is_long(), ..options };
             let known: Vec<Option<RunOrigin>> = best_origins.iter().copied().map(Some).collect();
-            let (chosen, origins) = with_zero(fit_with_zero(kind, &all_fitted, &known, &refit)?);
+            let (chosen, origins) =
+                with_zero(fit_with_zero(kind, &all_fitted, &known, &refit, FinalSolve::EverySample)?);
             let candidates = candidates.into_iter().map(|(fit, _)| fit).collect();
             held_out_spans = Some(spans);
             (None, Identified::Motion(Box::new(motion_outcome(chosen, candidates, Some(rule), origins))))

@@ -449,6 +449,11 @@ impl<'a> Motion<'a> {
         all
     }
 
+    /// `fit`, solved on another motion (a strided copy of this one), scored on this one.
+    pub fn rescore(&self, fit: MotionFit) -> Result<MotionFit, FitError> {
+        self.score(fit.model, fit.parameters, fit.evaluations, fit.misfit)
+    }
+
     /// Each run's total-noise weights 1/(σ_T² + σ_θ²·K²) along it, K the stiffness of `model`
     /// (on x) run from rest; none without a noise model.
     pub fn noise_weights(&self, model: &GearModel<f64>) -> Result<Option<Vec<Vec<f64>>>, FitError> {

@@ -10,7 +10,8 @@
 //!   profile): a grid, then golden-section search around the grid's best, each point one linear
 //!   solve with the nonlinear parameters (genetic r) of a first fit at the range's middle, on a
 //!   strided copy of the motion (the turning points kept); then the kind is fitted at the θ0
-//!   found (r polished on the copy, the linear parameters on every sample). The middle of the
+//!   found (r polished on the copy, the linear parameters on every sample; `auto`'s candidates
+//!   keep the copy's and are scored on every sample, the chosen kind refitted). The middle of the
 //!   range (a Masing loop's centre) or the encoder's zero is kept unless the best is
 //!   significantly better. The uncertainty spans the θ0s whose misfit is within 10 % of the
 //!   best: on a one-cycle run fitted after its extremes (one branch) the profile is flat over
@@ -47,6 +48,17 @@ fn placed<'a>(motion: &Motion<'a>, origins: &[Option<RunOrigin>], zero: f64) -> 
     placed
 }
 
+/// Where the linear parameters of a fit at the θ0 found are solved.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FinalSolve {
+    /// On every sample: the parameters written.
+    EverySample,
+    /// On the strided copy the search ran on, where the motion is long, then scored on every
+    /// sample: `auto`'s candidates, judged by their held-out RMS; the chosen kind is refitted
+    /// on every sample.
+    Strided,
+}
+
 /// Fits `kind` to `motion`, whose runs without a rest window (`origins[i]` none) share a fitted
 /// θ0; the others keep theirs. Returns the fit (of x = θ − θ0, its model's θ0 still 0) and each
 /// run's origin.
@@ -55,6 +67,7 @@ pub fn fit_with_zero(
     motion: &Motion,
     origins: &[Option<RunOrigin>],
     options: &FitOptions,
+    solve: FinalSolve,
 ) -> Result<(MotionFit, Vec<RunOrigin>), FitError> {
     let resolved = |zero: f64, se: Option<f64>| -> Vec<RunOrigin> {
         origins
@@ -127,17 +140,24 @@ pub fn fit_with_zero(
         .filter(|(_, rss)| *rss <= (1.0 + PROFILE_TOLERANCE) * best_rss)
         .fold(0.0f64, |m, (z, _)| m.max((z - zero).abs()));
     let se = spread.max(REFINE_TOLERANCE * (hi - lo));
-    // The nonlinear parameters polished at the θ0 found: on the strided copy, the linear ones
-    // then solved on every sample; or on every sample where the motion is short.
+    // The nonlinear parameters polished at the θ0 found on the strided copy, the linear ones then
+    // solved on every sample (or kept from the copy, `FinalSolve::Strided`); a short motion is
+    // its own copy.
     let polish = FitOptions { start: Some(start), hold_start: false, ..options.clone() };
-    let last = match &strided {
+    let fit = match &strided {
         Some(_) => {
             let polished = fit_kind(kind, &placed(search, origins, zero), &polish)?;
-            FitOptions { start: Some(polished.model), hold_start: true, ..options.clone() }
+            let every = placed(motion, origins, zero);
+            match solve {
+                FinalSolve::Strided => every.rescore(polished)?,
+                FinalSolve::EverySample => {
+                    let held = FitOptions { start: Some(polished.model), hold_start: true, ..options.clone() };
+                    fit_kind(kind, &every, &held)?
+                }
+            }
         }
-        None => polish,
+        None => fit_kind(kind, &placed(motion, origins, zero), &polish)?,
     };
-    let fit = fit_kind(kind, &placed(motion, origins, zero), &last)?;
     Ok((fit, resolved(zero, Some(se))))
 }
 
