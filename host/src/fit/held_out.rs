@@ -9,7 +9,9 @@
 //! - **One or two runs**: interleaved cycles. Each run's cycles run from one maximum (turning
 //!   point) to the next; every fourth cycle, the 2nd, 6th, 10th, …, is held out, so the held-out
 //!   samples are spread over the whole run. A run of fewer than two whole cycles holds out its
-//!   legs (turning point to turning point) by the same rule.
+//!   legs (turning point to turning point) by the same rule; a run of one cycle (two turning
+//!   points: up, down, back, as a bench's ramp cycle from rest) counts its first rise and its
+//!   return as legs too, and holds out its middle leg.
 use super::motion::Span;
 use crate::gear::Reversals;
 
@@ -95,15 +97,19 @@ fn held_out_runs(runs: &[RunShape<'_>]) -> Vec<usize> {
 }
 
 /// A run's scored samples split at its maxima, every [`CYCLE_PERIOD`]th cycle held out; split
-/// at every turning point (legs) when that holds out nothing.
+/// at every turning point (legs) when that holds out nothing, and at its start and end too
+/// when that still holds out nothing.
 fn held_out_cycles(run: &RunShape<'_>) -> Vec<Span> {
     let maxima: Vec<usize> = run.reversals.maxima().collect();
-    let spans = every_fourth(run, &maxima);
-    if spans.iter().any(|s| s.held_out) {
-        spans
-    } else {
-        every_fourth(run, &run.reversals.indices)
-    }
+    let turns = &run.reversals.indices;
+    let ends: Vec<usize> =
+        std::iter::once(0).chain(turns.iter().copied()).chain(std::iter::once(run.theta.len())).collect();
+    let spans = [maxima.as_slice(), turns, &ends]
+        .into_iter()
+        .map(|bounds| every_fourth(run, bounds))
+        .find(|spans| spans.iter().any(|s| s.held_out))
+        .unwrap_or_else(|| every_fourth(run, &maxima));
+    spans
 }
 
 /// A run's scored samples split at `bounds` (increasing), every [`CYCLE_PERIOD`]th piece
@@ -203,6 +209,17 @@ mod tests {
         // Turning points at 250, 750, 1250: the second leg, 750..1250.
         assert_eq!(held.len(), 1, "{spans:?}");
         assert_eq!(held[0].range, 750..1250);
+    }
+
+    #[test]
+    fn a_run_of_one_cycle_holds_out_its_middle_leg() {
+        // Up to a maximum at 250, down to a minimum at 750, back: a bench's ramp cycle.
+        let theta: Vec<f64> = (0..1000).map(|i| (std::f64::consts::TAU * i as f64 / 1000.0).sin()).collect();
+        let reversals = crate::prepare::reversals(&theta);
+        let (spans, _) = hold_out(&[shape(&theta, &reversals)]);
+        let held: Vec<&Span> = spans[0].iter().filter(|s| s.held_out).collect();
+        assert_eq!(held.len(), 1, "{spans:?}");
+        assert_eq!(held[0].range, 250..750);
     }
 
     #[test]

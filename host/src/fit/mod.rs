@@ -29,7 +29,7 @@ use held_out::{HeldOutRule, RunShape};
 use model_core::{GearModel, Identifiable, Kind, Model, Params};
 pub use motion::MotionFit;
 use motion::{Motion, Run};
-use zero::{fit_with_zero, RunOrigin};
+use zero::{fit_with_zero, FinalSolve, RunOrigin};
 
 #[derive(Clone, Debug)]
 pub struct FitOptions {
@@ -44,11 +44,23 @@ pub struct FitOptions {
     /// Whether the micro-slip kind places its knots freely (`fit::spring`); else the knot
     /// rule's. The θ0 search compares its candidates on the rule's knots (`fit::zero`).
     pub free_knots: bool,
+    /// With `start`, keep its nonlinear parameters (the genetic kind's r) and solve only the
+    /// linear ones, weighted by its total noise: the points of a θ0 profile, and the fits of long
+    /// recordings whose r a fit on a subsample of the same data found.
+    pub hold_start: bool,
 }
 
 impl Default for FitOptions {
     fn default() -> Self {
-        FitOptions { seed: 1, particles: 16, max_iterations: 60, noise: None, start: None, free_knots: true }
+        FitOptions {
+            seed: 1,
+            particles: 16,
+            max_iterations: 60,
+            noise: None,
+            start: None,
+            free_knots: true,
+            hold_start: false,
+        }
     }
 }
 
@@ -244,7 +256,9 @@ pub enum FitDatasetError {
     NoInput,
     #[error(
         "{fitted} samples fitted and {held_out} held out: too few to judge the kinds for --model auto (it holds out \
-         {rule}); record more cycles or runs, or name a model"
+         {rule}); record at least one whole cycle (to one extreme, the other and back) after the scored start (from \
+         rest, or after the motion has visited both its extremes), or three or more runs; or name a model \
+         (--model micro-slip or genetic)"
     )]
     TooFewToHoldOut { fitted: usize, held_out: usize, rule: String },
     #[error("parameter set {index} to compare cannot be evaluated on this data: {source}")]
@@ -349,7 +363,6 @@ fn fit_recordings(
             .map(|(r, o)| Run::fitted_from(&r.deflection, &r.torque, &o.reversals, o.scored_from))
             .collect(),
         noise: Some(noise),
-        free_offset: false,
         rest_jitter: rest_jitter(&offline),
     };
     let at_rest: Vec<Option<RunOrigin>> = offline.iter().map(RunOrigin::at_rest).collect();
@@ -376,7 +389,8 @@ fn fit_recordings(
         }
         ModelChoice::Kind(kind) => {
             progress(Stage::Kind { kind, index: 1, of: 1 });
-            let (chosen, origins) = with_zero(fit_with_zero(kind, &all_fitted, &at_rest, &options)?);
+            let (chosen, origins) =
+                with_zero(fit_with_zero(kind, &all_fitted, &at_rest, &options, FinalSolve::EverySample)?);
             (None, Identified::Motion(Box::new(motion_outcome(chosen.clone(), vec![chosen], None, origins))))
         }
         ModelChoice::Auto => {
@@ -400,7 +414,7 @@ fn fit_recordings(
                 .enumerate()
                 .map(|(k, &kind)| {
                     progress(Stage::Kind { kind, index: k + 1, of: Kind::ALL.len() });
-                    fit_with_zero(kind, &training, &at_rest, &options).map(with_zero)
+                    fit_with_zero(kind, &training, &at_rest, &options, FinalSolve::Strided).map(with_zero)
                 })
                 .collect::<Result<Vec<_>, _>>()?;
             let (best, best_origins) = candidates
@@ -411,9 +425,12 @@ fn fit_recordings(
             // on the training samples (its search is the costly part of a fit without rest).
             let kind = best.model.kind();
             progress(Stage::Refit { kind });
-            let refit = FitOptions { start: Some(best.model), ..options };
+            // Long recordings keep the training fit's r, polished on a subsample of 3/4 of the
+            // same samples (a polish on all of them would run on a subsample too).
+            let refit = FitOptions { start: Some(best.model), hold_start: all_fitted.is_long(), ..options };
             let known: Vec<Option<RunOrigin>> = best_origins.iter().copied().map(Some).collect();
-            let (chosen, origins) = with_zero(fit_with_zero(kind, &all_fitted, &known, &refit)?);
+            let (chosen, origins) =
+                with_zero(fit_with_zero(kind, &all_fitted, &known, &refit, FinalSolve::EverySample)?);
             let candidates = candidates.into_iter().map(|(fit, _)| fit).collect();
             held_out_spans = Some(spans);
             (None, Identified::Motion(Box::new(motion_outcome(chosen, candidates, Some(rule), origins))))

@@ -31,7 +31,6 @@
 use super::spring::SpringBasis;
 use super::{FitError, FitOptions, R_LIMIT};
 use crate::gear::{step_offline, Projected, Projection, Reversals};
-use crate::numeric::linalg::Cholesky;
 use crate::numeric::nnls::nnls_normal;
 use crate::numeric::optimize::{brent, pso, PsoOptions};
 use crate::prepare::NoiseModel;
@@ -93,13 +92,16 @@ pub struct Run<'a> {
     pub zero: f64,
     /// The torque sensor's offset in this run, N·m.
     pub torque_offset: f64,
+    /// Each sample's total-noise weight, where fixed in advance ([`Motion::with_weights`]): the
+    /// θ0 search weighs every θ0 it tries alike.
+    pub weights: Option<&'a [f64]>,
 }
 
 impl<'a> Run<'a> {
     /// Every sample from `scored_from` on fitted; θ0 and the torque offset 0.
     pub fn fitted_from(theta: &'a [f64], torque: &'a [f64], reversals: &'a Reversals, scored_from: usize) -> Self {
         let spans = vec![Span { range: scored_from.min(theta.len())..theta.len(), held_out: false }];
-        Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0 }
+        Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0, weights: None }
     }
 
     /// The same run with θ0 `zero` (rad) and the torque sensor's offset `torque_offset` (N·m).
@@ -124,6 +126,7 @@ impl<'a> Run<'a> {
             torque: self.torque,
             zero: self.zero,
             torque_offset: self.torque_offset,
+            weights: self.weights,
             spans: &self.spans,
             span: 0,
             index: 0,
@@ -136,9 +139,6 @@ impl<'a> Run<'a> {
 pub struct Motion<'a> {
     pub runs: Vec<Run<'a>>,
     pub noise: Option<NoiseModel>,
-    /// Whether the fits add a constant torque, free, to every run ([`MotionFit::offset_nm`]):
-    /// where no rest window gave θ0, the spring's zero torque moves θ0 to where the data put it.
-    pub free_offset: bool,
     /// The deflection's spread at rest, pooled over the runs' rest windows, rad (0 without):
     /// the knot rule's σθ where it exceeds the noise ([`super::spring`]).
     pub rest_jitter: f64,
@@ -164,6 +164,7 @@ struct FullSamples<'a> {
     torque: &'a [f64],
     zero: f64,
     torque_offset: f64,
+    weights: Option<&'a [f64]>,
     spans: &'a [Span],
     span: usize,
     index: usize,
@@ -191,7 +192,8 @@ impl Iterator for FullSamples<'_> {
             }
             _ => Role::Unscored,
         };
-        Some(Sample { index, at, torque: *self.torque.get(index)? - self.torque_offset, role, weight: 1.0 })
+        let weight = self.weights.and_then(|w| w.get(index).copied()).unwrap_or(1.0);
+        Some(Sample { index, at, torque: *self.torque.get(index)? - self.torque_offset, role, weight })
     }
 }
 
@@ -299,13 +301,12 @@ impl Weigher<'_> {
     }
 }
 
-/// The normal equations of a solve: the Gram matrix, the right-hand side, Σ w·T² (the weights'
-/// mean 1) and how many samples.
+/// The normal equations of a solve: the Gram matrix, the right-hand side and Σ w·T² (the
+/// weights' mean 1).
 struct Equations {
     gram: Vec<f64>,
     rhs: Vec<f64>,
     tt: f64,
-    count: usize,
 }
 
 /// Weighted normal equations of the fitted samples: Σ w·x·xᵀ (upper triangle while summing),
@@ -360,7 +361,7 @@ impl Normal {
         let mean = if self.weight > 0.0 { self.weight / self.count as f64 } else { 1.0 };
         self.gram.iter_mut().for_each(|g| *g /= mean);
         self.rhs.iter_mut().for_each(|r| *r /= mean);
-        Equations { gram: self.gram, rhs: self.rhs, tt: self.tt / mean, count: self.count }
+        Equations { gram: self.gram, rhs: self.rhs, tt: self.tt / mean }
     }
 }
 
@@ -404,6 +405,9 @@ pub struct MotionFit {
     pub n: usize,
     /// Unweighted RSS over the fitted samples, (N·m)².
     pub rss: f64,
+    /// The weighted RSS the last solve minimised (weights of mean 1 over the fitted samples),
+    /// (N·m)²: what a search over a parameter outside the solve (θ0) compares.
+    pub misfit: f64,
     /// Unweighted RMS over the fitted samples, N·m.
     pub rms: f64,
     /// The held-out samples (none when every scored sample was fitted).
@@ -412,17 +416,6 @@ pub struct MotionFit {
     pub held_out_rms: Option<f64>,
     /// Evaluations of the model along the motion or a subsample of it (swarm and polish).
     pub evaluations: usize,
-    /// The constant torque the fit added to the model ([`Motion::free_offset`]).
-    pub offset: Option<FreeOffset>,
-}
-
-/// A constant torque fitted beside the model.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FreeOffset {
-    /// N·m.
-    pub nm: f64,
-    /// Its least-squares standard error, N·m (residuals taken as independent: a lower bound).
-    pub se_nm: Option<f64>,
 }
 
 impl<'a> Motion<'a> {
@@ -441,9 +434,8 @@ impl<'a> Motion<'a> {
             spans.push(Span { range: training..theta.len(), held_out: true });
         }
         Motion {
-            runs: vec![Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0 }],
+            runs: vec![Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0, weights: None }],
             noise,
-            free_offset: false,
             rest_jitter: 0.0,
         }
     }
@@ -455,6 +447,52 @@ impl<'a> Motion<'a> {
             run.spans.iter_mut().for_each(|span| span.held_out = false);
         }
         all
+    }
+
+    /// `fit`, solved on another motion (a strided copy of this one), scored on this one.
+    pub fn rescore(&self, fit: MotionFit) -> Result<MotionFit, FitError> {
+        self.score(fit.model, fit.parameters, fit.evaluations, fit.misfit)
+    }
+
+    /// Each run's total-noise weights 1/(σ_T² + σ_θ²·K²) along it, K the stiffness of `model`
+    /// (on x) run from rest; none without a noise model.
+    pub fn noise_weights(&self, model: &GearModel<f64>) -> Result<Option<Vec<Vec<f64>>>, FitError> {
+        let Some(noise) = self.noise else { return Ok(None) };
+        let weighting = Weighting::Model(model, noise);
+        let per_run = Source::Full(self).map_runs(|samples| -> Result<Vec<f64>, FitError> {
+            let mut weigher = weighting.start()?;
+            samples.map(|sample| weigher.weight(&sample)).collect()
+        });
+        per_run.into_iter().collect::<Result<Vec<_>, _>>().map(Some)
+    }
+
+    /// The same runs with each sample's weight fixed to `weights` (one vector per run).
+    pub fn with_weights<'w>(&self, weights: &'w [Vec<f64>]) -> Motion<'w>
+    where
+        'a: 'w,
+    {
+        let mut weighted = self.clone();
+        for (run, weights) in weighted.runs.iter_mut().zip(weights) {
+            run.weights = Some(weights);
+        }
+        weighted
+    }
+
+    /// The weighting of a fit that holds its start's nonlinear parameters: the weights the runs
+    /// carry where fixed in advance, else those of the start `model` (on x).
+    fn held_weighting<'m>(&self, model: &'m GearModel<f64>) -> Weighting<'m> {
+        if self.runs.iter().all(|run| run.weights.is_some()) {
+            Weighting::Carried
+        } else {
+            self.weighting(Some(model))
+        }
+    }
+
+    /// Whether the searches of a fit run on a subsample of it ([`POLISH_SAMPLES`]): a refit of a
+    /// kind fitted to most of its samples gains nothing from searching its nonlinear
+    /// parameters again.
+    pub fn is_long(&self) -> bool {
+        self.runs.iter().map(|run| run.theta.len()).sum::<usize>() > POLISH_SAMPLES
     }
 
     /// Samples fitted, over every run.
@@ -530,20 +568,72 @@ impl<'a> Motion<'a> {
         Subsample { runs, whole: stride == 1 }
     }
 
-    /// Errors of `model` (θ0 = 0: it runs on x) plus `offset` run along every run from rest,
-    /// summed as the evaluator steps.
+    /// Every `stride`-th sample of each run and its turning points, as owned runs whose
+    /// samples keep their roles (a sample kept only as a turning point is not scored), so that
+    /// at most about `most` samples remain; none when the motion has at most `most`. A search
+    /// that fits many times (θ0's) runs on it: the model's states at the samples kept are those
+    /// of the full motion, up to the projection's running extreme over the samples dropped.
+    pub fn strided(&self, most: usize) -> Option<StridedRuns> {
+        let total: usize = self.runs.iter().map(|run| run.theta.len()).sum();
+        let stride = total.div_ceil(most.max(1));
+        if stride <= 1 {
+            return None;
+        }
+        let runs = self
+            .runs
+            .iter()
+            .map(|run| {
+                let mut turns = run.reversals.indices.iter().copied().peekable();
+                let mut strided = StridedRun {
+                    theta: Vec::with_capacity(run.theta.len().div_ceil(stride)),
+                    torque: Vec::with_capacity(run.theta.len().div_ceil(stride)),
+                    reversals: Reversals { indices: Vec::new(), rising_first: run.reversals.rising_first },
+                    spans: Vec::new(),
+                };
+                let mut roles = run.samples().map(|sample| sample.role);
+                for (index, (&theta, &torque)) in run.theta.iter().zip(run.torque).enumerate() {
+                    let role = roles.next().unwrap_or(Role::Unscored);
+                    let on_grid = index % stride == 0;
+                    let turning = turns.next_if_eq(&index).is_some();
+                    if !(on_grid || turning) {
+                        continue;
+                    }
+                    let at = strided.theta.len();
+                    if turning {
+                        strided.reversals.indices.push(at);
+                    }
+                    strided.theta.push(theta);
+                    strided.torque.push(torque);
+                    let role = if on_grid { role } else { Role::Unscored };
+                    if role == Role::Unscored {
+                        continue;
+                    }
+                    let held_out = role == Role::HeldOut;
+                    match strided.spans.last_mut() {
+                        Some(span) if span.range.end == at && span.held_out == held_out => span.range.end = at + 1,
+                        _ => strided.spans.push(Span { range: at..at + 1, held_out }),
+                    }
+                }
+                strided
+            })
+            .collect();
+        Some(StridedRuns { runs })
+    }
+
+    /// Errors of `model` (θ0 = 0: it runs on x) run along every run from rest, summed as the
+    /// evaluator steps.
     fn score(
         &self,
         model: GearModel<f64>,
-        offset: Option<FreeOffset>,
         parameters: usize,
         evaluations: usize,
+        misfit: f64,
     ) -> Result<MotionFit, FitError> {
         let per_run = Source::Full(self).map_runs(|samples| -> Result<(f64, f64), FitError> {
             let mut evaluator = model.evaluator(0.0)?;
             let (mut rss, mut held) = (0.0, 0.0);
             for sample in samples {
-                let predicted = step_offline(&mut evaluator, sample.at)?.torque + offset.map_or(0.0, |o| o.nm);
+                let predicted = step_offline(&mut evaluator, sample.at)?.torque;
                 let square = (sample.torque - predicted).powi(2);
                 match sample.role {
                     Role::Fitted => rss += square,
@@ -561,11 +651,11 @@ impl<'a> Motion<'a> {
             parameters,
             n,
             rss,
+            misfit,
             rms: (rss / n.max(1) as f64).sqrt(),
             held_out_samples,
             held_out_rms: (held_out_samples > 0).then(|| (held / held_out_samples as f64).sqrt()),
             evaluations,
-            offset,
         })
     }
 
@@ -579,6 +669,39 @@ impl<'a> Motion<'a> {
     }
 }
 
+/// A strided copy of a motion's runs ([`Motion::strided`]): owned samples, turning points kept.
+pub struct StridedRuns {
+    runs: Vec<StridedRun>,
+}
+
+struct StridedRun {
+    theta: Vec<f64>,
+    torque: Vec<f64>,
+    reversals: Reversals,
+    spans: Vec<Span>,
+}
+
+impl StridedRuns {
+    /// The strided runs as a motion with `like`'s noise, θ0s and torque offsets.
+    pub fn motion<'s>(&'s self, like: &Motion) -> Motion<'s> {
+        let runs = self
+            .runs
+            .iter()
+            .zip(&like.runs)
+            .map(|(strided, run)| Run {
+                theta: &strided.theta,
+                torque: &strided.torque,
+                reversals: &strided.reversals,
+                spans: strided.spans.clone(),
+                zero: run.zero,
+                torque_offset: run.torque_offset,
+                weights: None,
+            })
+            .collect();
+        Motion { runs, noise: like.noise, rest_jitter: like.rest_jitter }
+    }
+}
+
 /// The genetic model with k = 1 and no spring at decay ratio r, at rest: its hysteretic part
 /// along the motion is the fit's column beside the spring's.
 fn unit_hysteresis(r: f64) -> Result<GeneticMemory<f64, TURNING_POINTS>, FitError> {
@@ -587,65 +710,42 @@ fn unit_hysteresis(r: f64) -> Result<GeneticMemory<f64, TURNING_POINTS>, FitErro
 }
 
 /// The linear part of a fit: the spring's columns (K_j ≥ 0), the kind's own (`own`, with which
-/// of them are ≥ 0), the diagnosis' `extra` free columns, and with a free offset a constant.
+/// of them are ≥ 0) and the diagnosis' `extra` free columns.
 struct Columns<'a> {
     spring: &'a SpringBasis,
     own: Vec<bool>,
     extra: &'a [&'a [f64]],
-    free_offset: bool,
     scale: f64,
 }
 
-/// What one solve found: its coefficients (on the columns' scales), weighted RSS, and with a
-/// free offset the offset's standard error (N·m).
+/// What one solve found: its coefficients (on the columns' scales) and weighted RSS.
 struct Solved {
     coef: Vec<f64>,
     rss: f64,
-    offset_se: Option<f64>,
-}
-
-/// The least-squares standard error of the last coefficient (the constant), N·m: over the
-/// coefficients off their bounds, √(s²·(G⁻¹)_cc) with s² = RSS/(n − p). It takes the residuals as
-/// independent, which a model's misfit is not: a lower bound.
-fn offset_standard_error(gram: &[f64], coef: &[f64], rss: f64, count: usize) -> Option<f64> {
-    let n = coef.len();
-    let last = n.checked_sub(1)?;
-    let free: Vec<usize> = (0..n).filter(|&j| coef[j] != 0.0 || j == last).collect();
-    let m = free.len();
-    let sub: Vec<f64> = free.iter().flat_map(|&a| free.iter().map(move |&b| gram[a * n + b])).collect();
-    let mut unit = vec![0.0; m];
-    unit[m - 1] = 1.0;
-    let variance = Cholesky::new(m, &sub)?.solve(&unit)[m - 1];
-    let dof = count.checked_sub(m).filter(|&d| d > 0)?;
-    Some((rss / dof as f64 * variance).sqrt()).filter(|se| se.is_finite())
 }
 
 impl Columns<'_> {
     fn len(&self) -> usize {
-        self.spring.len() + self.own.len() + self.extra.len() + usize::from(self.free_offset)
+        self.spring.len() + self.own.len() + self.extra.len()
     }
 
     /// The columns of sample `sample` into `x`, the kind's own given by `own`: the spring's at
-    /// x_m carried to x along their slopes, the kind's, the extras, the constant.
+    /// x_m carried to x along their slopes, the kind's, the extras.
     #[inline]
     fn row(&self, sample: &Sample, own: impl FnOnce(&mut [f64]), x: &mut [f64]) {
         let (spring, rest) = x.split_at_mut(self.spring.len());
         self.spring.row(sample.at, self.scale, spring);
         let (kind, rest) = rest.split_at_mut(self.own.len());
         own(kind);
-        let (extra, constant) = rest.split_at_mut(self.extra.len());
-        for (value, column) in extra.iter_mut().zip(self.extra) {
+        for (value, column) in rest.iter_mut().zip(self.extra) {
             *value = column.get(sample.index).copied().unwrap_or(0.0);
-        }
-        if let Some(c) = constant.first_mut() {
-            *c = 1.0;
         }
     }
 
     /// Solves `equations` with K_j ≥ 0 and the kind's bounds.
     fn solve(&self, equations: &Equations) -> Result<Solved, FitError> {
-        let Equations { gram, rhs, tt, count } = equations;
-        let (tt, count) = (*tt, *count);
+        let Equations { gram, rhs, tt } = equations;
+        let tt = *tt;
         let n = self.len();
         let spring = self.spring.len();
         let nonnegative: Vec<bool> =
@@ -658,8 +758,7 @@ impl Columns<'_> {
         let quadratic: f64 = (0..n).map(|a| coef[a] * (0..n).map(|b| gram[a * n + b] * coef[b]).sum::<f64>()).sum();
         let linear: f64 = coef.iter().zip(rhs).map(|(c, r)| c * r).sum();
         let rss = (tt - 2.0 * linear + quadratic).max(0.0);
-        let offset_se = self.free_offset.then(|| offset_standard_error(gram, &coef, rss, count)).flatten();
-        Ok(Solved { rss, coef, offset_se })
+        Ok(Solved { rss, coef })
     }
 
     /// The spring of a solve's coefficients.
@@ -672,15 +771,9 @@ impl Columns<'_> {
     fn own<'c>(&self, coef: &'c [f64]) -> &'c [f64] {
         coef.get(self.spring.len()..self.spring.len() + self.own.len()).unwrap_or(&[])
     }
-
-    /// The constant of a solve, with a free offset.
-    fn offset(&self, solved: &Solved) -> Option<FreeOffset> {
-        let nm = solved.coef.last().copied().filter(|_| self.free_offset)?;
-        Some(FreeOffset { nm, se_nm: solved.offset_se })
-    }
 }
 
-/// The exact least-squares genetic coefficients at r over `source` (spring, k, the offset) and
+/// The exact least-squares genetic coefficients at r over `source` (spring, k) and
 /// their weighted RSS.
 fn genetic_at(source: Source<'_>, weighting: Weighting<'_>, columns: &Columns, r: f64) -> Result<Solved, FitError> {
     let equations = normal_equations(source, columns.len(), weighting, || {
@@ -712,18 +805,18 @@ fn genetic_model(columns: &Columns, solved: &Solved, r: f64) -> Result<GearModel
 pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {
     motion.check()?;
     let spring = motion.spring_basis();
-    let columns = Columns {
-        spring: &spring,
-        own: vec![false],
-        extra: &[],
-        free_offset: motion.free_offset,
-        scale: motion.scale(),
-    };
+    let columns = Columns { spring: &spring, own: vec![false], extra: &[], scale: motion.scale() };
     let s_limit = R_LIMIT.asinh();
     let objective = |sub: &Subsample, s: f64| {
         genetic_at(Source::Stored(sub), Weighting::Carried, &columns, s.sinh()).map_or(f64::INFINITY, |fit| fit.rss)
     };
     let start = options.start.as_ref().and_then(|model| model.identifiable(1.0)).map(|id| id.r.asinh());
+    if let (Some(s), Some(start), true) = (start, &options.start, options.hold_start) {
+        let weighed_by = GearModel { zero: 0.0, ..*start };
+        let solved = genetic_at(Source::Full(motion), motion.held_weighting(&weighed_by), &columns, s.sinh())?;
+        let model = genetic_model(&columns, &solved, s.sinh())?;
+        return motion.score(model, spring.len() + 2, 0, solved.rss);
+    }
     let (mut s, mut half_width, mut evaluations) = match start {
         Some(s) => (s, START_HALF_WIDTH, 0),
         None => {
@@ -747,7 +840,7 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
     let mut polish = motion.subsample(POLISH_SAMPLES);
     // The model whose weights the last round used, and that round's model and constant.
     let mut weighed_by: Option<GearModel<f64>> = None;
-    let mut fitted: Option<(GearModel<f64>, Option<FreeOffset>)> = None;
+    let mut fitted: Option<(GearModel<f64>, f64)> = None;
     for _ in 0..rounds {
         let previous = fitted.map(|(model, _)| model);
         polish.reweigh(motion.weighting(previous.as_ref()))?;
@@ -757,17 +850,17 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
         s = polished;
         half_width = 0.05;
         let solved = genetic_at(Source::Stored(&polish), Weighting::Carried, &columns, s.sinh())?;
-        fitted = Some((genetic_model(&columns, &solved, s.sinh())?, columns.offset(&solved)));
+        fitted = Some((genetic_model(&columns, &solved, s.sinh())?, solved.rss));
         weighed_by = previous;
     }
-    let (mut model, mut offset) = fitted.ok_or(FitError::Degenerate)?;
+    let (mut model, mut misfit) = fitted.ok_or(FitError::Degenerate)?;
     if !polish.whole {
         // The linear parameters at the polished r on every sample, with the same weights.
         let solved = genetic_at(Source::Full(motion), motion.weighting(weighed_by.as_ref()), &columns, s.sinh())?;
-        (model, offset) = (genetic_model(&columns, &solved, s.sinh())?, columns.offset(&solved));
+        (model, misfit) = (genetic_model(&columns, &solved, s.sinh())?, solved.rss);
     }
     // The knots. stiffnesses, h and r.
-    motion.score(model, offset, spring.len() + 2, evaluations)
+    motion.score(model, spring.len() + 2, evaluations, misfit)
 }
 
 /// The range of the candidate slip deflections for `motion`: from 3σ of the deflection noise
@@ -893,13 +986,8 @@ fn slip_columns<'a>(
     weighting: Weighting<'_>,
 ) -> Result<(Columns<'a>, Elements), FitError> {
     let candidates = Elements::slipping(motion)?;
-    let columns = |elements: &Elements| Columns {
-        spring,
-        own: vec![true; elements.kept.len()],
-        extra,
-        free_offset: motion.free_offset,
-        scale: motion.scale(),
-    };
+    let columns =
+        |elements: &Elements| Columns { spring, own: vec![true; elements.kept.len()], extra, scale: motion.scale() };
     let first = columns(&candidates);
     let solved = slip_solve(source, weighting, &first, &candidates)?;
     let elements = candidates.strongest(first.own(&solved.coef));
@@ -964,8 +1052,15 @@ pub fn fit_micro_slip(motion: &Motion, options: &FitOptions) -> Result<MotionFit
     };
     let mut sub = motion.subsample(POLISH_SAMPLES);
     let (columns, elements) = slip_columns(motion, &spring, &[], Source::Stored(&sub), Weighting::Carried)?;
+    if let (Some(start), true) = (&options.start, options.hold_start) {
+        let weighed_by = GearModel { zero: 0.0, ..*start };
+        let solved = slip_solve(Source::Full(motion), motion.held_weighting(&weighed_by), &columns, &elements)?;
+        let model = slip_model(&columns, &elements, &solved)?;
+        let parameters = spring.len() + 2 * model.slip_elements().len();
+        return motion.score(model, parameters, 1, solved.rss);
+    }
     let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
-    let mut fitted: Option<(GearModel<f64>, Option<FreeOffset>)> = None;
+    let mut fitted: Option<(GearModel<f64>, f64)> = None;
     for round in 1..=rounds {
         let weighting = motion.weighting(fitted.as_ref().map(|(model, _)| model));
         let solved = if round == rounds {
@@ -974,12 +1069,12 @@ pub fn fit_micro_slip(motion: &Motion, options: &FitOptions) -> Result<MotionFit
             sub.reweigh(weighting)?;
             slip_solve(Source::Stored(&sub), Weighting::Carried, &columns, &elements)?
         };
-        fitted = Some((slip_model(&columns, &elements, &solved)?, columns.offset(&solved)));
+        fitted = Some((slip_model(&columns, &elements, &solved)?, solved.rss));
     }
-    let (model, offset) = fitted.ok_or(FitError::Degenerate)?;
+    let (model, misfit) = fitted.ok_or(FitError::Degenerate)?;
     // The knots' stiffnesses and each element's k and d.
     let parameters = spring.len() + 2 * model.slip_elements().len();
-    motion.score(model, offset, parameters, rounds)
+    motion.score(model, parameters, rounds, misfit)
 }
 
 /// Points a side's knots may move to: the side's extent in this many steps.
@@ -1020,13 +1115,7 @@ fn placed_knots(motion: &Motion, sub: &Subsample, rule: SpringBasis) -> Result<S
     let fine_basis = rule.with_knots(fine.clone());
     let elements = Elements::slipping(motion)?;
     fn columns<'a>(spring: &'a SpringBasis, motion: &Motion, elements: &Elements) -> Columns<'a> {
-        Columns {
-            spring,
-            own: vec![true; elements.kept.len()],
-            extra: &[],
-            free_offset: motion.free_offset,
-            scale: motion.scale(),
-        }
+        Columns { spring, own: vec![true; elements.kept.len()], extra: &[], scale: motion.scale() }
     }
     let fine_columns = columns(&fine_basis, motion, &elements);
     let equations = slip_equations(Source::Stored(sub), Weighting::Carried, &fine_columns, &elements)?;
@@ -1105,7 +1194,7 @@ impl Equations {
             }
             rhs[c] += w * self.rhs[f];
         }
-        Equations { gram, rhs, tt: self.tt, count: self.count }
+        Equations { gram, rhs, tt: self.tt }
     }
 }
 
@@ -1193,7 +1282,6 @@ mod tests {
             spring,
             own: vec![true; elements.kept.len()],
             extra: &[],
-            free_offset: false,
             scale: motion.scale(),
         };
         let (fine_basis, coarse) = (rule.with_knots(fine.clone()), rule.with_knots(knots.clone()));
@@ -1224,7 +1312,6 @@ mod tests {
                 Run::fitted_from(&second, &torque[1], &reversals[1], 0),
             ],
             noise: None,
-            free_offset: false,
             rest_jitter: 0.0,
         };
         let fitted = fit_micro_slip(&motion, &FitOptions::default()).unwrap();

@@ -6,23 +6,60 @@
 //!   through (remanence), and each run is fitted from its own rest.
 //! - **A run that does not**: θ0 and a torque offset cannot both be told from the data where the
 //!   spring is nearly linear (k·(θ − θ0) + c). The offset is taken as 0 and θ0, shared by every
-//!   such run, is fitted: starting from the encoder's zero or the middle of the runs' deflection
-//!   range, whichever fits better, the kind is fitted with a free
-//!   constant c, θ0 moves to where the fitted spring's torque plus c is zero, and the kind is
-//!   fitted there without c; that repeats while the move is significant and lowers the misfit.
-use super::motion::{fit_kind, FreeOffset, Motion, MotionFit};
+//!   such run, is searched over the runs' deflection range by the fit's weighted misfit (its
+//!   profile): a grid, then golden-section search around the grid's best, each point one linear
+//!   solve with the nonlinear parameters (genetic r) of a first fit at the range's middle, on a
+//!   strided copy of the motion (the turning points kept); then the kind is fitted at the θ0
+//!   found (r polished on the copy, the linear parameters on every sample; `auto`'s candidates
+//!   keep the copy's and are scored on every sample, the chosen kind refitted). The middle of the
+//!   range (a Masing loop's centre) or the encoder's zero is kept unless the best is
+//!   significantly better. The uncertainty spans the θ0s whose misfit is within 10 % of the
+//!   best: on a one-cycle run fitted after its extremes (one branch) the profile is flat over
+//!   milliradians of θ0 on one side, and the report says so.
+use super::motion::{fit_kind, Motion, MotionFit};
 use super::{FitError, FitOptions};
 pub use crate::prepare::{OriginSource, RunOrigin};
 use model_core::{GearModel, Kind};
+use rayon::prelude::*;
 
-/// Rounds of the θ0 iteration at most.
-const ZERO_ROUNDS: usize = 4;
-/// The iteration stops once θ0 would move less than this fraction of the deflection noise…
-const ZERO_TOLERANCE_IN_NOISE: f64 = 0.05;
-/// …or less than this many of its standard errors.
-const SIGNIFICANT_IN_SE: f64 = 2.0;
+/// The θ0 search fits on a strided copy of the motion of about this many samples at most.
+const SEARCH_SAMPLES: usize = 1 << 13;
+/// Intervals of the search's grid over the deflection range.
+const GRID_INTERVALS: usize = 16;
+/// The golden-section search ends at this fraction of the deflection range.
+const REFINE_TOLERANCE: f64 = 1e-4;
+/// A simpler θ0 (the range's middle, the encoder's zero) is kept unless the best misfit is lower
+/// by more than this many σ² (σ² = the best's RSS per fitted sample): a likelihood-ratio test of
+/// one parameter at 2σ.
+const SIGNIFICANT_IN_VARIANCE: f64 = 4.0;
+/// θ0's uncertainty spans the θ0s whose misfit is within this fraction of the best: apart from
+/// θ0, the knots' placement moves with it and changes the misfit by a few % on the measured
+/// runs (bench/real/FINDINGS.md §9), so a sharper bound would claim more than the fit knows.
+const PROFILE_TOLERANCE: f64 = 0.1;
 
-/// Fits `kind` to `motion`, whose runs without a rest window (`fitted_zero[i]`) share a fitted
+/// `motion` with the runs of unknown origin at θ0 `zero` (torque offset 0), the others at theirs.
+fn placed<'a>(motion: &Motion<'a>, origins: &[Option<RunOrigin>], zero: f64) -> Motion<'a> {
+    let mut placed = motion.clone();
+    for (run, origin) in placed.runs.iter_mut().zip(origins) {
+        let (zero, offset) = origin.map_or((zero, 0.0), |o| (o.zero_rad, o.torque_offset_nm));
+        run.zero = zero;
+        run.torque_offset = offset;
+    }
+    placed
+}
+
+/// Where the linear parameters of a fit at the θ0 found are solved.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FinalSolve {
+    /// On every sample: the parameters written.
+    EverySample,
+    /// On the strided copy the search ran on, where the motion is long, then scored on every
+    /// sample: `auto`'s candidates, judged by their held-out RMS; the chosen kind is refitted
+    /// on every sample.
+    Strided,
+}
+
+/// Fits `kind` to `motion`, whose runs without a rest window (`origins[i]` none) share a fitted
 /// θ0; the others keep theirs. Returns the fit (of x = θ − θ0, its model's θ0 still 0) and each
 /// run's origin.
 pub fn fit_with_zero(
@@ -30,17 +67,8 @@ pub fn fit_with_zero(
     motion: &Motion,
     origins: &[Option<RunOrigin>],
     options: &FitOptions,
+    solve: FinalSolve,
 ) -> Result<(MotionFit, Vec<RunOrigin>), FitError> {
-    let requested = options;
-    let placed = |zero: f64| -> Motion {
-        let mut placed = motion.clone();
-        for (run, origin) in placed.runs.iter_mut().zip(origins) {
-            let (zero, offset) = origin.map_or((zero, 0.0), |o| (o.zero_rad, o.torque_offset_nm));
-            run.zero = zero;
-            run.torque_offset = offset;
-        }
-        placed
-    };
     let resolved = |zero: f64, se: Option<f64>| -> Vec<RunOrigin> {
         origins
             .iter()
@@ -55,95 +83,138 @@ pub fn fit_with_zero(
             .collect()
     };
     if origins.iter().all(Option::is_some) {
-        let fit = fit_kind(kind, &placed(0.0), options)?;
+        let fit = fit_kind(kind, &placed(motion, origins, 0.0), options)?;
         return Ok((fit, resolved(0.0, None)));
     }
-    let tolerance = ZERO_TOLERANCE_IN_NOISE * motion.noise.map_or(0.0, |n| n.deflection_rad);
+    let strided = motion.strided(SEARCH_SAMPLES);
+    let search = strided.as_ref().map(|strided| strided.motion(motion));
+    let search = search.as_ref().unwrap_or(motion);
+    let [lo, hi] = deflection_range(motion, origins);
+    let centre = 0.5 * (lo + hi);
     // The candidates are compared on the knot rule's knots: placed freely, the knots of a spring
     // zeroed off its data (all of it on one side of the encoder's zero) leave the empty stretch
     // for the data, and that θ0 wins (the measured runs without their rest: 4 of 15 fell back to
-    // the encoder's zero, θ0 off by 127–188 % of the range). The found θ0 is refitted with them.
-    let mut options = FitOptions { free_knots: false, ..options.clone() };
-    // θ0 starts at the better of the encoder's zero and the centre of the runs' deflection
-    // range (a Masing loop's centre, where its virgin curve starts; the free constant alone does
-    // not find it from afar: 0.5 A off, it moved θ0 the wrong way), and moves only while a
-    // move is significant and lowers the misfit: a Masing loop is infinitely stiff at its
-    // tips, so a θ0 a few nrad off a symmetric recording's centre changes the fit more than
-    // the constant can tell.
-    let mut se = None;
-    let (mut zero, mut best) = (0.0, fit_kind(kind, &placed(0.0), &options)?);
-    let centre = range_centre(motion, origins);
-    // Within the deflection noise of the encoder's zero, the rounds below find it as well.
-    if centre.abs() > motion.noise.map_or(0.0, |n| n.deflection_rad) {
-        let centred = fit_kind(kind, &placed(centre), &options)?;
-        if centred.rss < best.rss {
-            (zero, best) = (centre, centred);
+    // the encoder's zero, θ0 off by 127–188 % of the range). The fit at the θ0 found places them
+    // as `options` asks.
+    let searching = FitOptions { free_knots: false, ..options.clone() };
+    // The first fit searches the kind's nonlinear parameters globally; the others start there.
+    let first = fit_kind(kind, &placed(search, origins, centre), &searching);
+    let start = match &first {
+        Ok(fit) => fit.model,
+        // The middle may be degenerate (one branch, collinear columns): the first grid point
+        // that fits starts the others.
+        Err(_) => {
+            grid(lo, hi)
+                .find_map(|zero| fit_kind(kind, &placed(search, origins, zero), &searching).ok())
+                .ok_or(FitError::Degenerate)?
+                .model
         }
+    };
+    // The profile's points keep the first fit's nonlinear parameters, each one linear solve, and
+    // its weights at each sample: every θ0 is weighed alike.
+    let weights = placed(search, origins, centre).noise_weights(&GearModel { zero: 0.0, ..start })?;
+    let held = FitOptions { start: Some(start), hold_start: true, ..searching };
+    let misfit = |zero: f64| -> (f64, f64) {
+        let at = placed(search, origins, zero);
+        let at = match &weights {
+            Some(weights) => at.with_weights(weights),
+            None => at,
+        };
+        (zero, fit_kind(kind, &at, &held).map_or(f64::INFINITY, |fit| fit.misfit))
+    };
+    let mut profile: Vec<(f64, f64)> = grid(lo, hi).collect::<Vec<_>>().into_par_iter().map(misfit).collect();
+    profile.push(misfit(centre));
+    if lo <= 0.0 && 0.0 <= hi {
+        profile.push(misfit(0.0));
     }
-    for _ in 0..ZERO_ROUNDS {
-        options.start = Some(best.model);
-        let free = fit_kind(kind, &Motion { free_offset: true, ..placed(zero) }, &options)?;
-        let Some(FreeOffset { nm, se_nm }) = free.offset else { break };
-        let (shift, stiffness) = spring_zero(&free.model, nm)?;
-        let shift_se = se_nm.map(|se| se / stiffness.abs());
-        se = shift_se;
-        if shift.abs() <= tolerance.max(SIGNIFICANT_IN_SE * shift_se.unwrap_or(0.0)) {
-            break;
-        }
-        options.start = Some(free.model);
-        let moved = fit_kind(kind, &placed(zero + shift), &options)?;
-        if moved.rss >= best.rss {
-            break;
-        }
-        (zero, best) = (zero + shift, moved);
-    }
-    if options.free_knots != requested.free_knots {
-        best = fit_kind(kind, &placed(zero), &FitOptions { start: Some(best.model), ..requested.clone() })?;
-    }
-    Ok((best, resolved(zero, se)))
-}
-
-/// The middle of the scored deflections of the runs without a rest window, rad.
-fn range_centre(motion: &Motion, origins: &[Option<RunOrigin>]) -> f64 {
-    let scored = motion.runs.iter().zip(origins).filter(|(_, origin)| origin.is_none()).flat_map(|(run, _)| {
-        run.spans.iter().flat_map(|span| span.range.clone().filter_map(|i| run.theta.get(i).copied()))
-    });
-    let (lo, hi) = scored.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), theta| (lo.min(theta), hi.max(theta)));
-    if lo <= hi {
-        0.5 * (lo + hi)
-    } else {
-        0.0
-    }
-}
-
-/// Where the spring of `model` plus `offset` (N·m) has zero torque, as a shift of x from 0, and
-/// the spring's stiffness there (its mean over the range where the tangent is 0): bisection on
-/// the monotone spring within its range, its edge's line beyond.
-fn spring_zero(model: &GearModel<f64>, offset: f64) -> Result<(f64, f64), FitError> {
-    let mut spring = model.spring.prepare()?;
-    let [lo, hi] = model.spring.range;
-    let mut torque = |x: f64| spring.evaluate(x).torque + offset;
-    let (at_lo, at_hi) = (torque(lo), torque(hi));
-    let mean = (at_hi - at_lo) / (hi - lo);
-    if !(mean.is_finite() && mean > 0.0) {
-        return Err(FitError::Degenerate);
-    }
-    let x = if at_lo >= 0.0 {
-        lo - at_lo / mean
-    } else if at_hi <= 0.0 {
-        hi - at_hi / mean
-    } else {
-        let (mut a, mut b) = (lo, hi);
-        for _ in 0..100 {
-            let mid = 0.5 * (a + b);
-            if torque(mid) < 0.0 {
-                a = mid;
-            } else {
-                b = mid;
+    let (grid_best, _) = lowest(&profile).ok_or(FitError::Degenerate)?;
+    let step = (hi - lo) / GRID_INTERVALS as f64;
+    golden(&mut profile, &misfit, (grid_best - step).max(lo), (grid_best + step).min(hi), REFINE_TOLERANCE * (hi - lo));
+    let (best, best_rss) = lowest(&profile).ok_or(FitError::Degenerate)?;
+    let samples = search.fitted().max(1) as f64;
+    let variance = best_rss / samples;
+    let simpler = profile
+        .iter()
+        .filter(|(zero, _)| *zero == centre || *zero == 0.0)
+        .filter(|(_, rss)| *rss <= best_rss + SIGNIFICANT_IN_VARIANCE * variance)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|&(zero, _)| zero);
+    let zero = simpler.unwrap_or(best);
+    // The θ0s the fit does not tell apart: those within PROFILE_TOLERANCE of the best misfit.
+    let spread = profile
+        .iter()
+        .filter(|(_, rss)| *rss <= (1.0 + PROFILE_TOLERANCE) * best_rss)
+        .fold(0.0f64, |m, (z, _)| m.max((z - zero).abs()));
+    let se = spread.max(REFINE_TOLERANCE * (hi - lo));
+    // The nonlinear parameters polished at the θ0 found on the strided copy, the linear ones then
+    // solved on every sample (or kept from the copy, `FinalSolve::Strided`); a short motion is
+    // its own copy.
+    let polish = FitOptions { start: Some(start), hold_start: false, ..options.clone() };
+    let fit = match &strided {
+        Some(_) => {
+            let polished = fit_kind(kind, &placed(search, origins, zero), &polish)?;
+            let every = placed(motion, origins, zero);
+            match solve {
+                FinalSolve::Strided => every.rescore(polished)?,
+                FinalSolve::EverySample => {
+                    let held = FitOptions { start: Some(polished.model), hold_start: true, ..options.clone() };
+                    fit_kind(kind, &every, &held)?
+                }
             }
         }
-        0.5 * (a + b)
+        None => fit_kind(kind, &placed(motion, origins, zero), &polish)?,
     };
-    let tangent = spring.evaluate(x).stiffness;
-    Ok((x, if tangent > 0.0 { tangent } else { mean }))
+    Ok((fit, resolved(zero, Some(se))))
+}
+
+/// The grid's θ0s over [lo, hi], its ends included.
+fn grid(lo: f64, hi: f64) -> impl Iterator<Item = f64> {
+    (0..=GRID_INTERVALS).map(move |k| lo + (hi - lo) * k as f64 / GRID_INTERVALS as f64)
+}
+
+/// The θ0 of least misfit of those evaluated, and its misfit.
+fn lowest(profile: &[(f64, f64)]) -> Option<(f64, f64)> {
+    profile.iter().copied().filter(|(_, rss)| rss.is_finite()).min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// Golden-section search of `misfit` on [a, b] down to `tolerance`, every evaluation added to
+/// `profile`.
+fn golden(
+    profile: &mut Vec<(f64, f64)>,
+    misfit: &(impl Fn(f64) -> (f64, f64) + Sync),
+    mut a: f64,
+    mut b: f64,
+    tolerance: f64,
+) {
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (b - ratio * (b - a), a + ratio * (b - a));
+    let (mut fc, mut fd) = (misfit(c), misfit(d));
+    profile.extend([fc, fd]);
+    while b - a > tolerance {
+        if fc.1 <= fd.1 {
+            (b, d, fd) = (d, c, fc);
+            c = b - ratio * (b - a);
+            fc = misfit(c);
+            profile.push(fc);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + ratio * (b - a);
+            fd = misfit(d);
+            profile.push(fd);
+        }
+    }
+}
+
+/// The range of every deflection of the runs without a rest window, [lo, hi] rad: where the
+/// spring's zero torque lies for a run whose torque changes sign.
+fn deflection_range(motion: &Motion, origins: &[Option<RunOrigin>]) -> [f64; 2] {
+    let unknown = motion.runs.iter().zip(origins).filter(|(_, origin)| origin.is_none());
+    let (lo, hi) = unknown
+        .flat_map(|(run, _)| run.theta.iter().copied())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), theta| (lo.min(theta), hi.max(theta)));
+    if lo <= hi {
+        [lo, hi]
+    } else {
+        [0.0, 0.0]
+    }
 }

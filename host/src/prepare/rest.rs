@@ -118,7 +118,8 @@ pub enum OriginSource {
 pub struct RunOrigin {
     /// θ0, rad.
     pub zero_rad: f64,
-    /// Its standard error, rad, where it has one.
+    /// Its uncertainty, rad, where it has one: the standard error of a rest reading, the span of
+    /// the θ0s a fit cannot tell apart (`fit/zero.rs`).
     pub zero_se_rad: Option<f64>,
     /// The torque sensor's offset, N·m: what it reads when the gear's torque is 0.
     pub torque_offset_nm: f64,
