@@ -1091,7 +1091,7 @@ const KNOT_SAMPLES: usize = 1 << 13;
 const EDGE_SEGMENT: f64 = 0.5;
 
 /// The knot rule's knots, each interior one (not x = 0, not the range's edges) moved in turn to
-/// the point of a fine grid between its neighbours (at least the rule's 10σθ from them) where
+/// the point of a fine grid between its neighbours (at least 10σθ from them) where
 /// the micro-slip solve on the subsample has the least RSS: free knots, so that a stiffness that
 /// steps (a catalogue gear's kinks) gets a pair of knots close around each step.
 ///
@@ -1124,7 +1124,7 @@ fn placed_knots(motion: &Motion, sub: &Subsample, rule: SpringBasis) -> Result<S
         let mapped = equations.mapped(&fine, knots, fine_columns.len());
         columns(&trial, motion, &elements).solve(&mapped).map(|solved| solved.rss)
     };
-    let gap = super::spring::KNOT_SPACING_IN_NOISE * motion.noise.map_or(0.0, |n| n.deflection_rad);
+    let gap = super::spring::PLACED_KNOT_GAP_IN_NOISE * motion.noise.map_or(0.0, |n| n.deflection_rad);
     let mut knots = rule.knots().to_vec();
     let mut best = rss(&knots)?;
     for _ in 0..KNOT_PASSES {

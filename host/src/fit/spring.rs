@@ -2,23 +2,34 @@
 //! the spring a solve's weights make.
 //!
 //! **The knot rule.** Per side of x = θ − θ0, E = that side's largest |x| in the fitted samples,
-//! n = min(8, ⌊E / (10·σθ)⌋) knots at E·j/n (j = 1 … n), plus one at x = 0: up to 17 knots, the
+//! n = min(8, ⌊E / (20·σθ)⌋) knots at E·j/n (j = 1 … n), plus one at x = 0: up to 17 knots, the
 //! outermost ones at the range's edges. (`bench/real/FINDINGS.md` §3 places ⌊E/10σθ⌋ − 1 at
 //! E·j/(n + 1), the stiffness constant over the last segment: on the simulator's stiffening
 //! springs that lost their last ninth, 0.12 % of peak on the seed gear's loop.) σθ is the larger of the deflection noise and the
 //! deflection's spread at rest (the runs' rest windows, pooled): on the measured spring the
 //! second differences see a fraction of the 0.030 mrad the encoder jitters by at rest. Why:
 //! - The stiffness beyond the range is the outermost segment's (model-core's edge rule), so that
-//!   segment extrapolates. Fitted on a cluster of samples whose spread is deflection noise, its
-//!   slope is biased towards 0 (errors in x); at least 10σθ of travel keeps it fitted on real
-//!   motion. Without that limit a fit on the measured 1 A run predicts the 2 A runs at 1 N·m RMS
-//!   against a straight line's 0.08 (`bench/real/FINDINGS.md` §3, §6).
+//!   segment extrapolates. Its samples' deflections carry the encoder's noise σθ, which biases
+//!   the segment's stiffness towards 0 (errors in x, regression dilution): by the factor
+//!   L²/(L² + 12σθ²) for samples spread evenly over a segment of length L, 0.89 at L = 10σθ,
+//!   0.97 at 20σθ, and more where the samples bunch at a hold (the measured runs hold the
+//!   torque at each tip for ≈ 5 s, a third of their samples, jittering by σθ about one true
+//!   deflection). Without a limit a fit on the measured 1 A run predicts the 2 A runs at 1 N·m
+//!   RMS against a straight line's 0.08 (`bench/real/FINDINGS.md` §3, §6); at 10σθ the 1 A run's
+//!   − edge (0.30 mrad of travel, most of it the hold) came out at 1158 N·m/rad on a spring of
+//!   ≈ 2600, and its fits predicted 2 A at 0.26–0.46 N·m. At 20σθ a 1 A run gets one segment a
+//!   side or none (E ≈ 0.5–0.7 mrad, σθ = 0.030 mrad) and predicts 2 A at 0.078–0.092 N·m by
+//!   the micro-slip kind (the line: 0.081–0.086); `bash bench/real.sh`, section 3, 28 → 12 of
+//!   54 cases worse than the line (15σθ: 24, 25σθ: 19, 30σθ: 21). A gear recorded with a fine
+//!   encoder keeps its 8 knots a side (the simulator's 20-bit encoders: 20σθ = 0.035 mrad).
 //! - Uniform, because the variants tried on the measured runs (quantiles of |x|, denser near 0,
 //!   4/8/12 knots) were second order there and uniform is the simplest to state.
 //! - 8 a side: the seed gear's quintic spring is then within 0.006 % of its peak torque.
 //! - **Then placed (the micro-slip kind, `fit::motion::placed_knots`)**: each interior knot is
 //!   moved in turn, twice over, to the point of a 64-step grid of its side where the kind's
-//!   solve on an 8192-sample subsample has the least RSS, still ≥ 10σθ from its neighbours, and
+//!   solve on an 8192-sample subsample has the least RSS, still ≥ 10σθ from its neighbours (a
+//!   step in stiffness asks for a knot close on each side; 20σθ there cost the measured joint
+//!   fit a run: `bench/real.sh` section 1, 2-4 0.157 → 0.161 N·m against a goal of 0.16), and
 //!   the segment at an edge at least half the rule's (its stiffness is the one the spring
 //!   extrapolates with: see `EDGE_SEGMENT` there). Free knots: a catalogue gear's stiffness steps
 //!   at two torques, uniform knots E/8 apart smear each step over a segment (fitted on the sine:
@@ -30,7 +41,7 @@
 //!   spring monotone, as the physics asks.
 //!
 //! **The shorter side, continued.** Where one side's extent falls short of the other's by more
-//! than 10σθ, that side gets one knot fewer of its own and one at the mirror of the longer
+//! than 20σθ, that side gets one knot fewer of its own and one at the mirror of the longer
 //! side's edge, beyond its samples, so that the spring's range is symmetric: there its stiffness
 //! is its own edge's plus what the longer side's stiffness gains over the same stretch,
 //! K(−e_l) = K(e_s) + K(e_l) − K(−e_s) (e_s, e_l the shorter and longer side's edges; ≥ 0). No
@@ -49,8 +60,10 @@ use model_core::{Knot, Spring};
 
 /// Most knots a side of x = 0 gets (model-core's 17 = 8 + 8 + the one at 0).
 pub const KNOTS_PER_SIDE: usize = (MAX_KNOTS - 1) / 2;
-/// Knots lie at least this many deflection-noise σ apart.
-pub const KNOT_SPACING_IN_NOISE: f64 = 10.0;
+/// The knot rule spaces knots at least this many deflection-noise σ apart.
+pub const KNOT_SPACING_IN_NOISE: f64 = 20.0;
+/// Placed knots (`fit::motion::placed_knots`) stay at least this many deflection-noise σ apart.
+pub const PLACED_KNOT_GAP_IN_NOISE: f64 = 10.0;
 
 /// The knots of a spring fitted on x within `[lo, hi]` (lo ≤ 0 ≤ hi), the deflection noise σθ
 /// being `noise`: see the module's documentation.
@@ -68,7 +81,8 @@ fn knots_within(lo: f64, hi: f64, noise: f64, most: [usize; 2]) -> Vec<f64> {
         (limit.max(0.0) as usize).min(most)
     };
     let (minus, plus) = (per_side(-lo, most[0]), per_side(hi, most[1]));
-    let at = |extent: f64, j: usize, n: usize| extent * j as f64 / n as f64;
+    // The outermost knot is the edge itself: E·n/n can round past it, out of the spring's range.
+    let at = |extent: f64, j: usize, n: usize| if j == n { extent } else { extent * j as f64 / n as f64 };
     let mut knots: Vec<f64> = (1..=minus).rev().map(|j| at(lo, j, minus)).collect();
     knots.push(0.0);
     knots.extend((1..=plus).map(|j| at(hi, j, plus)));
@@ -206,15 +220,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_knot_rule_spaces_knots_by_ten_noise_sigmas_and_caps_each_side_at_eight() {
+    fn the_knot_rule_spaces_knots_by_twenty_noise_sigmas_and_caps_each_side_at_eight() {
         // Wide sides: 8 each, the outermost at the edges, x = 0 always.
         let knots = knot_rule(-2.0e-3, 4.0e-3, 1.0e-6);
         assert_eq!(knots.len(), 17);
         assert_eq!((knots[0], knots[8], knots[16]), (-2.0e-3, 0.0, 4.0e-3));
         assert!(knots.windows(2).all(|w| w[1] > w[0]));
-        // A short side gets ⌊E / 10σ⌋ knots, none below 10σ.
-        assert_eq!(knot_rule(-3.5e-4, 1.0e-3, 3.0e-5), [-3.5e-4, 0.0, 1.0e-3 / 3.0, 2.0e-3 / 3.0, 1.0e-3]);
-        assert_eq!(knot_rule(-2.9e-4, 0.0, 3.0e-5), [0.0]);
+        // A short side gets ⌊E / 20σ⌋ knots, none below 20σ; the outermost exactly at the edge.
+        assert_eq!(knot_rule(-3.5e-4, 1.0e-3, 1.5e-5), [-3.5e-4, 0.0, 1.0e-3 / 3.0, 2.0e-3 / 3.0, 1.0e-3]);
+        assert_eq!(knot_rule(-2.9e-4, 0.0, 1.5e-5), [0.0]);
+        let edge = -6.373218443481491e-3;
+        // At 5 and 7 knots E·n/n rounds past this E.
+        assert!((1..=8).all(|n| knot_rule(edge, 0.0, -edge / (20.0 * n as f64 + 1.0))[0] == edge));
         // Without noise (a loop table) the cap alone.
         assert_eq!(knot_rule(-1.0, 1.0, 0.0).len(), 17);
     }
@@ -263,7 +280,7 @@ mod tests {
             let sum: f64 = row.iter().zip(&weights).map(|(b, k)| b * k).sum();
             assert!((prepared.evaluate(x).torque - sum).abs() <= 1e-12 * sum.abs().max(1.0));
         }
-        // Sides within 10σθ of each other: no continuation.
+        // Sides within 20σθ of each other: no continuation.
         assert_eq!(
             SpringBasis::new([-1.0e-3, 0.995e-3], 1.0e-6).spring(&[1.0; 17]).unwrap().range,
             [-1.0e-3, 0.995e-3]
