@@ -1278,12 +1278,8 @@ mod tests {
         // Knots among the grid's points, unevenly spaced.
         let knots: Vec<f64> = [0, 5, 30, 64, 70, 71, 100, 128].iter().map(|&f| fine[f]).collect();
         let elements = Elements::slipping(&motion).unwrap();
-        let columns = |spring| Columns {
-            spring,
-            own: vec![true; elements.kept.len()],
-            extra: &[],
-            scale: motion.scale(),
-        };
+        let columns =
+            |spring| Columns { spring, own: vec![true; elements.kept.len()], extra: &[], scale: motion.scale() };
         let (fine_basis, coarse) = (rule.with_knots(fine.clone()), rule.with_knots(knots.clone()));
         let on_fine = slip_equations(Source::Full(&motion), Weighting::Carried, &columns(&fine_basis), &elements);
         let mapped = on_fine.unwrap().mapped(&fine, &knots, columns(&fine_basis).len());
