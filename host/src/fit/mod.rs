@@ -360,7 +360,12 @@ fn fit_recordings(
         runs: recordings
             .iter()
             .zip(&offline)
-            .map(|(r, o)| Run::fitted_from(&r.deflection, &r.torque, &o.reversals, o.scored_from))
+            .map(|(r, o)| Run {
+                // A standstill found in the data, not declared: the elements may hold the
+                // remanence of the motion before the recording.
+                remanent_start: o.rest.is_some() && !r.starts_at_rest(),
+                ..Run::fitted_from(&r.deflection, &r.torque, &o.reversals, o.scored_from)
+            })
             .collect(),
         noise: Some(noise),
         rest_jitter: rest_jitter(&offline),

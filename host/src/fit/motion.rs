@@ -16,6 +16,9 @@
 //!   the candidates, those that never slip on a fitted sample are left out (within the data they
 //!   are springs, their width not identified, and letting them slip beyond it would be a guess),
 //!   and at most 16 of the others are kept (the joint's elements), those of largest k_i·d_i.
+//!   In a fit of several runs where one starts at a standstill found in the data (not declared
+//!   at rest), each element is [`START_STATES`] copies, so that the solve estimates that run's
+//!   remanent start state; the model merges the copies.
 //!
 //! Every column c is taken where the model is evaluated: at θ_m, carried to the measured θ
 //! along its slope, c(θ_m) + c′(θ_m)·(θ − θ_m), so the fitted model is exactly the one
@@ -95,13 +98,17 @@ pub struct Run<'a> {
     /// Each sample's total-noise weight, where fixed in advance ([`Motion::with_weights`]): the
     /// θ0 search weighs every θ0 it tries alike.
     pub weights: Option<&'a [f64]>,
+    /// Whether the run starts at a standstill found in the data, not declared (`# start: rest`):
+    /// the gear is still, but its elements may hold the remanence of the motion before the
+    /// recording, so the micro-slip fit estimates their start state ([`START_STATES`]).
+    pub remanent_start: bool,
 }
 
 impl<'a> Run<'a> {
     /// Every sample from `scored_from` on fitted; θ0 and the torque offset 0.
     pub fn fitted_from(theta: &'a [f64], torque: &'a [f64], reversals: &'a Reversals, scored_from: usize) -> Self {
         let spans = vec![Span { range: scored_from.min(theta.len())..theta.len(), held_out: false }];
-        Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0, weights: None }
+        Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0, weights: None, remanent_start: false }
     }
 
     /// The same run with θ0 `zero` (rad) and the torque sensor's offset `torque_offset` (N·m).
@@ -245,11 +252,16 @@ enum Source<'m> {
 }
 
 impl Source<'_> {
-    /// `pass` over each run's samples, the runs in parallel; the results in run order.
-    fn map_runs<A: Send>(&self, pass: impl Fn(RunSamples<'_>) -> A + Sync) -> Vec<A> {
+    /// `pass` over each run's samples (with the run's index in the motion), the runs in
+    /// parallel; the results in run order.
+    fn map_runs<A: Send>(&self, pass: impl Fn(usize, RunSamples<'_>) -> A + Sync) -> Vec<A> {
         match self {
-            Source::Full(motion) => motion.runs.par_iter().map(|run| pass(RunSamples::Full(run.samples()))).collect(),
-            Source::Stored(sub) => sub.runs.par_iter().map(|run| pass(RunSamples::Stored(run.iter()))).collect(),
+            Source::Full(motion) => {
+                motion.runs.par_iter().enumerate().map(|(k, run)| pass(k, RunSamples::Full(run.samples()))).collect()
+            }
+            Source::Stored(sub) => {
+                sub.runs.par_iter().enumerate().map(|(k, run)| pass(k, RunSamples::Stored(run.iter()))).collect()
+            }
         }
     }
 }
@@ -366,19 +378,19 @@ impl Normal {
 }
 
 /// The fitted samples' normal equations over `source`, weighted by `weighting`, with the rows
-/// that `make_row` gives: one row builder per run, called on every sample in order (the
-/// columns' state follows the motion) to fill `x`.
+/// that `make_row` gives: one row builder per run (by its index), called on every sample in
+/// order (the columns' state follows the motion) to fill `x`.
 fn normal_equations<R>(
     source: Source<'_>,
     n: usize,
     weighting: Weighting<'_>,
-    make_row: impl Fn() -> Result<R, FitError> + Sync,
+    make_row: impl Fn(usize) -> Result<R, FitError> + Sync,
 ) -> Result<Equations, FitError>
 where
     R: FnMut(&Sample, &mut [f64]) -> Result<(), FitError>,
 {
-    let per_run = source.map_runs(|samples| -> Result<Normal, FitError> {
-        let mut row = make_row()?;
+    let per_run = source.map_runs(|k, samples| -> Result<Normal, FitError> {
+        let mut row = make_row(k)?;
         let mut weigher = weighting.start()?;
         let mut normal = Normal::new(n);
         let mut x = vec![0.0; n];
@@ -434,7 +446,16 @@ impl<'a> Motion<'a> {
             spans.push(Span { range: training..theta.len(), held_out: true });
         }
         Motion {
-            runs: vec![Run { theta, torque, reversals, spans, zero: 0.0, torque_offset: 0.0, weights: None }],
+            runs: vec![Run {
+                theta,
+                torque,
+                reversals,
+                spans,
+                zero: 0.0,
+                torque_offset: 0.0,
+                weights: None,
+                remanent_start: false,
+            }],
             noise,
             rest_jitter: 0.0,
         }
@@ -459,7 +480,7 @@ impl<'a> Motion<'a> {
     pub fn noise_weights(&self, model: &GearModel<f64>) -> Result<Option<Vec<Vec<f64>>>, FitError> {
         let Some(noise) = self.noise else { return Ok(None) };
         let weighting = Weighting::Model(model, noise);
-        let per_run = Source::Full(self).map_runs(|samples| -> Result<Vec<f64>, FitError> {
+        let per_run = Source::Full(self).map_runs(|_, samples| -> Result<Vec<f64>, FitError> {
             let mut weigher = weighting.start()?;
             samples.map(|sample| weigher.weight(&sample)).collect()
         });
@@ -629,7 +650,7 @@ impl<'a> Motion<'a> {
         evaluations: usize,
         misfit: f64,
     ) -> Result<MotionFit, FitError> {
-        let per_run = Source::Full(self).map_runs(|samples| -> Result<(f64, f64), FitError> {
+        let per_run = Source::Full(self).map_runs(|_, samples| -> Result<(f64, f64), FitError> {
             let mut evaluator = model.evaluator(0.0)?;
             let (mut rss, mut held) = (0.0, 0.0);
             for sample in samples {
@@ -696,6 +717,7 @@ impl StridedRuns {
                 zero: run.zero,
                 torque_offset: run.torque_offset,
                 weights: None,
+                remanent_start: run.remanent_start,
             })
             .collect();
         Motion { runs, noise: like.noise, rest_jitter: like.rest_jitter }
@@ -776,7 +798,7 @@ impl Columns<'_> {
 /// The exact least-squares genetic coefficients at r over `source` (spring, k) and
 /// their weighted RSS.
 fn genetic_at(source: Source<'_>, weighting: Weighting<'_>, columns: &Columns, r: f64) -> Result<Solved, FitError> {
-    let equations = normal_equations(source, columns.len(), weighting, || {
+    let equations = normal_equations(source, columns.len(), weighting, |_| {
         let mut hysteresis = unit_hysteresis(r)?;
         Ok(move |sample: &Sample, x: &mut [f64]| {
             let h = step_offline(&mut hysteresis, sample.at)?.torque;
@@ -872,12 +894,87 @@ pub fn slip_range(motion: &Motion) -> (f64, f64) {
     ((SLIP_MIN_IN_NOISE_SIGMAS * noise).max(1e-3 * half_range), half_range)
 }
 
-/// The micro-slip fit's elements: the candidate grid and which of the candidates are columns.
+/// The start states a micro-slip element may hold at the first sample of a run with a
+/// remanent start ([`Run::remanent_start`]), as fractions of its slip deflection d: in the fit,
+/// each element is one copy per start state, and the solve spreads its k over the copies, an
+/// estimate of the run's unknown start state linear in the k's (issue 16 item 3, "estimate it";
+/// `bench/real/FINDINGS.md` §3: the measured runs start at the remanence of the run before).
+/// The model merges the copies: k = Σ copies, one element from rest, as `predict` runs it.
+pub const START_STATES: [f64; 5] = [-1.0, -0.5, 0.0, 0.5, 1.0];
+/// Ridge on the copies' columns, relative to their Gram diagonal (unit-norm columns): the
+/// copies of a width that the fitted runs cannot tell apart share their k by it, not by
+/// round-off. The prototype's (`bench/real/FINDINGS.md` §3: 1e-9·Σy² on these runs' 1.3e5
+/// (N·m)²). The held-out runs move with it (`bench/real.sh`, 4-4: 1.24 at 1e-5, 1.20 at 1e-4,
+/// 1.04 at 3e-4; 2-4: 0.11, 0.13, 0.17).
+const COPY_RIDGE: f64 = 1e-4;
+
+/// The micro-slip fit's elements: the candidate grid, which of the candidates are columns, and
+/// how many start-state copies each has.
 #[derive(Clone, Debug)]
 struct Elements {
     grid: [f64; SLIP_CANDIDATES],
     /// Indices into `grid`, increasing.
     kept: Vec<usize>,
+    /// Per run of the motion: whether its start state is estimated ([`Run::remanent_start`]).
+    remanent: Vec<bool>,
+    /// Columns per kept element: [`START_STATES`]`.len()` where a run's start state is
+    /// estimated (several runs, one of them remanent), else 1 (copies that all start at rest
+    /// would be one column repeated).
+    copies: usize,
+}
+
+/// Unit-stiffness elasto-slip elements that may start away from rest: copy c of element i
+/// starts at e = s0 (the column e − s0 is 0 there, like every other column at rest) and
+/// steps as [`SlipElements::step`] does.
+struct StartedElements {
+    slip: Vec<f64>,
+    start: Vec<f64>,
+    elastic: Vec<f64>,
+    theta: f64,
+}
+
+impl StartedElements {
+    /// The copies of the kept elements of `elements` for run `run`, at x = 0.
+    fn new(elements: &Elements, run: usize) -> StartedElements {
+        // One column per element (no run's start state estimated) is the element from rest.
+        let remanent = elements.copies > 1 && elements.remanent.get(run).copied().unwrap_or(false);
+        let (mut slip, mut start) = (Vec::new(), Vec::new());
+        for &i in &elements.kept {
+            let d = elements.grid[i];
+            for fraction in START_STATES.iter().take(elements.copies) {
+                slip.push(d);
+                start.push(if remanent { fraction * d } else { 0.0 });
+            }
+        }
+        StartedElements { elastic: start.clone(), slip, start, theta: 0.0 }
+    }
+
+    /// Moves to x (rad): e ← clamp(e + Δx, −d, d).
+    fn step(&mut self, theta: f64) -> Result<(), FitError> {
+        if !theta.is_finite() {
+            return Err(model_core::Error::NonFiniteDeflection.into());
+        }
+        let delta = theta - self.theta;
+        for (e, &d) in self.elastic.iter_mut().zip(&self.slip) {
+            let moved = *e + delta;
+            *e = if moved >= d {
+                d
+            } else if moved <= -d {
+                -d
+            } else {
+                moved
+            };
+        }
+        self.theta = theta;
+        Ok(())
+    }
+
+    /// Each copy's column at x_m carried `carried` along its slope (1 sticking, 0 slipping).
+    fn columns(&self, carried: f64, scale: f64, into: &mut [f64]) {
+        for (value, ((&e, &s0), &d)) in into.iter_mut().zip(self.elastic.iter().zip(&self.start).zip(&self.slip)) {
+            *value = (e - s0 + if e.abs() < d { carried } else { 0.0 }) / scale;
+        }
+    }
 }
 
 impl Elements {
@@ -886,7 +983,7 @@ impl Elements {
     fn slipping(motion: &Motion) -> Result<Elements, FitError> {
         let (slip_min, slip_max) = slip_range(motion);
         let grid = slip_grid::<f64, SLIP_CANDIDATES>(slip_min, slip_max)?;
-        let per_run = Source::Full(motion).map_runs(|samples| -> Result<[bool; SLIP_CANDIDATES], FitError> {
+        let per_run = Source::Full(motion).map_runs(|_, samples| -> Result<[bool; SLIP_CANDIDATES], FitError> {
             let mut elements = SlipElements::new(grid)?;
             let mut slipped = [false; SLIP_CANDIDATES];
             for sample in samples {
@@ -903,30 +1000,48 @@ impl Elements {
         for run in per_run {
             slipped.iter_mut().zip(run?).for_each(|(s, r)| *s |= r);
         }
-        Ok(Elements { grid, kept: (0..SLIP_CANDIDATES).filter(|&i| slipped[i]).collect() })
+        let remanent: Vec<bool> = motion.runs.iter().map(|run| run.remanent_start).collect();
+        // One run alone (one cycle here) leaves its start state and its elements confounded:
+        // fitted alone with copies, each measured run predicted its repeats worse (3–5 A mean
+        // 0.24–0.58 → 0.34–1.00 N·m, `bench/real.sh` section 2); other runs pin the elements.
+        let copies = if motion.runs.len() > 1 && remanent.contains(&true) { START_STATES.len() } else { 1 };
+        Ok(Elements { grid, kept: (0..SLIP_CANDIDATES).filter(|&i| slipped[i]).collect(), remanent, copies })
+    }
+
+    /// The fit's columns of these elements: `copies` per kept element.
+    fn columns(&self) -> usize {
+        self.kept.len() * self.copies
+    }
+
+    /// Each kept element's k from its copies' (`per_copy`, one per column): their sum.
+    fn merged(&self, per_copy: &[f64]) -> Vec<f64> {
+        per_copy.chunks(self.copies).map(|copies| copies.iter().sum()).collect()
     }
 
     /// At most the joint's [`SLIP_ELEMENTS`] of the kept candidates: those of largest k_i·d_i
-    /// (the torque each adds once it slips) among those a solve gave k_i > 0, or all of them.
+    /// (the torque each adds once it slips) among those a solve gave k_i > 0, or all of them;
+    /// `stiffness` has one k per column (copies merged here).
     fn strongest(&self, stiffness: &[f64]) -> Elements {
+        let merged = self.merged(stiffness);
         let mut active: Vec<(usize, f64)> =
-            self.kept.iter().zip(stiffness).filter(|(_, &k)| k > 0.0).map(|(&i, &k)| (i, k * self.grid[i])).collect();
-        if active.len() <= SLIP_ELEMENTS {
-            return Elements { grid: self.grid, kept: active.into_iter().map(|(i, _)| i).collect() };
+            self.kept.iter().zip(&merged).filter(|(_, &k)| k > 0.0).map(|(&i, &k)| (i, k * self.grid[i])).collect();
+        if active.len() > SLIP_ELEMENTS {
+            active.sort_by(|a, b| b.1.total_cmp(&a.1));
+            active.truncate(SLIP_ELEMENTS);
         }
-        active.sort_by(|a, b| b.1.total_cmp(&a.1));
-        let mut kept: Vec<usize> = active.into_iter().take(SLIP_ELEMENTS).map(|(i, _)| i).collect();
+        let mut kept: Vec<usize> = active.into_iter().map(|(i, _)| i).collect();
         kept.sort_unstable();
-        Elements { grid: self.grid, kept }
+        Elements { kept, ..self.clone() }
     }
 
-    /// The kept elements with stiffnesses `stiffness` (N·m/rad, one per kept), k = 0 left out.
+    /// The kept elements with stiffnesses `stiffness` (N·m/rad, one per column, the copies
+    /// merged), k = 0 left out.
     fn model_elements(&self, stiffness: &[f64]) -> Vec<SlipElement<f64>> {
         self.kept
             .iter()
-            .zip(stiffness)
-            .filter(|(_, &k)| k > 0.0)
-            .map(|(&i, &k)| SlipElement { slip: self.grid[i], stiffness: k })
+            .zip(self.merged(stiffness))
+            .filter(|(_, k)| *k > 0.0)
+            .map(|(&i, k)| SlipElement { slip: self.grid[i], stiffness: k })
             .collect()
     }
 }
@@ -939,7 +1054,15 @@ fn slip_solve(
     columns: &Columns,
     elements: &Elements,
 ) -> Result<Solved, FitError> {
-    columns.solve(&slip_equations(source, weighting, columns, elements)?)
+    let mut equations = slip_equations(source, weighting, columns, elements)?;
+    if elements.copies > 1 {
+        let n = columns.len();
+        let ridge = 1.0 + COPY_RIDGE;
+        for j in columns.spring.len()..columns.spring.len() + columns.own.len() {
+            equations.gram[j * n + j] *= ridge;
+        }
+    }
+    columns.solve(&equations)
 }
 
 /// The weighted normal equations of [`slip_solve`].
@@ -949,22 +1072,12 @@ fn slip_equations(
     columns: &Columns,
     elements: &Elements,
 ) -> Result<Equations, FitError> {
-    normal_equations(source, columns.len(), weighting, || {
-        let mut all = SlipElements::new(elements.grid)?;
+    normal_equations(source, columns.len(), weighting, |run| {
+        let mut all = StartedElements::new(elements, run);
         Ok(move |sample: &Sample, x: &mut [f64]| {
             all.step(sample.at.theta_m)?;
-            let (elastic, sticking) = (all.elastic(), all.sticking());
-            let carried = sample.at.offset;
-            columns.row(
-                sample,
-                |own| {
-                    // e_i at x_m carried to x along its slope: 1 sticking, 0 slipping.
-                    for (value, &i) in own.iter_mut().zip(&elements.kept) {
-                        *value = (elastic[i] + if sticking[i] { carried } else { 0.0 }) / columns.scale;
-                    }
-                },
-                x,
-            );
+            // e_i at x_m carried to x along its slope: 1 sticking, 0 slipping.
+            columns.row(sample, |own| all.columns(sample.at.offset, columns.scale, own), x);
             Ok(())
         })
     })
@@ -987,7 +1100,7 @@ fn slip_columns<'a>(
 ) -> Result<(Columns<'a>, Elements), FitError> {
     let candidates = Elements::slipping(motion)?;
     let columns =
-        |elements: &Elements| Columns { spring, own: vec![true; elements.kept.len()], extra, scale: motion.scale() };
+        |elements: &Elements| Columns { spring, own: vec![true; elements.columns()], extra, scale: motion.scale() };
     let first = columns(&candidates);
     let solved = slip_solve(source, weighting, &first, &candidates)?;
     let elements = candidates.strongest(first.own(&solved.coef));
@@ -1013,7 +1126,7 @@ pub fn micro_slip_with_columns(
     let (columns, elements) = slip_columns(&motion, &spring, extra, Source::Full(&motion), weighting)?;
     let solved = slip_solve(Source::Full(&motion), weighting, &columns, &elements)?;
     let model = slip_model(&columns, &elements, &solved)?;
-    let free: Vec<f64> = solved.coef.iter().skip(spring.len() + elements.kept.len()).copied().collect();
+    let free: Vec<f64> = solved.coef.iter().skip(spring.len() + elements.columns()).copied().collect();
     let mut evaluator = model.evaluator(0.0)?;
     let mut chi2 = 0.0;
     let mut predicted = Vec::with_capacity(theta.len());
@@ -1115,7 +1228,7 @@ fn placed_knots(motion: &Motion, sub: &Subsample, rule: SpringBasis) -> Result<S
     let fine_basis = rule.with_knots(fine.clone());
     let elements = Elements::slipping(motion)?;
     fn columns<'a>(spring: &'a SpringBasis, motion: &Motion, elements: &Elements) -> Columns<'a> {
-        Columns { spring, own: vec![true; elements.kept.len()], extra: &[], scale: motion.scale() }
+        Columns { spring, own: vec![true; elements.columns()], extra: &[], scale: motion.scale() }
     }
     let fine_columns = columns(&fine_basis, motion, &elements);
     let equations = slip_equations(Source::Stored(sub), Weighting::Carried, &fine_columns, &elements)?;
@@ -1279,7 +1392,7 @@ mod tests {
         let knots: Vec<f64> = [0, 5, 30, 64, 70, 71, 100, 128].iter().map(|&f| fine[f]).collect();
         let elements = Elements::slipping(&motion).unwrap();
         let columns =
-            |spring| Columns { spring, own: vec![true; elements.kept.len()], extra: &[], scale: motion.scale() };
+            |spring| Columns { spring, own: vec![true; elements.columns()], extra: &[], scale: motion.scale() };
         let (fine_basis, coarse) = (rule.with_knots(fine.clone()), rule.with_knots(knots.clone()));
         let on_fine = slip_equations(Source::Full(&motion), Weighting::Carried, &columns(&fine_basis), &elements);
         let mapped = on_fine.unwrap().mapped(&fine, &knots, columns(&fine_basis).len());
@@ -1313,6 +1426,52 @@ mod tests {
         let fitted = fit_micro_slip(&motion, &FitOptions::default()).unwrap();
         assert_eq!(fitted.n, first.len() + second.len());
         assert!(fitted.rms < 1e-6 * 30.0, "RMS {}: {:?}", fitted.rms, fitted.model);
+    }
+
+    #[test]
+    fn a_remanent_start_is_estimated_by_the_start_state_copies() {
+        // The gear is run to +A, −A and back to 0 before the recording: at its first sample
+        // (x = 0, standing still) every element of d ≤ A/2 holds +d, the remanence. The torque
+        // sensor is zeroed there.
+        let amplitude = 1.2e-3;
+        let recorded: Vec<f64> =
+            (0..4001).map(|i| amplitude * (std::f64::consts::TAU * i as f64 / 2000.0).sin()).collect();
+        let reversals = crate::prepare::reversals(&recorded);
+        let probe = Motion::training_prefix(&recorded, &[], &reversals, recorded.len(), None);
+        let (slip_min, slip_max) = slip_range(&probe);
+        let grid = slip_grid::<f64, SLIP_CANDIDATES>(slip_min, slip_max).unwrap();
+        let elements: Vec<SlipElement<f64>> = grid
+            .iter()
+            .filter(|&&d| d <= amplitude / 2.0)
+            .step_by(4)
+            .enumerate()
+            .map(|(i, &slip)| SlipElement { slip, stiffness: 400.0 + 50.0 * i as f64 })
+            .collect();
+        let truth = GearModel::micro_slip(0.0, asymmetric_spring(&recorded), &elements).unwrap();
+        let history: Vec<f64> =
+            (0..4001).map(|i| amplitude * (std::f64::consts::TAU * i as f64 / 4000.0).sin()).collect();
+        let whole: Vec<f64> = history.iter().chain(&recorded[1..]).copied().collect();
+        let along = torque_of(&truth, &whole, &crate::prepare::reversals(&whole));
+        let torque = &along[history.len() - 1..];
+        // Fitted jointly with a run from rest (one run alone leaves start and elements confounded).
+        let virgin = nested(4000, amplitude);
+        let virgin_reversals = crate::prepare::reversals(&virgin);
+        let virgin_torque = torque_of(&truth, &virgin, &virgin_reversals);
+        let fit = |remanent_start: bool| {
+            let run = Run { remanent_start, ..Run::fitted_from(&recorded, torque, &reversals, 0) };
+            let runs =
+                vec![run.with_origin(0.0, torque[0]), Run::fitted_from(&virgin, &virgin_torque, &virgin_reversals, 0)];
+            fit_micro_slip(&Motion { runs, noise: None, rest_jitter: 0.0 }, &FitOptions::default()).unwrap()
+        };
+        let (estimated, from_rest) = (fit(true), fit(false));
+        let misfit_rms = |f: &MotionFit| (f.misfit / f.n as f64).sqrt();
+        let peak = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+        assert!(misfit_rms(&estimated) < 1e-3 * peak, "{} of {peak}", misfit_rms(&estimated));
+        assert!(misfit_rms(&from_rest) > 10.0 * misfit_rms(&estimated), "{} of {peak}", misfit_rms(&from_rest));
+        // The copies merged, from rest along the history and the recording: the truth's torque.
+        let merged = torque_of(&estimated.model, &whole, &crate::prepare::reversals(&whole));
+        let rms = (merged.iter().zip(&along).map(|(m, t)| (m - t).powi(2)).sum::<f64>() / whole.len() as f64).sqrt();
+        assert!(rms < 1e-3 * peak, "merged RMS {rms} of {peak}");
     }
 
     #[test]
