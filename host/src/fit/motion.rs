@@ -1354,13 +1354,19 @@ mod tests {
             .collect()
     }
 
-    #[test]
-    fn micro_slip_recovers_its_own_asymmetric_gear_exactly() {
+    /// A nested motion and the torque of a micro-slip gear with an asymmetric spring along it.
+    fn asymmetric_micro_slip_gear_on_nested_motion() -> (Vec<f64>, Reversals, Vec<f64>) {
         let theta = nested(6000, 1.2e-3);
         let reversals = crate::prepare::reversals(&theta);
         let truth =
             GearModel::micro_slip(0.0, asymmetric_spring(&theta), &elements_on_grid(&theta, &reversals)).unwrap();
         let torque = torque_of(&truth, &theta, &reversals);
+        (theta, reversals, torque)
+    }
+
+    #[test]
+    fn micro_slip_recovers_its_own_asymmetric_gear_exactly() {
+        let (theta, reversals, torque) = asymmetric_micro_slip_gear_on_nested_motion();
         let motion = Motion::training_prefix(&theta, &torque, &reversals, theta.len(), None);
         let fitted = fit_micro_slip(&motion, &FitOptions::default()).unwrap();
         let scale = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
@@ -1376,11 +1382,7 @@ mod tests {
     /// that are grid points are the normal equations on those knots.
     #[test]
     fn equations_on_the_fine_grid_map_exactly_onto_knots_among_its_points() {
-        let theta = nested(6000, 1.2e-3);
-        let reversals = crate::prepare::reversals(&theta);
-        let truth =
-            GearModel::micro_slip(0.0, asymmetric_spring(&theta), &elements_on_grid(&theta, &reversals)).unwrap();
-        let torque = torque_of(&truth, &theta, &reversals);
+        let (theta, reversals, torque) = asymmetric_micro_slip_gear_on_nested_motion();
         let motion = Motion::training_prefix(&theta, &torque, &reversals, theta.len(), None);
         let rule = motion.spring_basis();
         let [lo, hi] = rule.range();
