@@ -197,6 +197,8 @@ pub enum Error {
     InvalidSpring,
     /// A parameter of a gear's model is not finite or out of its range ([`GearModel::check`]).
     InvalidParameter(ParamName, ParamFault),
+    /// Bouc–Wen hysteresis needs A > 0, β > 0 and γ > −β, all finite ([`bouc_wen::BoucWen`]).
+    InvalidBoucWen,
 }
 
 impl fmt::Display for Error {
@@ -224,6 +226,9 @@ impl fmt::Display for Error {
             Error::InvalidSpring => f.write_str(
                 "spring knots must be finite and increasing with stiffness >= 0 N·m/rad, its range must hold x = 0",
             ),
+            Error::InvalidBoucWen => {
+                f.write_str("Bouc–Wen needs A > 0, beta > 0 1/rad and gamma > -beta 1/rad, all finite")
+            }
         }
     }
 }
@@ -766,6 +771,7 @@ impl<F: Real> Evaluation<F> {
     }
 }
 
+pub mod bouc_wen;
 #[cfg(any(test, feature = "checks"))]
 pub mod checks;
 pub mod gear;

@@ -1,0 +1,149 @@
+//! Host tests of Bouc–Wen hysteresis: the closed-form step against many small steps and a fine
+//! Euler integration, the bound on z, the slope, f32 against f64, and bad inputs.
+extern crate std;
+
+use super::*;
+use core::f64::consts::TAU;
+use proptest::prelude::*;
+
+/// The simulator's default gear's hysteresis: z saturates at 0.4 mrad.
+const GEAR: BoucWen<f64> = BoucWen { a: 1.0, beta: 1250.0, gamma: 1250.0 };
+/// The seed loop's amplitude, rad.
+const A: f64 = 1.168e-3;
+
+fn state(params: BoucWen<f64>) -> BoucWenState<f64> {
+    BoucWenState::new(params).unwrap()
+}
+
+#[test]
+fn one_step_lands_where_ten_thousand_small_ones_do() {
+    // γ < β, γ = β and γ > β: the three shapes of the unloading piece (c > 0, 0, < 0).
+    for gamma in [400.0, 1250.0, 2000.0] {
+        let params = BoucWen { gamma, ..GEAR };
+        for target in [A, -A, 0.3e-3, 5e-3] {
+            let mut one = state(params);
+            // Up to +0.8 mrad first, so that a step down crosses z = 0.
+            one.step(0.8e-3).unwrap();
+            let mut many = one;
+            let z_one = one.step(target).unwrap();
+            let mut z_many = 0.0;
+            for k in 1..=10_000 {
+                z_many = many.step(0.8e-3 + (target - 0.8e-3) * k as f64 / 10_000.0).unwrap();
+            }
+            assert!((z_one - z_many).abs() < 1e-12, "γ {gamma}, to {target}: {z_one} vs {z_many}");
+        }
+    }
+}
+
+#[test]
+fn it_matches_a_fine_euler_integration_of_the_differential_equation() {
+    let mut bw = state(GEAR);
+    let (mut z, mut theta) = (0.0f64, 0.0f64);
+    let n = 400_000;
+    let mut worst: f64 = 0.0;
+    for i in 1..=n {
+        let next = A * (TAU * 1.5 * i as f64 / n as f64).sin();
+        let d = next - theta;
+        z += d * (GEAR.a - z.abs() * (GEAR.beta * (d * z).signum() + GEAR.gamma));
+        theta = next;
+        if i % 1000 == 0 {
+            bw.step(theta).unwrap();
+            worst = worst.max((bw.z() - z).abs());
+        }
+    }
+    assert!(worst < 1e-3 * GEAR.z_max(), "worst |Δz| {worst}");
+}
+
+#[test]
+fn z_saturates_at_its_bound_and_never_passes_it() {
+    let mut bw = state(GEAR);
+    for theta in [5e-3, -5e-3, 1e-3, -2e-2, 3e-2] {
+        let z = bw.step(theta).unwrap();
+        assert!(z.abs() <= GEAR.z_max(), "{z}");
+    }
+    assert!((bw.z() - GEAR.z_max()).abs() < 1e-9 * GEAR.z_max());
+}
+
+#[test]
+fn the_slope_is_the_right_hand_side_of_the_equation_and_matches_a_small_step() {
+    let mut bw = state(GEAR);
+    bw.step(0.5e-3).unwrap();
+    for rising in [true, false] {
+        let h = if rising { 1e-9 } else { -1e-9 };
+        let mut moved = bw;
+        let dz = moved.step(bw.theta() + h).unwrap() - bw.z();
+        let slope = bw.slope(rising);
+        assert!((dz / h - slope).abs() < 1e-5 * GEAR.a, "rising {rising}: {} vs {slope}", dz / h);
+    }
+    // Loading with z at its bound: no more hysteretic deflection; unloading: A − (β − γ)·z_max.
+    let params = BoucWen { gamma: 400.0, ..GEAR };
+    let mut bw = state(params);
+    bw.step(1.0).unwrap();
+    assert!(bw.slope(true).abs() < 1e-9);
+    let unloading = params.a - (params.beta - params.gamma) * params.z_max();
+    assert!((bw.slope(false) - unloading).abs() < 1e-9, "{} vs {unloading}", bw.slope(false));
+}
+
+#[test]
+fn a_reversal_is_continuous_in_z() {
+    let mut bw = state(GEAR);
+    bw.step(A).unwrap();
+    let at_tip = bw.z();
+    let after = bw.step(A - 1e-9).unwrap();
+    assert!((after - at_tip).abs() < 3e-9, "{at_tip} → {after}");
+}
+
+#[test]
+fn dither_about_a_held_load_ratchets() {
+    // No return-point memory: small loops about a held deflection drift, here towards the
+    // unloading branch's z, which is this physics (issue 17, "no return-point memory").
+    let mut bw = state(GEAR);
+    bw.step(A).unwrap();
+    let start = bw.step(0.5 * A).unwrap();
+    for _ in 0..200 {
+        bw.step(0.5 * A + 0.05e-3).unwrap();
+        bw.step(0.5 * A).unwrap();
+    }
+    assert!((bw.z() - start).abs() > 1e-6, "{start} → {}", bw.z());
+}
+
+#[test]
+fn bad_parameters_and_deflections_are_refused() {
+    for params in [
+        BoucWen { a: 0.0, ..GEAR },
+        BoucWen { beta: 0.0, ..GEAR },
+        BoucWen { gamma: -1250.0, ..GEAR },
+        BoucWen { a: f64::NAN, ..GEAR },
+        BoucWen { gamma: f64::INFINITY, ..GEAR },
+    ] {
+        assert_eq!(BoucWenState::new(params), Err(Error::InvalidBoucWen), "{params:?}");
+    }
+    let mut bw = state(GEAR);
+    bw.step(A).unwrap();
+    let before = bw;
+    assert_eq!(bw.step(f64::NAN), Err(Error::NonFiniteDeflection));
+    assert_eq!(bw, before, "a refused step changes nothing");
+}
+
+fn params() -> impl Strategy<Value = BoucWen<f64>> {
+    (1e-3..10.0f64, 1.0..1e5f64, -0.99..3.0f64).prop_map(|(a, beta, ratio)| BoucWen { a, beta, gamma: ratio * beta })
+}
+
+proptest! {
+    /// Any valid parameters on any path: z finite and within its bound, in f64 and f32, and the
+    /// f32 state within rounding of the f64 one.
+    #[test]
+    fn z_is_finite_bounded_and_the_same_in_f32(params in params(), path in prop::collection::vec(-1.0..1.0f64, 1..200)) {
+        let mut wide = state(params);
+        let narrow_params = BoucWen { a: params.a as f32, beta: params.beta as f32, gamma: params.gamma as f32 };
+        let mut narrow = BoucWenState::new(narrow_params).unwrap();
+        let scale = 10.0 * params.z_max();
+        for theta in path {
+            let z = wide.step(theta * scale).unwrap();
+            let z32 = narrow.step((theta * scale) as f32).unwrap();
+            prop_assert!(z.is_finite() && z.abs() <= params.z_max());
+            prop_assert!(z32.is_finite() && z32.abs() <= narrow_params.z_max());
+            prop_assert!((f64::from(z32) - z).abs() <= 1e-3 * params.z_max(), "{z32} vs {z}");
+        }
+    }
+}
