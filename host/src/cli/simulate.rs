@@ -19,10 +19,12 @@ const PHYSICS_HELP: &str = "\
 Truth physics (--physics), θ the elastic deflection (rad), T the torque (N·m), at rest θ = 0:
   genetic     the params file's model (--params): under --motion sine the symmetric loop of
               amplitude A, under the others model-core's GeneticMemory (Madelung's rules) from rest.
-  bouc-wen    T = a·k·θ + k3·θ³ + (1 − a)·k·z,  dz = dθ·(A_bw − |z|·(β_bw·sign(dθ·z) + γ_bw)),
-              z = 0 at rest, integrated exactly (closed form between sign changes of z).
+  bouc-wen    T = a·k·θ + k3·θ³ + (1 − a)·k·z,  dz = dθ·(A_bw − |z|ⁿ·(β_bw·sign(dθ·z) + γ_bw)),
+              z = 0 at rest; for n = 1 integrated exactly (closed form between sign changes of
+              z), else by RK4 within 2e-5 of z's bound per A_bw·z_max of travel (model-core).
               Defaults: k = 9000 N·m/rad, a = 0.85, k3 = 1.2e10 N·m/rad³, A_bw = 1,
-              β_bw = γ_bw = 1250 1/rad (z saturates at 0.4 mrad). No exact return-point memory.
+              β_bw = γ_bw = 1250 1/rad, n = 1 (z saturates at 0.4 mrad). No exact return-point
+              memory.
   micro-slip  T = k1·θ + k3·θ³ + Σ k_e·s_i,  s_i ← clamp(s_i + Δθ, −d_i, d_i), s_i = 0 at rest;
               M elements, k_e = K_slip/M, d_i the quantiles (i + ½)/M of p(d) ∝ d^p on
               [d_min, d_max]. Defaults: k1 = 6000 N·m/rad, k3 = 1.2e10 N·m/rad³, M = 300,
@@ -35,7 +37,7 @@ Truth physics (--physics), θ the elastic deflection (rad), T the torque (N·m),
               sign(θ)·(T2 + K3'·(|θ| − θ2)) beyond: kinks where T_s reaches ±T1, ±T2.
               Defaults: K1 = 14000, K2 = 26000, K3 = 36000 N·m/rad, T1 = 7, T2 = 19 N·m, σ = 1,
               M = 300, K_slip = 2000 N·m/rad, d_min = 0, d_max = 2 mrad, p = 0.
---physics-params FILE.json overrides any of: bouc-wen {k, a, k3, a_bw, beta_bw, gamma_bw};
+--physics-params FILE.json overrides any of: bouc-wen {k, a, k3, a_bw, beta_bw, gamma_bw, n};
 micro-slip {k1, k3, elements, slip_stiffness, min_slip_rad, max_slip_rad, slip_exponent};
 catalogue {k1, k2, k3, t1_nm, t2_nm, positive_scale, elements, slip_stiffness, min_slip_rad,
 max_slip_rad, slip_exponent}.";
@@ -128,7 +130,7 @@ enum PhysicsArg {
     Genetic,
     /// A Maxwell-slip/Iwan gear with many slip elements.
     MicroSlip,
-    /// A Bouc–Wen gear (n = 1).
+    /// A Bouc–Wen gear.
     BoucWen,
     /// A harmonic-drive catalogue gear: three-segment stiffness with Maxwell-slip elements.
     Catalogue,

@@ -63,12 +63,13 @@ impl Physics {
     }
 }
 
-/// Bouc–Wen (n = 1): T = a·k·θ + k3·θ³ + (1 − a)·k·z with
-/// dz = dθ·(A_bw − |z|·(β_bw·sign(dθ·z) + γ_bw)), z in rad, z = 0 at rest.
+/// Bouc–Wen: T = a·k·θ + k3·θ³ + (1 − a)·k·z with
+/// dz = dθ·(A_bw − |z|ⁿ·(β_bw·sign(dθ·z) + γ_bw)), z in rad, z = 0 at rest.
 ///
 /// Rate-independent (z depends on the path of θ, not on time) and smooth along a branch; no
 /// exact return-point memory (small reversals drift), which is part of this physics. z is
-/// model-core's [`model_core::bouc_wen`], integrated exactly per sample.
+/// model-core's [`model_core::bouc_wen`]: integrated exactly per sample for n = 1, by RK4
+/// sub-steps of a stated error otherwise.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BoucWen {
@@ -80,10 +81,12 @@ pub struct BoucWen {
     pub k3: f64,
     /// A_bw, dimensionless (> 0).
     pub a_bw: f64,
-    /// β_bw, 1/rad (> 0).
+    /// β_bw, rad⁻ⁿ (> 0).
     pub beta_bw: f64,
-    /// γ_bw, 1/rad (> −β_bw).
+    /// γ_bw, rad⁻ⁿ (> −β_bw).
     pub gamma_bw: f64,
+    /// n, ≥ 1 (OpenSees' BoucWen calls it n too).
+    pub n: f64,
 }
 
 impl Default for BoucWen {
@@ -91,7 +94,7 @@ impl Default for BoucWen {
         // The seed fit's small-angle stiffness c1 ≈ 9000 N·m/rad; z saturates at
         // A_bw/(β_bw + γ_bw) = 0.4 mrad; the loop at A = 1.168 mrad peaks at 28.6 N·m and is
         // 0.92 N·m wide at θ = 0 (3.2 % of the peak).
-        BoucWen { k: 9000.0, a: 0.85, k3: 1.2e10, a_bw: 1.0, beta_bw: 1250.0, gamma_bw: 1250.0 }
+        BoucWen { k: 9000.0, a: 0.85, k3: 1.2e10, a_bw: 1.0, beta_bw: 1250.0, gamma_bw: 1250.0, n: 1.0 }
     }
 }
 
@@ -225,12 +228,8 @@ impl BoucWen {
         require(p, "k3", self.k3, true, "finite")?;
         require(p, "a_bw", self.a_bw, self.a_bw > 0.0, "> 0")?;
         require(p, "beta_bw", self.beta_bw, self.beta_bw > 0.0, "> 0 1/rad")?;
-        require(p, "gamma_bw", self.gamma_bw, self.gamma_bw > -self.beta_bw, "> -beta_bw 1/rad")
-    }
-
-    /// The largest |z|, A_bw/(β_bw + γ_bw), rad.
-    pub fn z_max(&self) -> f64 {
-        self.a_bw / (self.beta_bw + self.gamma_bw)
+        require(p, "gamma_bw", self.gamma_bw, self.gamma_bw > -self.beta_bw, "> -beta_bw 1/rad")?;
+        require(p, "n", self.n, self.n >= 1.0, ">= 1")
     }
 }
 
@@ -424,13 +423,14 @@ impl BoucWenGear {
     /// At rest: θ = 0, z = 0.
     pub fn new(params: BoucWen) -> Result<Self, PhysicsParamError> {
         params.validate()?;
-        let hysteresis = model_core::bouc_wen::BoucWen { a: params.a_bw, beta: params.beta_bw, gamma: params.gamma_bw };
+        let hysteresis =
+            model_core::bouc_wen::BoucWen { a: params.a_bw, beta: params.beta_bw, gamma: params.gamma_bw, n: params.n };
         // `validate` asks what model-core does and names the parameter at fault: past it, this
         // cannot fail.
         let hysteresis = BoucWenState::new(hysteresis).map_err(|_| PhysicsParamError {
             physics: "bouc-wen",
             name: "gamma_bw",
-            expected: "> -beta_bw 1/rad, with a_bw > 0 and beta_bw > 0",
+            expected: "> -beta_bw 1/rad, with a_bw > 0, beta_bw > 0 and n >= 1",
             value: params.gamma_bw,
         })?;
         Ok(BoucWenGear { params, hysteresis })
@@ -794,6 +794,7 @@ mod tests {
         let e = MicroSlip { slip_exponent: -2.0, ..MicroSlip::default() }.validate().unwrap_err();
         assert_eq!(e.name, "slip_exponent");
         assert!(BoucWen { gamma_bw: -1250.0, ..BoucWen::default() }.validate().is_err());
+        assert!(BoucWen { n: 0.9, ..BoucWen::default() }.validate().is_err());
         let catalogue = |params: Catalogue| CatalogueGear::new(params).unwrap_err().to_string();
         assert_eq!(
             catalogue(Catalogue { k2: 14_000.0, ..Catalogue::default() }),

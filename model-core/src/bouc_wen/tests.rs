@@ -7,7 +7,9 @@ use core::f64::consts::TAU;
 use proptest::prelude::*;
 
 /// The simulator's default gear's hysteresis: z saturates at 0.4 mrad.
-const GEAR: BoucWen<f64> = BoucWen { a: 1.0, beta: 1250.0, gamma: 1250.0 };
+const GEAR: BoucWen<f64> = BoucWen { a: 1.0, beta: 1250.0, gamma: 1250.0, n: 1.0 };
+/// OpenSees' Bouc–Wen of `bench/opensees` (n = 1.5): z saturates at 0.30 mrad.
+const SHARP: BoucWen<f64> = BoucWen { a: 1.0, beta: 9.6e4, gamma: 9.6e4, n: 1.5 };
 /// The seed loop's amplitude, rad.
 const A: f64 = 1.168e-3;
 
@@ -35,23 +37,65 @@ fn one_step_lands_where_ten_thousand_small_ones_do() {
     }
 }
 
-#[test]
-fn it_matches_a_fine_euler_integration_of_the_differential_equation() {
-    let mut bw = state(GEAR);
+/// The largest |Δz| between the state stepped every 1000th sample and an Euler integration
+/// of every one of 400,000 samples along 1.5 cycles of A·sin.
+fn worst_against_euler(params: BoucWen<f64>) -> f64 {
+    let mut bw = state(params);
     let (mut z, mut theta) = (0.0f64, 0.0f64);
     let n = 400_000;
     let mut worst: f64 = 0.0;
     for i in 1..=n {
         let next = A * (TAU * 1.5 * i as f64 / n as f64).sin();
         let d = next - theta;
-        z += d * (GEAR.a - z.abs() * (GEAR.beta * (d * z).signum() + GEAR.gamma));
+        z += d * (params.a - z.abs().powf(params.n) * (params.beta * (d * z).signum() + params.gamma));
         theta = next;
         if i % 1000 == 0 {
             bw.step(theta).unwrap();
             worst = worst.max((bw.z() - z).abs());
         }
     }
-    assert!(worst < 1e-3 * GEAR.z_max(), "worst |Δz| {worst}");
+    worst
+}
+
+#[test]
+fn it_matches_a_fine_euler_integration_of_the_differential_equation() {
+    for params in [GEAR, SHARP, BoucWen { n: 3.0, gamma: 500.0, beta: 2e9, ..GEAR }] {
+        let worst = worst_against_euler(params);
+        assert!(worst < 1e-3 * params.z_max(), "{params:?}: worst |Δz| {worst}");
+    }
+}
+
+#[test]
+fn for_n_other_than_one_a_large_step_lands_within_the_stated_bound() {
+    // Steps of 10 u* and u*/2, each against the same step in 10,000 pieces: the module's
+    // bound, 2e-5·z_max per u* travelled.
+    let shapes = [SHARP, BoucWen { n: 1.0 + 1e-9, ..GEAR }, BoucWen { n: 1.2, gamma: 400.0, ..GEAR }];
+    for params in shapes {
+        let scale = params.z_max() / params.a;
+        for travel in [10.0, 0.5, -10.0] {
+            let mut one = state(params);
+            one.step(-0.3 * scale).unwrap();
+            let mut many = one;
+            let target = -0.3 * scale + travel * scale;
+            let z_one = one.step(target).unwrap();
+            let mut z_many = 0.0;
+            for k in 1..=10_000 {
+                z_many = many.step(-0.3 * scale + travel * scale * k as f64 / 10_000.0).unwrap();
+            }
+            let bound = 2e-5 * params.z_max() * f64::abs(travel);
+            assert!((z_one - z_many).abs() < bound, "n {}, {travel} u*: {z_one} vs {z_many}", params.n);
+        }
+    }
+}
+
+#[test]
+fn n_just_above_one_agrees_with_the_exact_step() {
+    let mut exact = state(GEAR);
+    let mut stepped = state(BoucWen { n: 1.0 + 1e-9, ..GEAR });
+    for theta in [0.8e-3, -0.2e-3, 1.5e-3, -A, 0.1e-3] {
+        let (a, b) = (exact.step(theta).unwrap(), stepped.step(theta).unwrap());
+        assert!((a - b).abs() < 2e-5 * GEAR.z_max(), "at {theta}: {a} vs {b}");
+    }
 }
 
 #[test]
@@ -75,12 +119,12 @@ fn the_slope_is_the_right_hand_side_of_the_equation_and_matches_a_small_step() {
         let slope = bw.slope(rising);
         assert!((dz / h - slope).abs() < 1e-5 * GEAR.a, "rising {rising}: {} vs {slope}", dz / h);
     }
-    // Loading with z at its bound: no more hysteretic deflection; unloading: A − (β − γ)·z_max.
+    // Loading with z at its bound: no more hysteretic deflection; unloading: A + (β − γ)·z_max.
     let params = BoucWen { gamma: 400.0, ..GEAR };
     let mut bw = state(params);
     bw.step(1.0).unwrap();
     assert!(bw.slope(true).abs() < 1e-9);
-    let unloading = params.a - (params.beta - params.gamma) * params.z_max();
+    let unloading = params.a + (params.beta - params.gamma) * params.z_max();
     assert!((bw.slope(false) - unloading).abs() < 1e-9, "{} vs {unloading}", bw.slope(false));
 }
 
@@ -115,6 +159,8 @@ fn bad_parameters_and_deflections_are_refused() {
         BoucWen { gamma: -1250.0, ..GEAR },
         BoucWen { a: f64::NAN, ..GEAR },
         BoucWen { gamma: f64::INFINITY, ..GEAR },
+        BoucWen { n: 0.5, ..GEAR },
+        BoucWen { n: f64::NAN, ..GEAR },
     ] {
         assert_eq!(BoucWenState::new(params), Err(Error::InvalidBoucWen), "{params:?}");
     }
@@ -126,7 +172,13 @@ fn bad_parameters_and_deflections_are_refused() {
 }
 
 fn params() -> impl Strategy<Value = BoucWen<f64>> {
-    (1e-3..10.0f64, 1.0..1e5f64, -0.99..3.0f64).prop_map(|(a, beta, ratio)| BoucWen { a, beta, gamma: ratio * beta })
+    let n = prop_oneof![Just(1.0), 1.0..3.0f64];
+    (1e-3..10.0f64, 1.0..1e5f64, -0.99..3.0f64, n).prop_map(|(a, beta, ratio, n)| BoucWen {
+        a,
+        beta,
+        gamma: ratio * beta,
+        n,
+    })
 }
 
 proptest! {
@@ -135,7 +187,8 @@ proptest! {
     #[test]
     fn z_is_finite_bounded_and_the_same_in_f32(params in params(), path in prop::collection::vec(-1.0..1.0f64, 1..200)) {
         let mut wide = state(params);
-        let narrow_params = BoucWen { a: params.a as f32, beta: params.beta as f32, gamma: params.gamma as f32 };
+        let narrow_params =
+            BoucWen { a: params.a as f32, beta: params.beta as f32, gamma: params.gamma as f32, n: params.n as f32 };
         let mut narrow = BoucWenState::new(narrow_params).unwrap();
         let scale = 10.0 * params.z_max();
         for theta in path {
