@@ -17,9 +17,9 @@
 //!   joint.
 //! - **Any other n ≥ 1: classical Runge–Kutta (RK4)** in sub-steps of at most u*/[`SUB_STEPS_PER_SCALE`]
 //!   of deflection, u* = z_max/A the deflection over which z saturates. Its error against the
-//!   same step taken in 10,000 pieces, in the tests: below 2·10⁻⁵·z_max per u* travelled for
-//!   1 ≤ n ≤ 3 (up to 8.6·10⁻⁶ measured, on a half-u* step across z = 0, where |w|ⁿ is not
-//!   smooth; 16 sub-steps gave 2.7·10⁻⁵ at n = 1.5, 64 gave 6.2·10⁻⁶ near n = 1). A joint's tick
+//!   same step taken in 10,000 pieces: below 2·10⁻⁵·z_max per u* travelled, the largest on a
+//!   half-u* step across z = 0, where |w|ⁿ is not smooth (8.6·10⁻⁶ just above n = 1, 8.6·10⁻⁷
+//!   at n = 1.5: `cargo test -p model-core for_n_other_than_one -- --nocapture`). A joint's tick
 //!   moves θ by a small fraction of u*: one sub-step, a few |w|ⁿ.
 //!
 //! One copy: the simulator's Bouc–Wen gear steps it too.
@@ -33,7 +33,6 @@ const MAX_SUB_STEPS: u32 = 64 * SUB_STEPS_PER_SCALE;
 
 /// The parameters of Bouc–Wen hysteresis: A (dimensionless), β and γ (rad⁻ⁿ), n.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BoucWen<F> {
     /// A, > 0: dz/dθ at z = 0.
