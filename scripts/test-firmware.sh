@@ -4,7 +4,8 @@
 #   2. clippy over the firmware workspace (lints: firmware/Cargo.toml, firmware/clippy.toml):
 #      joint on the host, each board on thumbv7em
 #   3. the firmware for both boards (QEMU mps2-an386 and STM32F405) builds for thumbv7em
-#   4. model-core's checks and the fast path's error bound on the emulated Cortex-M4F, and the
+#   4. model-core's checks and the fast path's error bound on the emulated Cortex-M4F, a deliberate
+#      panic that must end QEMU with status 1, and the
 #      firmware's budgets: instructions per tick (the benchmark binary, every tick of its motions)
 #      and flash (firmware/joint/src/budget.rs; RAM with the stack is bench/firmware.sh's)
 #   5. end to end under QEMU: push, read back, replay, bad traffic (host/tests/firmware_e2e.rs)
@@ -54,6 +55,15 @@ qemu_run() {
 
 echo "== model-core on the emulated Cortex-M4F (QEMU mps2-an386)"
 qemu_run -kernel "$elf_dir/model-core-checks"
+
+echo "== a panic under QEMU ends the emulation with a failure status (the board's panic handler)"
+panic_status=0
+qemu_run -kernel "$elf_dir/panic-check" >/dev/null 2>&1 || panic_status=$?
+if [ "$panic_status" -ne 1 ]; then
+    echo "panic-check exited with status $panic_status, not 1: a panic would pass for success" >&2
+    exit 1
+fi
+echo "panic-check: status 1, as it must be"
 
 echo "== the firmware's budgets: instructions per tick and flash (firmware/joint/src/budget.rs)"
 mkdir -p target
