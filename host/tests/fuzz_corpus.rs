@@ -190,6 +190,8 @@ fn frame_seeds() -> Vec<(String, Vec<u8>)> {
         frames.iter().enumerate().map(|(i, frame)| (format!("golden-{i}.bin"), frame.clone())).collect();
     seeds.push(("two-frames.bin".into(), [frames[0].clone(), frames[2].clone()].concat()));
     seeds.push(("garbage-then-frame.bin".into(), [&[0x13, 0x37, 0xff, 0x00][..], &frames[0]].concat()));
+    let bouc_wen = JointParams { model: model_core::checks::bouc_wen_set().map(|_, v| v as f32), ..params };
+    seeds.push(("write-bouc-wen.bin".into(), encode_to_vec(RequestId(200), &Request::WriteParams(bouc_wen)).unwrap()));
     seeds
 }
 

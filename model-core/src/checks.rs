@@ -78,6 +78,18 @@ pub fn micro_slip_set() -> Result<crate::GearModel<f64>, Error> {
     crate::legacy::GearModelV1::MicroSlip(MICRO_SLIP_V1).upgrade()
 }
 
+/// The simulator's default Bouc–Wen gear (`simulate --physics bouc-wen`) as a model: the spring
+/// a·k·x + k3·x³ (a = 0.85, k = 9000 N·m/rad, k3 = 1.2·10¹⁰ N·m/rad³) and H = (1 − a)·k·z with
+/// A = 1, β = γ = 1250 1/rad, n = 1.
+pub fn bouc_wen_set() -> crate::GearModel<f64> {
+    let shape = crate::bouc_wen::BoucWen { a: 1.0, beta: 1250.0, gamma: 1250.0, n: 1.0 };
+    crate::GearModel {
+        zero: 0.0,
+        spring: crate::Spring::polynomial(0.85 * 9000.0, 1.2e10, 0.0),
+        hysteresis: crate::Hysteresis::BoucWen(crate::bouc_wen::BoucWenTerm { stiffness: 0.15 * 9000.0, shape }),
+    }
+}
+
 /// Both reference sets with a short name, for running a check on each.
 pub const REFERENCE_SETS: [(&str, Params<f64>); 2] =
     [("paper Table 2", PAPER_TABLE_2), ("seed table fit", SEED_TABLE_FIT)];

@@ -23,6 +23,7 @@
 //! (with its parameters' names in [`ParamName`], its checks, its range bound in `range`, its f32
 //! tolerance in `tolerance`, its serde names), its fit on the host, and one arm in the firmware's
 //! budget, which bounds its per-tick cost. Nothing else branches on the kind.
+use crate::bouc_wen::{BoucWen, BoucWenMemory, BoucWenTerm};
 use crate::memory::{finite, Finish, GeneticMemory, Hysteretic, MicroSlip, SlipElement};
 use crate::range::{self, Culprit};
 use crate::spring::{PreparedSpring, Spring};
@@ -42,17 +43,20 @@ pub enum Kind {
     Genetic,
     /// Maxwell-slip (a discrete Iwan model): up to [`SLIP_ELEMENTS`] elasto-slip elements.
     MicroSlip,
+    /// Bouc–Wen: smooth branches, no exact return-point memory ([`crate::bouc_wen`]).
+    BoucWen,
 }
 
 impl Kind {
     /// Every kind, in the order reports list them.
-    pub const ALL: [Kind; 2] = [Kind::Genetic, Kind::MicroSlip];
+    pub const ALL: [Kind; 3] = [Kind::Genetic, Kind::MicroSlip, Kind::BoucWen];
 
     /// The kind's name in params files (their `model` field).
     pub const fn name(self) -> &'static str {
         match self {
             Kind::Genetic => crate::MODEL_NAME,
             Kind::MicroSlip => "micro-slip",
+            Kind::BoucWen => "bouc-wen",
         }
     }
 
@@ -61,6 +65,7 @@ impl Kind {
         match self {
             Kind::Genetic => "genetic",
             Kind::MicroSlip => "micro-slip",
+            Kind::BoucWen => "bouc-wen",
         }
     }
 
@@ -69,6 +74,9 @@ impl Kind {
         match self {
             Kind::Genetic => "The paper's genetic model, with Madelung's rules on a recording",
             Kind::MicroSlip => "Maxwell-slip: up to 16 elasto-slip elements, each its own slip deflection (recordings)",
+            Kind::BoucWen => {
+                "Bouc–Wen: smooth branches that saturate, minor loops that drift (no return-point memory; recordings)"
+            }
         }
     }
 
@@ -79,6 +87,7 @@ impl Kind {
                 "H = the paper's hysteresis z (α, β, ω) on every branch between turning points (Madelung's rules)"
             }
             Kind::MicroSlip => "H = Σ k_i·e_i, elasto-slip elements slipping at deflections d_i",
+            Kind::BoucWen => "H = k_h·z, dz = dx·(A − |z|ⁿ·(β·sign(dx·z) + γ)) (Bouc–Wen)",
         }
     }
 
@@ -139,6 +148,7 @@ pub enum Hysteresis<F> {
     Genetic(Genetic<F>),
     /// The elements, slip deflections increasing; the first `count` are used.
     MicroSlip(([SlipElement<F>; SLIP_ELEMENTS], u8)),
+    BoucWen(BoucWenTerm<F>),
 }
 
 /// A gear's model: its deflection zero, its spring and its hysteresis, in `F` (f64 on the host,
@@ -162,6 +172,7 @@ impl<F> GearModel<F> {
         match self.hysteresis {
             Hysteresis::Genetic(_) => Kind::Genetic,
             Hysteresis::MicroSlip(_) => Kind::MicroSlip,
+            Hysteresis::BoucWen(_) => Kind::BoucWen,
         }
     }
 }
@@ -203,7 +214,7 @@ impl<F: Real> GearModel<F> {
     pub fn slip_elements(&self) -> &[SlipElement<F>] {
         match &self.hysteresis {
             Hysteresis::MicroSlip((elements, count)) => elements.get(..usize::from(*count)).unwrap_or(&[]),
-            Hysteresis::Genetic(_) => &[],
+            Hysteresis::Genetic(_) | Hysteresis::BoucWen(_) => &[],
         }
     }
 
@@ -249,6 +260,32 @@ impl<F: Real> GearModel<F> {
                 }
                 Ok(())
             }
+            Hysteresis::BoucWen(term) => {
+                let BoucWen { a, beta, gamma, n } = term.shape;
+                let fields = [
+                    (ParamName::HysteresisStiffness, term.stiffness),
+                    (ParamName::BoucWenA, a),
+                    (ParamName::BoucWenBeta, beta),
+                    (ParamName::BoucWenGamma, gamma),
+                    (ParamName::BoucWenN, n),
+                ];
+                if let Some((name, _)) = fields.into_iter().find(|(_, value)| !value.is_finite()) {
+                    return Err((name, ParamFault::NotFinite));
+                }
+                if a <= F::zero() {
+                    return out_of_range(ParamName::BoucWenA);
+                }
+                if beta <= F::zero() {
+                    return out_of_range(ParamName::BoucWenBeta);
+                }
+                if gamma <= -beta {
+                    return out_of_range(ParamName::BoucWenGamma);
+                }
+                if n < F::one() || n > F::from(crate::bouc_wen::MAX_N).unwrap_or(F::one()) {
+                    return out_of_range(ParamName::BoucWenN);
+                }
+                Ok(())
+            }
         }
     }
 
@@ -284,6 +321,9 @@ impl<F: Real> GearModel<F> {
             Hysteresis::MicroSlip(_) => {
                 evaluator.hysteresis = HysteresisState::MicroSlip(MicroSlip::new(self.slip_elements())?);
             }
+            Hysteresis::BoucWen(term) => {
+                evaluator.hysteresis = HysteresisState::BoucWen(BoucWenMemory::new(*term)?);
+            }
         }
         self.spring.prepare_into(&mut evaluator.spring)
     }
@@ -300,7 +340,7 @@ impl<F: Real> GearModel<F> {
     pub fn has_fast_path(&self) -> bool {
         match &self.hysteresis {
             Hysteresis::Genetic(g) => g.model().is_ok_and(|model| model.has_direct_decay()),
-            Hysteresis::MicroSlip(_) => true,
+            Hysteresis::MicroSlip(_) | Hysteresis::BoucWen(_) => true,
         }
     }
 
@@ -314,7 +354,7 @@ impl<F: Real> GearModel<F> {
     pub fn identifiable(&self, amplitude: F) -> Option<Identifiable<F>> {
         match &self.hysteresis {
             Hysteresis::Genetic(g) => g.params().identifiable(amplitude).ok(),
-            Hysteresis::MicroSlip(_) => None,
+            Hysteresis::MicroSlip(_) | Hysteresis::BoucWen(_) => None,
         }
     }
 
@@ -363,6 +403,15 @@ impl<F: Copy + Default> GearModel<F> {
                 }
                 Hysteresis::MicroSlip((converted, *count))
             }
+            Hysteresis::BoucWen(term) => Hysteresis::BoucWen(BoucWenTerm {
+                stiffness: convert(ParamName::HysteresisStiffness, term.stiffness)?,
+                shape: BoucWen {
+                    a: convert(ParamName::BoucWenA, term.shape.a)?,
+                    beta: convert(ParamName::BoucWenBeta, term.shape.beta)?,
+                    gamma: convert(ParamName::BoucWenGamma, term.shape.gamma)?,
+                    n: convert(ParamName::BoucWenN, term.shape.n)?,
+                },
+            }),
         };
         Ok(GearModel { zero, spring, hysteresis })
     }
@@ -395,11 +444,11 @@ impl<F: Copy + Default + core::fmt::LowerExp> core::fmt::Display for GearModel<F
 /// What an evaluator remembers of the motion, as the joint reports it every tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Memory {
-    /// The direction of motion the genetic kind follows (`None` at rest and for the micro-slip
-    /// kind, which needs none).
+    /// The direction of motion the genetic and Bouc–Wen kinds follow (`None` at rest and for
+    /// the micro-slip kind, which needs none).
     pub direction: Option<Direction>,
     /// How much memory is in use: turning points stored (genetic) or elements slipping
-    /// (micro-slip).
+    /// (micro-slip); Bouc–Wen keeps one state, z, whatever the motion (0).
     pub depth: usize,
 }
 
@@ -408,6 +457,7 @@ pub struct Memory {
 pub enum HysteresisState<F> {
     Genetic(GeneticMemory<F, TURNING_POINTS>),
     MicroSlip(MicroSlip<F, SLIP_ELEMENTS>),
+    BoucWen(BoucWenMemory<F>),
 }
 
 impl<F: Real> HysteresisState<F> {
@@ -449,8 +499,8 @@ impl<F: Real> Evaluator<F> {
     }
 
     /// [`Evaluator::step_reporting`] with the elementary functions of `A` where `first`, else
-    /// of `B`: the joint's tick, which chooses its fast path or libm sample by sample, gets one
-    /// copy of the kinds that use none.
+    /// of `B` (Bouc–Wen: `A`'s always): the joint's tick, which chooses its fast path or libm
+    /// sample by sample, gets one copy of the kinds that use none.
     ///
     /// T = S(x) + H(x) is checked once, on the sum; the hysteresis' memory is written only if it
     /// is finite, so a step that fails leaves the memory as it was.
@@ -471,6 +521,9 @@ impl<F: Real> Evaluator<F> {
             HysteresisState::MicroSlip(slip) => {
                 (slip.step_finishing(x, finish), Memory { direction: None, depth: slip.slipping() })
             }
+            // One path, A's: on the joint a second copy of its step in libm's functions was
+            // 2.2 KiB of the 48 KiB of flash, for the same z to f32 rounding.
+            HysteresisState::BoucWen(bouc_wen) => (bouc_wen.step_finishing::<A>(x, finish), bouc_wen.memory()),
         }
     }
 
@@ -480,6 +533,7 @@ impl<F: Real> Evaluator<F> {
         match &self.hysteresis {
             HysteresisState::Genetic(memory) => Memory { direction: memory.direction(), depth: memory.depth() },
             HysteresisState::MicroSlip(slip) => Memory { direction: None, depth: slip.slipping() },
+            HysteresisState::BoucWen(bouc_wen) => bouc_wen.memory(),
         }
     }
 
@@ -518,6 +572,7 @@ impl<F: Real> Hysteretic<F> for Evaluator<F> {
         match &mut self.hysteresis {
             HysteresisState::Genetic(memory) => memory.reset(),
             HysteresisState::MicroSlip(slip) => slip.reset(),
+            HysteresisState::BoucWen(bouc_wen) => bouc_wen.reset(),
         }
     }
 
@@ -553,6 +608,19 @@ mod serde_forms {
         elements: ([SlipElement<F>; SLIP_ELEMENTS], u8),
     }
 
+    /// The Bouc–Wen kind's parameters as a file and the wire write them.
+    #[derive(Serialize, Deserialize)]
+    #[serde(bound(deserialize = "F: Deserialize<'de> + Default + Copy"))]
+    struct BoucWenForm<F> {
+        zero: F,
+        spring: Spring<F>,
+        stiffness: F,
+        a: F,
+        beta: F,
+        gamma: F,
+        n: F,
+    }
+
     /// `{"model": "genetic-hysteresis", "params": {…}}`. The names are [`Kind::name`] (tested).
     #[derive(Serialize)]
     #[cfg_attr(feature = "use-std", derive(Deserialize))]
@@ -563,6 +631,8 @@ mod serde_forms {
         Genetic(GeneticForm<F>),
         #[serde(rename = "micro-slip")]
         MicroSlip(MicroSlipForm<F>),
+        #[serde(rename = "bouc-wen")]
+        BoucWen(BoucWenForm<F>),
     }
 
     #[derive(Serialize, Deserialize)]
@@ -570,14 +640,35 @@ mod serde_forms {
     enum Indexed<F> {
         Genetic(GeneticForm<F>),
         MicroSlip(MicroSlipForm<F>),
+        BoucWen(BoucWenForm<F>),
     }
 
-    /// The kind's parameters apart, and whether it is the genetic kind.
-    fn forms<F: Copy>(model: &GearModel<F>) -> Result<GeneticForm<F>, MicroSlipForm<F>> {
+    /// The kind's parameters apart.
+    enum Form<F> {
+        Genetic(GeneticForm<F>),
+        MicroSlip(MicroSlipForm<F>),
+        BoucWen(BoucWenForm<F>),
+    }
+
+    fn forms<F: Copy>(model: &GearModel<F>) -> Form<F> {
         let (zero, spring) = (model.zero, model.spring);
         match model.hysteresis {
-            Hysteresis::Genetic(g) => Ok(GeneticForm { zero, spring, alpha: g.alpha, beta: g.beta, omega: g.omega }),
-            Hysteresis::MicroSlip(elements) => Err(MicroSlipForm { zero, spring, elements }),
+            Hysteresis::Genetic(g) => {
+                Form::Genetic(GeneticForm { zero, spring, alpha: g.alpha, beta: g.beta, omega: g.omega })
+            }
+            Hysteresis::MicroSlip(elements) => Form::MicroSlip(MicroSlipForm { zero, spring, elements }),
+            Hysteresis::BoucWen(BoucWenTerm { stiffness, shape: BoucWen { a, beta, gamma, n } }) => {
+                Form::BoucWen(BoucWenForm { zero, spring, stiffness, a, beta, gamma, n })
+            }
+        }
+    }
+
+    fn bouc_wen<F>(form: BoucWenForm<F>) -> GearModel<F> {
+        let BoucWenForm { zero, spring, stiffness, a, beta, gamma, n } = form;
+        GearModel {
+            zero,
+            spring,
+            hysteresis: Hysteresis::BoucWen(BoucWenTerm { stiffness, shape: BoucWen { a, beta, gamma, n } }),
         }
     }
 
@@ -593,10 +684,12 @@ mod serde_forms {
     impl<F: Serialize + Copy> Serialize for GearModel<F> {
         fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
             match (forms(self), serializer.is_human_readable()) {
-                (Ok(g), true) => Named::Genetic(g).serialize(serializer),
-                (Err(m), true) => Named::MicroSlip(m).serialize(serializer),
-                (Ok(g), false) => Indexed::Genetic(g).serialize(serializer),
-                (Err(m), false) => Indexed::MicroSlip(m).serialize(serializer),
+                (Form::Genetic(g), true) => Named::Genetic(g).serialize(serializer),
+                (Form::MicroSlip(m), true) => Named::MicroSlip(m).serialize(serializer),
+                (Form::BoucWen(b), true) => Named::BoucWen(b).serialize(serializer),
+                (Form::Genetic(g), false) => Indexed::Genetic(g).serialize(serializer),
+                (Form::MicroSlip(m), false) => Indexed::MicroSlip(m).serialize(serializer),
+                (Form::BoucWen(b), false) => Indexed::BoucWen(b).serialize(serializer),
             }
         }
     }
@@ -610,11 +703,13 @@ mod serde_forms {
                 return Ok(match Named::deserialize(deserializer)? {
                     Named::Genetic(g) => genetic(g),
                     Named::MicroSlip(m) => micro_slip(m),
+                    Named::BoucWen(b) => bouc_wen(b),
                 });
             }
             Ok(match Indexed::deserialize(deserializer)? {
                 Indexed::Genetic(g) => genetic(g),
                 Indexed::MicroSlip(m) => micro_slip(m),
+                Indexed::BoucWen(b) => bouc_wen(b),
             })
         }
     }
@@ -624,8 +719,9 @@ mod serde_forms {
         /// the kind's name in a field of its own.
         pub fn serialize_params<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
             match forms(self) {
-                Ok(g) => g.serialize(serializer),
-                Err(m) => m.serialize(serializer),
+                Form::Genetic(g) => g.serialize(serializer),
+                Form::MicroSlip(m) => m.serialize(serializer),
+                Form::BoucWen(b) => b.serialize(serializer),
             }
         }
     }

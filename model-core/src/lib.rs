@@ -102,6 +102,16 @@ pub enum ParamName {
     RangeMin,
     /// The high end of the spring's identified range.
     RangeMax,
+    /// k_h, the Bouc–Wen kind's torque per rad of z.
+    HysteresisStiffness,
+    /// The Bouc–Wen kind's A.
+    BoucWenA,
+    /// The Bouc–Wen kind's β.
+    BoucWenBeta,
+    /// The Bouc–Wen kind's γ.
+    BoucWenGamma,
+    /// The Bouc–Wen kind's n.
+    BoucWenN,
 }
 
 impl ParamName {
@@ -127,6 +137,11 @@ impl ParamName {
             ParamName::KnotStiffness(_) => "knot_stiffness",
             ParamName::RangeMin => "range_min",
             ParamName::RangeMax => "range_max",
+            ParamName::HysteresisStiffness => "stiffness",
+            ParamName::BoucWenA => "a",
+            ParamName::BoucWenBeta => "beta",
+            ParamName::BoucWenGamma => "gamma",
+            ParamName::BoucWenN => "n",
         }
     }
 
@@ -140,16 +155,28 @@ impl ParamName {
             ParamName::RangeMin => "the range's low end must be <= 0 rad",
             ParamName::RangeMax => "the range's high end must be >= 0 rad and above its low end",
             ParamName::Zero => "the deflection's zero must lie within the joint's deflection range",
-            ParamName::C1 | ParamName::C2 | ParamName::C3 | ParamName::Alpha | ParamName::Beta => {
-                "the model overflows the float type with it"
-            }
+            ParamName::C1
+            | ParamName::C2
+            | ParamName::C3
+            | ParamName::Alpha
+            | ParamName::Beta
+            | ParamName::HysteresisStiffness => "the model overflows the float type with it",
+            ParamName::BoucWenA => "A must be > 0",
+            ParamName::BoucWenBeta => "beta must be > 0",
+            ParamName::BoucWenGamma => "gamma must be > -beta",
+            ParamName::BoucWenN => "n must be from 1 to 32",
         }
     }
 
     /// The parameter's unit, for reports.
     pub const fn unit(self) -> &'static str {
         match self {
-            ParamName::C1 | ParamName::SlipStiffness(_) | ParamName::KnotStiffness(_) => "N·m/rad",
+            ParamName::C1
+            | ParamName::SlipStiffness(_)
+            | ParamName::KnotStiffness(_)
+            | ParamName::HysteresisStiffness => "N·m/rad",
+            ParamName::BoucWenA | ParamName::BoucWenN => "1",
+            ParamName::BoucWenBeta | ParamName::BoucWenGamma => "rad⁻ⁿ",
             ParamName::C2 => "N·m/rad³",
             ParamName::C3 => "N·m/rad⁵",
             ParamName::Alpha => "N·m/rad per unit of ω",
@@ -227,7 +254,7 @@ impl fmt::Display for Error {
                 "spring knots must be finite and increasing with stiffness >= 0 N·m/rad, its range must hold x = 0",
             ),
             Error::InvalidBoucWen => {
-                f.write_str("Bouc–Wen needs A > 0, beta > 0 1/rad and gamma > -beta 1/rad, all finite")
+                f.write_str("Bouc–Wen needs A > 0, beta > 0 1/rad^n, gamma > -beta 1/rad^n and 1 <= n <= 32, all finite")
             }
         }
     }
@@ -624,6 +651,19 @@ pub trait Elementary<F> {
     fn exp(y: F) -> F;
     /// ln v for a finite v > 0.
     fn ln(v: F) -> F;
+    /// e^y − 1, to a relative error as small near y = 0 as elsewhere (Bouc–Wen's closed-form
+    /// step: a tick's increment of z is this times a constant, and e^y − 1 would lose it).
+    fn exp_m1(y: F) -> F;
+    /// ln(1 + v) for a finite v > −1.
+    fn ln_1p(v: F) -> F;
+    /// vⁿ for a finite v > 0: e^(n·ln v) unless the implementation has a cheaper way.
+    #[inline(always)]
+    fn pow(v: F, n: F) -> F
+    where
+        F: Real,
+    {
+        Self::exp(n * Self::ln(v))
+    }
     /// Whether h·e^(−rφ) is formed as h times [`Elementary::exp`]`(−rφ)` where the model
     /// allows it (|r| ≤ [`MAX_DIRECT_DECAY_R`]): no ln and exp of h when a loop's amplitude
     /// changes. Otherwise (the default, and [`Libm`]'s choice) as ±exp(ln|h| − rφ), which stays
@@ -657,6 +697,14 @@ impl<F: Real> Elementary<F> for Libm {
     #[inline(always)]
     fn ln(v: F) -> F {
         v.ln()
+    }
+    #[inline(always)]
+    fn exp_m1(y: F) -> F {
+        y.exp_m1()
+    }
+    #[inline(always)]
+    fn ln_1p(v: F) -> F {
+        v.ln_1p()
     }
 }
 

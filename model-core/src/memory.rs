@@ -58,7 +58,7 @@ pub(crate) trait Finish<F> {
 }
 
 /// H and dH/dθ alone, checked.
-struct Alone;
+pub(crate) struct Alone;
 
 impl<F: Real> Finish<F> for Alone {
     #[inline(always)]

@@ -125,6 +125,14 @@ fn bound<F: Real>(model: &GearModel<F>, max_deflection: F, neutral: Option<Param
             let stiffness = value(ParamName::SlipStiffness(i), e.stiffness).abs();
             (t + stiffness * e.slip.min(width), k + stiffness)
         }),
+        Hysteresis::BoucWen(term) => {
+            // |z| ≤ z_max (and ≤ A·travel from rest); 0 ≤ dz/dx ≤ A·max(1, 2β/(β + γ)).
+            let stiffness = value(ParamName::HysteresisStiffness, term.stiffness).abs();
+            let shape = &term.shape;
+            let two = F::one() + F::one();
+            let slope = shape.a * F::one().max(two * shape.beta / (shape.beta + shape.gamma));
+            (stiffness * shape.z_max().min(shape.a * width), stiffness * slope)
+        }
     };
     // A NaN (∞·0, ∞ − ∞) counts as ∞.
     let nan_inf = |v: F| if v.is_nan() { F::infinity() } else { v };
@@ -152,8 +160,10 @@ pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culp
     if fits(bound(model, d, None)) {
         return Ok(());
     }
-    // β and ω before α: α = 0 switches the whole hysteresis term off, whatever overflows in it.
+    // β and ω before α: α = 0 switches the whole hysteresis term off, whatever overflows in it,
+    // as Bouc–Wen's k_h = 0 does (its A, which scales z with k_h, has no neutral value).
     let genetic = matches!(model.hysteresis, Hysteresis::Genetic(_));
+    let bouc_wen = matches!(model.hysteresis, Hysteresis::BoucWen(_));
     let first =
         [ParamName::C1, ParamName::C2, ParamName::C3, ParamName::RangeMin, ParamName::RangeMax, ParamName::Zero]
             .into_iter()
@@ -164,6 +174,7 @@ pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culp
         .chain(knots)
         .chain(elements)
         .chain(genetic.then_some(ParamName::Alpha))
+        .chain(bouc_wen.then_some(ParamName::HysteresisStiffness))
         .find(|&name| fits(bound(model, d, Some(name))))
         .map_or(Err(Culprit::Several), |name| Err(Culprit::Param(name)))
 }
@@ -171,7 +182,7 @@ pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culp
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::checks::{micro_slip_set, PAPER_TABLE_2, SEED_TABLE_FIT};
+    use crate::checks::{bouc_wen_set, micro_slip_set, PAPER_TABLE_2, SEED_TABLE_FIT};
 
     const D: f32 = 0.1;
 
@@ -204,5 +215,17 @@ mod tests {
         assert_eq!(gear(&slip.with(ParamName::Zero, 1.0e38), D), Err(Culprit::Param(ParamName::Zero)));
         assert_eq!(gear(&slip.with(ParamName::Zero, 0.2), D), Err(Culprit::Param(ParamName::Zero)));
         assert_eq!(gear(&slip.with(ParamName::Zero, -0.05), D), Ok(()));
+        let bouc_wen = bouc_wen_set().map(|_, v| v as f32);
+        assert_eq!(gear(&bouc_wen, D), Ok(()));
+        for name in [ParamName::C1, ParamName::C2, ParamName::HysteresisStiffness] {
+            assert_eq!(gear(&bouc_wen.with(name, 1.0e38), D), Err(Culprit::Param(name)), "{name:?}");
+        }
+        // A scales z_max = A/(β + γ) with k_h: k_h, whose 0 switches the hysteresis off, is named.
+        let hysteresis = Err(Culprit::Param(ParamName::HysteresisStiffness));
+        assert_eq!(gear(&bouc_wen.with(ParamName::BoucWenA, 1.0e38), D), hysteresis);
+        // A larger β, γ or n only narrows z: nothing overflows.
+        for name in [ParamName::BoucWenBeta, ParamName::BoucWenGamma, ParamName::BoucWenN] {
+            assert_eq!(gear(&bouc_wen.with(name, 1.0e38), D), Ok(()), "{name:?}");
+        }
     }
 }

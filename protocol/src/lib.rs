@@ -56,7 +56,7 @@ use serde::{Deserialize, Serialize};
 /// version 4's model was. Version 6: [`JointParams::model`] is the model of model version 2 (the
 /// deflection's zero, the free-form spring, the micro-slip kind's elements each with its own slip
 /// deflection); frames up to [`MAX_FRAME_LEN`] = 512 bytes.
-pub const PROTOCOL_VERSION: u16 = 6;
+pub const PROTOCOL_VERSION: u16 = 7;
 
 /// Largest encoded frame, delimiter included: the longest message (a micro-slip
 /// [`Response::Params`] with 17 knots, 16 elements and every varint at its maximum, the request

@@ -24,5 +24,6 @@ pub const fn evaluator_tick_instructions(model: &GearModel<f32>) -> u32 {
     match model.kind() {
         Kind::Genetic => 400,
         Kind::MicroSlip => 400,
+        Kind::BoucWen => 400,
     }
 }

@@ -388,7 +388,8 @@ mod tests {
     use super::*;
     use model_core::memory::slip_grid;
     use model_core::{
-        checks::PAPER_TABLE_2, GearModel, Hysteretic, Kind, Knot, ParamName, SlipElement, Spring, MODEL_VERSION,
+        checks::{bouc_wen_set, PAPER_TABLE_2}, GearModel, Hysteresis, Hysteretic, Kind, Knot, ParamName, SlipElement, Spring,
+        MODEL_VERSION,
     };
     use std::vec::Vec;
     use swg_protocol::{ParamFault, ParamField, SLIP_ELEMENTS};
@@ -429,9 +430,19 @@ mod tests {
         JointParams { model: GearModel { zero: -3.0e-4, spring, ..base.model }, ..base }
     }
 
-    /// Every set the tests run: both kinds, with the polynomial spring and with knots.
-    fn sets() -> [JointParams; 4] {
-        [paper(), slip(), knotted(paper()), knotted(slip())]
+    /// The simulator's Bouc–Wen gear (model-core's check set), with its exponent n.
+    fn bouc_wen(n: f32) -> JointParams {
+        let mut model = bouc_wen_set().map(|_, v| v as f32);
+        if let Hysteresis::BoucWen(term) = &mut model.hysteresis {
+            term.shape.n = n;
+        }
+        JointParams { model, ..paper() }
+    }
+
+    /// Every set the tests run: every kind, with the polynomial spring and with knots (Bouc–Wen
+    /// with n = 1, integrated in closed form, and with n = 1.5, in Runge–Kutta sub-steps).
+    fn sets() -> [JointParams; 7] {
+        [paper(), slip(), bouc_wen(1.0), bouc_wen(1.5), knotted(paper()), knotted(slip()), knotted(bouc_wen(1.0))]
     }
 
     /// model-core's own evaluator of `params`, at rest, in f32 with libm.
@@ -590,7 +601,10 @@ mod tests {
                         let want = expected.step(out.deflection).unwrap();
                         assert_eq!(out.compensation, Compensation::Active);
                         deepest = deepest.max(out.memory);
-                        if path == EvalPath::Direct || params.model.kind() == Kind::MicroSlip {
+                        // Bouc–Wen runs the fast path's functions on both paths (model-core's
+                        // `step_reporting_either`).
+                        let kind = params.model.kind();
+                        if (path == EvalPath::Direct && kind != Kind::BoucWen) || kind == Kind::MicroSlip {
                             assert_eq!((out.torque, out.stiffness), (want.torque, want.stiffness));
                         } else {
                             assert!(
@@ -601,7 +615,10 @@ mod tests {
                             assert!(k_error <= 1.0e-3 * (1.0e3 + want.stiffness.abs()), "{out:?} {want:?}");
                         }
                     }
-                    assert!(deepest >= 2, "the motion leaves memory behind: {deepest}");
+                    // Bouc–Wen keeps z, whatever the motion: no turning points.
+                    if params.model.kind() != Kind::BoucWen {
+                        assert!(deepest >= 2, "the motion leaves memory behind: {deepest}");
+                    }
                 }
             }
         }
@@ -655,7 +672,7 @@ mod tests {
                             let exact_step = (exact_b.torque - exact_a.torque).abs();
                             let allowed = match params.model.kind() {
                                 Kind::MicroSlip => by_stiffness,
-                                Kind::Genetic => by_stiffness.max(exact_step),
+                                Kind::Genetic | Kind::BoucWen => by_stiffness.max(exact_step),
                             } + tolerance;
                             assert!(
                                 step <= allowed,
@@ -847,6 +864,11 @@ mod tests {
             for name in names(&base.model) {
                 let huge = match name {
                     ParamName::Omega => 1.0e-38,
+                    // A larger β, γ or n only narrows Bouc–Wen's z: nothing overflows (model-core's
+                    // range tests); A is tested below.
+                    ParamName::BoucWenA | ParamName::BoucWenBeta | ParamName::BoucWenGamma | ParamName::BoucWenN => {
+                        continue
+                    }
                     // A knot's or an element's x out of order names the next one (the checks of
                     // the spring and the kind); the last element's is beyond the travel.
                     ParamName::Knot(_) => continue,
@@ -857,6 +879,12 @@ mod tests {
                 cases.push((JointParams { model: base.model.with(name, huge), ..base }, ParamField::Model(name)));
             }
         }
+        // A scales z_max = A/(β + γ) with k_h: k_h, whose 0 switches the hysteresis off, is named.
+        let bouc_wen = bouc_wen(1.0);
+        cases.push((
+            JointParams { model: bouc_wen.model.with(ParamName::BoucWenA, 1.0e38), ..bouc_wen },
+            ParamField::Model(ParamName::HysteresisStiffness),
+        ));
         for (bad, field) in cases {
             let mut compensator = Compensator::new();
             compensator.stage(paper()).unwrap();

@@ -7,7 +7,7 @@
 //! directly ([`Elementary::DIRECT_DECAY`]), which needs |r| ≤ [`MAX_ABS_R`]. The constants that
 //! depend only on the parameters (k = α/(ω(1 + r²)), r = β/ω) are prepared once when a set is
 //! installed. Error against the f64 model: see the tests (`fast_path_error_bound`).
-use core::f32::consts::{FRAC_PI_2, LN_2, LOG2_E};
+use core::f32::consts::{FRAC_PI_2, LN_2, LOG2_E, SQRT_2};
 use model_core::{Direction, Elementary, Evaluation, Model, Params};
 
 /// Largest |r| = |β/ω| of the fast path: model-core's bound for the direct form of
@@ -70,10 +70,11 @@ impl FastModel {
     }
 }
 
-/// The fast path's elementary functions: the FPU's square root, a polynomial arcsine and
-/// exponential, and h·e^(−rφ) formed directly. model-core's formulas run with them:
-/// [`FastModel::evaluate`] (one symmetric loop) and the stateful genetic model on the joint
-/// (`GeneticMemory::step_with::<FastMath>`).
+/// The fast path's elementary functions: the FPU's square root, polynomial arcsine,
+/// exponential and logarithm, and h·e^(−rφ) formed directly. model-core's formulas run with
+/// them: [`FastModel::evaluate`] (one symmetric loop), and on the joint the stateful genetic
+/// model (`GeneticMemory::step_with::<FastMath>`) and the Bouc–Wen kind's step (e^y − 1 in its
+/// closed form for n = 1, |z|ⁿ = e^(n·ln|z|) otherwise).
 #[derive(Clone, Copy, Debug)]
 pub struct FastMath;
 
@@ -86,21 +87,50 @@ impl Elementary<f32> for FastMath {
     fn asin(x: f32) -> f32 {
         asin(x)
     }
-    /// libm's, as [`FastMath::ln`]: only the log form of h·e^(−rφ) takes e^y of any y, and
-    /// the fast path forms it directly ([`FastMath::exp_direct`]).
+    /// [`exp`] with y held to ±87 (e^y of a y beyond stays finite, as the trait allows).
+    #[inline(always)]
     fn exp(y: f32) -> f32 {
-        libm::expf(y)
+        exp(within_exp_range(y))
     }
-    /// libm's: the direct form takes no logarithm (only the log form would, for parameter sets
-    /// the fast path refuses).
+    #[inline(always)]
     fn ln(v: f32) -> f32 {
-        libm::logf(v)
+        ln(v)
+    }
+    #[inline(always)]
+    fn exp_m1(y: f32) -> f32 {
+        exp_m1(y)
+    }
+    #[inline(always)]
+    fn pow(v: f32, n: f32) -> f32 {
+        pow(v, n)
+    }
+    /// libm's (the joint links it anyway): once per zero crossing of Bouc–Wen's z, not on the
+    /// usual tick.
+    fn ln_1p(v: f32) -> f32 {
+        libm::log1pf(v)
     }
     // h·e^(−rφ) as h times exp(−rφ): no ln and exp of h when a branch begins.
     const DIRECT_DECAY: bool = true;
     #[inline(always)]
     fn exp_direct(y: f32) -> f32 {
         exp(y)
+    }
+}
+
+/// The |y| within which [`exp`] puts 2^n into the exponent bits.
+const EXP_RANGE: f32 = 87.0;
+
+/// y held to ±[`EXP_RANGE`] (NaN stays NaN) by comparisons: `f32::max` and `min` are calls
+/// into libm on the Cortex-M4F, and `f32::clamp` asserts that its bounds are ordered.
+#[allow(clippy::manual_clamp)]
+#[inline(always)]
+fn within_exp_range(y: f32) -> f32 {
+    if y < -EXP_RANGE {
+        -EXP_RANGE
+    } else if y > EXP_RANGE {
+        EXP_RANGE
+    } else {
+        y
     }
 }
 
@@ -175,6 +205,82 @@ pub fn exp(y: f32) -> f32 {
     let poly = 1.0 + f * (1.0 + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0))))));
     let scale = f32::from_bits(((n + 127) as u32) << 23);
     poly * scale
+}
+
+/// ln v for a finite v > 0: v = m·2^e with m ∈ [√½, √2), ln m = 2·atanh s with
+/// s = (m − 1)/(m + 1), |s| ≤ 0.172, by its series to s⁹ (error ≤ 10⁻⁹ before f32 rounding).
+/// A subnormal v is read as a normal one of the smallest exponent: its logarithm is then too
+/// large by at most 87, and nothing on the joint takes a logarithm of one except |z|ⁿ next to
+/// z = 0, where e^(n·ln|z|) < 10⁻³⁷ either way.
+#[inline(always)]
+pub fn ln(v: f32) -> f32 {
+    let bits = v.to_bits();
+    let mut exponent = ((bits >> 23) & 0xff) as i32 - 127;
+    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    if m > SQRT_2 {
+        m *= 0.5;
+        exponent += 1;
+    }
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let series = 2.0 * s * (1.0 + s2 * (1.0 / 3.0 + s2 * (1.0 / 5.0 + s2 * (1.0 / 7.0 + s2 * (1.0 / 9.0)))));
+    exponent as f32 * LN_2 + series
+}
+
+/// vⁿ for a finite v > 0, as 2^(n·log2 v): log2 of v's mantissa m ∈ [√½, √2) by a polynomial
+/// of degree 6 in m − 1 (absolute error ≤ 2.2·10⁻⁶, near-minimax, fitted by iteratively
+/// reweighted least squares), 2^f for |f| ≤ ½ by one of degree 5 (relative error ≤ 8·10⁻⁸):
+/// a relative error of vⁿ within 1.6·10⁻⁶·n, plus 10⁻⁷·|n·log2 v| as log2 v and n·log2 v
+/// round to f32 (|z|ⁿ of a gear: 10⁻⁵ at most). Bouc–Wen's |z|ⁿ takes it once a sub-step, and
+/// e^(n·ln v) by [`ln`] and [`exp`] was 30 instructions more each time (`bench/firmware.sh`).
+/// Below f32's normal range (2⁻¹²⁶) vⁿ is 0, above 2¹²⁷ it is 2¹²⁷: a |z|ⁿ rounded up to
+/// 2⁻¹²⁶ where it is smaller made dz/dθ negative for a set with β + γ near f32's largest.
+///
+/// Never inlined: a leaf call keeps its constants out of the caller's registers, where two
+/// inlined copies in a sub-step left the compiler 50 register moves (`bench/firmware.sh`).
+#[inline(never)]
+pub fn pow(v: f32, n: f32) -> f32 {
+    let bits = v.to_bits();
+    let mut exponent = ((bits >> 23) & 0xff) as i32 - 127;
+    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    if m > SQRT_2 {
+        m *= 0.5;
+        exponent += 1;
+    }
+    let t = m - 1.0;
+    let log2 = exponent as f32
+        + t * (1.442_713_5
+            + t * (-0.721_131_8 + t * (0.479_348_2 + t * (-0.367_490_95 + t * (0.322_152_97 + t * -0.206_585_11)))));
+    let y = n * log2;
+    if y < -126.0 {
+        return 0.0;
+    }
+    let y = if y > 127.0 {
+        127.0
+    } else {
+        y
+    };
+    // The nearest integer by adding and taking away 1.5·2²³, as in [`exp`].
+    const ROUND: f32 = 12_582_912.0;
+    let whole = (y + ROUND) - ROUND;
+    let f = y - whole;
+    let poly = 1.000_000_1
+        + f * (core::f32::consts::LN_2 + f * (0.240_221_07 + f * (0.055_502_974 + f * (0.009_676_036 + f * 0.001_340_999))));
+    poly * f32::from_bits(((whole as i32 + 127) as u32) << 23)
+}
+
+/// e^y − 1: its Taylor polynomial of degree 7 for |y| < 1/4 (relative error ≤ 2·10⁻⁹ before
+/// f32 rounding), where e^y − 1 would lose the small increments of a tick; [`exp`] − 1
+/// beyond, y held to ±87.
+#[inline(always)]
+pub fn exp_m1(y: f32) -> f32 {
+    if y.abs() < 0.25 {
+        y * (1.0
+            + y * (1.0 / 2.0
+                + y * (1.0 / 6.0 + y * (1.0 / 24.0 + y * (1.0 / 120.0 + y * (1.0 / 720.0 + y * (1.0 / 5040.0)))))))
+    } else {
+        exp(within_exp_range(y)) - 1.0
+    }
 }
 
 pub mod verify;

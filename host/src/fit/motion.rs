@@ -37,6 +37,7 @@ use crate::gear::{step_offline, Projected, Projection, Reversals};
 use crate::numeric::nnls::nnls_normal;
 use crate::numeric::optimize::{brent, pso, PsoOptions};
 use crate::prepare::NoiseModel;
+use model_core::bouc_wen::{BoucWen, BoucWenMemory, BoucWenTerm};
 use model_core::memory::{slip_grid, GeneticMemory, SlipElements};
 use model_core::{
     GearModel, Genetic, Hysteresis, Kind, Model, Params, SlipElement, Spring, SLIP_ELEMENTS, TURNING_POINTS,
@@ -885,6 +886,140 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
     motion.score(model, spring.len() + 2, evaluations, misfit)
 }
 
+/// The Bouc–Wen shape searched: ln z_max (rad), ρ = (β − γ)/(β + γ) and n, with A = 1 (only
+/// k_h·z is identifiable: z scaled by s is A·s, β and γ by s^(1−n), with k_h/s).
+const BOUC_WEN_RHO: f64 = 0.95;
+/// The sharpest transition to yield searched: OpenSees' default BoucWen uses n = 1 to 2; beyond
+/// 6 the branch is elastic-perfectly-plastic to within the noise.
+const BOUC_WEN_N_MAX: f64 = 6.0;
+/// Coordinate passes of the polish over (ln z_max, ρ, n).
+const BOUC_WEN_PASSES: usize = 2;
+
+/// The Bouc–Wen shape at a point of the search.
+fn bouc_wen_shape(x: &[f64]) -> Option<BoucWen<f64>> {
+    let [ln_z_max, rho, n] = x else { return None };
+    let sum = ln_z_max.exp().powf(-*n);
+    let shape = BoucWen { a: 1.0, beta: 0.5 * (1.0 + rho) * sum, gamma: 0.5 * (1.0 - rho) * sum, n: *n };
+    shape.check().ok().map(|()| shape)
+}
+
+/// The exact least-squares Bouc–Wen coefficients (spring, k_h ≥ 0) for `shape` over `source`.
+fn bouc_wen_at(
+    source: Source<'_>,
+    weighting: Weighting<'_>,
+    columns: &Columns,
+    shape: BoucWen<f64>,
+) -> Result<Solved, FitError> {
+    let equations = normal_equations(source, columns.len(), weighting, |_| {
+        let mut z = BoucWenMemory::new(BoucWenTerm { stiffness: 1.0, shape })?;
+        Ok(move |sample: &Sample, x: &mut [f64]| {
+            let h = step_offline(&mut z, sample.at)?.torque / columns.scale;
+            columns.row(sample, |own| own.fill(h), x);
+            Ok(())
+        })
+    })?;
+    columns.solve(&equations)
+}
+
+/// The Bouc–Wen model (θ0 = 0) of a solve.
+fn bouc_wen_model(columns: &Columns, solved: &Solved, shape: BoucWen<f64>) -> Result<GearModel<f64>, FitError> {
+    let k = columns.own(&solved.coef).first().copied().ok_or(FitError::Degenerate)?;
+    let term = BoucWenTerm { stiffness: k / columns.scale, shape };
+    let model = GearModel { zero: 0.0, spring: columns.spring(&solved.coef)?, hysteresis: Hysteresis::BoucWen(term) };
+    model.validate()?;
+    Ok(model)
+}
+
+/// Fits the Bouc–Wen kind to `motion`: its shape (z_max, ρ, n) by the swarm on a strided
+/// subsample, or that of `options.start` (a refit), polished coordinate by coordinate by Brent;
+/// the spring and k_h ≥ 0 solved exactly at each point, as the genetic kind's are at each r.
+pub fn fit_bouc_wen(motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {
+    motion.check()?;
+    let spring = motion.spring_basis();
+    let columns = Columns { spring: &spring, own: vec![true], extra: &[], scale: motion.scale() };
+    let parameters = spring.len() + 4;
+    let objective = |sub: &Subsample, x: &[f64]| {
+        bouc_wen_shape(x)
+            .and_then(|shape| bouc_wen_at(Source::Stored(sub), Weighting::Carried, &columns, shape).ok())
+            .map_or(f64::INFINITY, |fit| fit.rss)
+    };
+    let start = options.start.as_ref().and_then(|model| match model.hysteresis {
+        Hysteresis::BoucWen(term) => {
+            let sum = term.shape.beta + term.shape.gamma;
+            Some(vec![term.shape.z_max().ln(), (term.shape.beta - term.shape.gamma) / sum, term.shape.n])
+        }
+        _ => None,
+    });
+    if let (Some(x), Some(start), true) = (&start, &options.start, options.hold_start) {
+        let shape = bouc_wen_shape(x).ok_or(FitError::Degenerate)?;
+        let weighed_by = GearModel { zero: 0.0, ..*start };
+        let solved = bouc_wen_at(Source::Full(motion), motion.held_weighting(&weighed_by), &columns, shape)?;
+        return motion.score(bouc_wen_model(&columns, &solved, shape)?, parameters, 0, solved.rss);
+    }
+    let (slip_min, slip_max) = slip_range(motion);
+    let bounds = [(slip_min.ln(), slip_max.ln()), (-BOUC_WEN_RHO, BOUC_WEN_RHO), (1.0, BOUC_WEN_N_MAX)];
+    let (mut x, mut evaluations) = match start {
+        Some(x) => (x, 0),
+        None => {
+            let coarse = motion.subsample(SWARM_SAMPLES);
+            let swarm = pso(
+                |x| objective(&coarse, x),
+                &bounds,
+                &PsoOptions {
+                    particles: options.particles,
+                    max_iterations: options.max_iterations,
+                    stall_iterations: 12,
+                    seed: options.seed,
+                },
+                |_, _| {},
+            );
+            (swarm.best, swarm.evaluations)
+        }
+    };
+    let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
+    let mut polish = motion.subsample(POLISH_SAMPLES);
+    let mut weighed_by: Option<GearModel<f64>> = None;
+    let mut fitted: Option<(GearModel<f64>, f64)> = None;
+    for _ in 0..rounds {
+        let previous = fitted.map(|(model, _)| model);
+        polish.reweigh(motion.weighting(previous.as_ref()))?;
+        for _ in 0..BOUC_WEN_PASSES {
+            for (axis, &(lo, hi)) in bounds.iter().enumerate() {
+                let half_width = 0.1 * (hi - lo);
+                let centre = x.get(axis).copied().ok_or(FitError::Degenerate)?;
+                let mut trial = x.clone();
+                let (best, _, used) = brent(
+                    |value| {
+                        if let Some(slot) = trial.get_mut(axis) {
+                            *slot = value;
+                        }
+                        objective(&polish, &trial)
+                    },
+                    (centre - half_width).max(lo),
+                    (centre + half_width).min(hi),
+                    POLISH_TOLERANCE,
+                );
+                evaluations += used;
+                if let Some(slot) = x.get_mut(axis) {
+                    *slot = best;
+                }
+            }
+        }
+        let shape = bouc_wen_shape(&x).ok_or(FitError::Degenerate)?;
+        let solved = bouc_wen_at(Source::Stored(&polish), Weighting::Carried, &columns, shape)?;
+        fitted = Some((bouc_wen_model(&columns, &solved, shape)?, solved.rss));
+        weighed_by = previous;
+    }
+    let (mut model, mut misfit) = fitted.ok_or(FitError::Degenerate)?;
+    if !polish.whole {
+        let shape = bouc_wen_shape(&x).ok_or(FitError::Degenerate)?;
+        let solved = bouc_wen_at(Source::Full(motion), motion.weighting(weighed_by.as_ref()), &columns, shape)?;
+        (model, misfit) = (bouc_wen_model(&columns, &solved, shape)?, solved.rss);
+    }
+    // The knots' stiffnesses, k_h, z_max, ρ and n.
+    motion.score(model, parameters, evaluations, misfit)
+}
+
 /// The range of the candidate slip deflections for `motion`: from 3σ of the deflection noise
 /// (at least 10⁻³ of the range) to half the range of the fitted deflections, rad.
 pub fn slip_range(motion: &Motion) -> (f64, f64) {
@@ -1145,7 +1280,8 @@ pub fn micro_slip_with_columns(
 type KindFit = fn(&Motion, &FitOptions) -> Result<MotionFit, FitError>;
 
 /// How each kind is fitted to a motion: the one table of the kinds' fits.
-const KIND_FITS: [(Kind, KindFit); 2] = [(Kind::Genetic, fit_genetic), (Kind::MicroSlip, fit_micro_slip)];
+const KIND_FITS: [(Kind, KindFit); 3] =
+    [(Kind::Genetic, fit_genetic), (Kind::MicroSlip, fit_micro_slip), (Kind::BoucWen, fit_bouc_wen)];
 
 /// Fits the model of kind `kind` to `motion`.
 pub fn fit_kind(kind: Kind, motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {

@@ -32,9 +32,14 @@ pub enum ParamsFileError {
     UnknownVersion { path: PathBuf, found: u16 },
 }
 
-/// The kinds' names in files, quoted, for an error.
+/// The kinds' names in files, quoted, for an error: "a", "b" or "c".
 fn known_kinds() -> String {
-    Kind::ALL.map(|kind| format!("{:?}", kind.name())).join(" or ")
+    let names = Kind::ALL.map(|kind| format!("{:?}", kind.name()));
+    match names.split_last() {
+        Some((last, [])) => last.clone(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+        None => String::new(),
+    }
 }
 
 #[derive(serde::Deserialize)]
@@ -120,7 +125,7 @@ mod tests {
         let other = r#"{"model": "dahl", "params": {"c1": 1, "c2": 2, "c3": 3, "alpha": 4, "beta": 5, "omega": 1}}"#;
         let err = parse_params(path, other).unwrap_err();
         assert!(matches!(err, ParamsFileError::UnknownModel { .. }), "{err}");
-        assert!(err.to_string().ends_with("(\"genetic-hysteresis\" or \"micro-slip\")"), "{err}");
+        assert!(err.to_string().ends_with("(\"genetic-hysteresis\", \"micro-slip\" or \"bouc-wen\")"), "{err}");
     }
 
     #[test]

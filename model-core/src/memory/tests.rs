@@ -564,6 +564,12 @@ impl Elementary<f64> for DirectLibm {
     fn ln(v: f64) -> f64 {
         v.ln()
     }
+    fn exp_m1(y: f64) -> f64 {
+        y.exp_m1()
+    }
+    fn ln_1p(v: f64) -> f64 {
+        v.ln_1p()
+    }
     const DIRECT_DECAY: bool = true;
 }
 

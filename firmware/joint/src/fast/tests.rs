@@ -51,6 +51,39 @@ fn elementary_functions_are_accurate() {
         let exact = f64::from(y).exp();
         assert!(((f64::from(exp(y)) - exact) / exact).abs() < 5.0e-7, "exp {y}");
     }
+    for i in 0..=20_000 {
+        let y = -30.0 + i as f32 * 0.003;
+        let exact = f64::from(y).exp_m1();
+        assert!((f64::from(exp_m1(y)) - exact).abs() <= 1.0e-6 * exact.abs(), "exp_m1 {y}");
+    }
+    for i in 0..=20_000 {
+        let y = (i as f32 - 10_000.0) * 2.5e-5;
+        let exact = f64::from(y).exp_m1();
+        assert!((f64::from(exp_m1(y)) - exact).abs() <= 2.0e-7 * exact.abs(), "exp_m1 {y}");
+    }
+    for i in 0..=20_000 {
+        let v = 2f32.powf(-126.0 + i as f32 * 0.0126);
+        let exact = f64::from(v).ln();
+        assert!((f64::from(ln(v)) - exact).abs() <= 2.0e-7 * exact.abs().max(1.0), "ln {v}");
+    }
+    for i in 0..=20_000 {
+        let v = 2f32.powf(-40.0 + i as f32 * 0.0021);
+        for n in [1.2f32, 1.5, 2.0, 3.5, 6.0] {
+            let exact = f64::from(v).powf(f64::from(n));
+            if exact < f64::from(f32::MIN_POSITIVE) {
+                assert_eq!(pow(v, n), 0.0, "pow {v} {n}");
+                continue;
+            }
+            let error = (f64::from(pow(v, n)) - exact).abs() / exact;
+            // log2 v and y = n·log2 v round to f32: each a relative error of 2^y of up to
+            // |y|·2⁻²⁴·ln 2.
+            let y = (f64::from(n) * f64::from(v).log2()).abs();
+            assert!(error <= 1.6e-6 * f64::from(n) + 1.0e-7 * y + 2.0e-7, "pow {v} {n}: {error:.1e}");
+        }
+    }
+    assert_eq!(pow(1.0e-30, 6.0), 0.0);
+    assert_eq!(<FastMath as Elementary<f32>>::exp(-200.0), exp(-EXP_RANGE));
+    assert!(<FastMath as Elementary<f32>>::exp(200.0).is_finite());
 }
 
 #[test]

@@ -3,7 +3,8 @@ use super::*;
 use crate::flash::RamFlash;
 use embedded_storage::nor_flash::{ErrorType, NorFlashErrorKind, ReadNorFlash};
 use model_core::legacy::{GearModelV1, SlipParamsV1};
-use model_core::{Knot, Params, SlipElement, Spring, MODEL_VERSION};
+use model_core::bouc_wen::{BoucWen, BoucWenTerm};
+use model_core::{Hysteresis, Knot, Params, SlipElement, Spring, MODEL_VERSION};
 use swg_protocol::{GearModel, SLIP_ELEMENTS};
 
 type Flash = RamFlash<4096>;
@@ -272,7 +273,7 @@ fn flash_with(slot_0: &[u8]) -> Flash {
 
 #[test]
 fn golden_params_have_distinct_fields() {
-    for p in [golden_params(), golden_slip_params(), golden_params_3()] {
+    for p in [golden_params(), golden_slip_params(), golden_params_3(), golden_params_4()] {
         let mut fields = std::vec::Vec::new();
         p.model.map(|_, v| {
             fields.push(v);
@@ -327,6 +328,21 @@ fn golden_params_3() -> JointParams {
         gear_ratio: 60.0,
         torque_limit: 24.5,
         direction_band: 3.5e-6,
+    }
+}
+
+/// A Bouc–Wen set with every field different: θ0, a spring on two knots (exact in f32), k_h,
+/// A, β, γ and n.
+fn golden_params_4() -> JointParams {
+    let knots = [Knot { x: -0.625e-3, stiffness: 1.375e4 }, Knot { x: 0.25e-3, stiffness: 0.875e4 }];
+    let spring = Spring::of_knots(&knots, [-1.125e-3, 0.75e-3]).unwrap();
+    let shape = BoucWen { a: 1.5, beta: 6144.5, gamma: 2048.25, n: 2.5 };
+    JointParams {
+        model_version: MODEL_VERSION,
+        model: GearModel { zero: 4.25e-3, spring, hysteresis: Hysteresis::BoucWen(BoucWenTerm { stiffness: 1.5e3, shape }) },
+        gear_ratio: 50.0,
+        torque_limit: 30.5,
+        direction_band: 4.5e-6,
     }
 }
 
@@ -401,7 +417,8 @@ const GOLDEN_SLIP_RECORD: [u8; 120] = [
     0x09, 0xAD, 0x77, 0x0D, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..110, LE
 ];
 
-/// The record of [`golden_params_3`] in format 3, as the first save writes it into slot 0.
+/// The record of [`golden_params_3`] in format 3, as firmware of protocol 6 wrote it into slot 0
+/// with its first save: an old record, which must keep loading.
 #[rustfmt::skip]
 const GOLDEN_RECORD_3: [u8; 96] = [
     b'S', b'W', b'G', b'P', // magic
@@ -428,15 +445,57 @@ const GOLDEN_RECORD_3: [u8; 96] = [
     0x4A, 0x24, 0x28, 0x0D, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..87, LE
 ];
 
+/// The record of [`golden_params_4`] in format 4, as the first save writes it into slot 0.
+#[rustfmt::skip]
+const GOLDEN_RECORD_4: [u8; 96] = [
+    b'S', b'W', b'G', b'P', // magic
+    0x01, 0x00, 0x00, 0x00, // sequence 1
+    0x4B, 0x00, // payload length 75
+    0x04, // format 4
+    0xFF, // reserved
+    0x02, // model_version 2 (postcard varint)
+    0x02, // the Bouc–Wen kind
+    0x96, 0x43, 0x8B, 0x3B, // zero 4.25e-3 (f32 LE)
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, // spring: c1, c2, c3 = 0
+    0x02, // two knots
+    0x0A, 0xD7, 0x23, 0xBA, 0x00, 0xD8, 0x56, 0x46, // x -6.25e-4, stiffness 1.375e4
+    0x6F, 0x12, 0x83, 0x39, 0x00, 0xB8, 0x08, 0x46, // x 2.5e-4, stiffness 8.75e3
+    0xBC, 0x74, 0x93, 0xBA, 0xA6, 0x9B, 0x44, 0x3A, // range -1.125e-3 … 7.5e-4
+    0x00, 0x80, 0xBB, 0x44, // k_h 1.5e3
+    0x00, 0x00, 0xC0, 0x3F, // A 1.5
+    0x00, 0x04, 0xC0, 0x45, // β 6144.5
+    0x00, 0x04, 0x00, 0x45, // γ 2048.25
+    0x00, 0x00, 0x20, 0x40, // n 2.5
+    0x00, 0x00, 0x48, 0x42, // gear_ratio 50
+    0x00, 0x00, 0xF4, 0x41, // torque_limit 30.5
+    0xB5, 0xFE, 0x96, 0x36, // direction_band 4.5e-6
+    0xFF, // padding to 88 bytes
+    0xDF, 0x2E, 0xAB, 0xB4, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..87, LE
+];
+
 #[test]
 fn a_saved_record_matches_the_golden_bytes() {
     let mut store = ParamStore::new(Flash::new()).unwrap();
-    assert_eq!(store.save(&golden_params_3()), Ok(1));
+    assert_eq!(store.save(&golden_params_4()), Ok(1));
     let mut record = [0u8; 96];
     store.into_flash().read(0, &mut record).unwrap();
-    assert_eq!(record, GOLDEN_RECORD_3);
+    assert_eq!(record, GOLDEN_RECORD_4);
+    let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD_4)).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_params_4(), sequence: 1 }));
+}
+
+#[test]
+fn format_3_records_load_and_the_next_commit_writes_format_4() {
     let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD_3)).unwrap();
     assert_eq!(store.load(), Some(Stored { params: golden_params_3(), sequence: 1 }));
+    assert_eq!(store.save(&golden_params_4()), Ok(2));
+    let mut flash = store.into_flash();
+    let mut header = [0u8; HEADER_LEN];
+    flash.read(2048, &mut header).unwrap();
+    assert_eq!(header[FORMAT_AT], RECORD_FORMAT);
+    let mut store = ParamStore::new(flash).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_params_4(), sequence: 2 }));
+    assert_eq!(store.slots()[0], Ok(Stored { params: golden_params_3(), sequence: 1 }));
 }
 
 #[test]
@@ -459,12 +518,12 @@ fn a_record_without_the_format_byte_reads_as_format_1() {
 }
 
 #[test]
-fn format_1_records_load_as_the_genetic_kind_and_the_next_commit_writes_format_3() {
+fn format_1_records_load_as_the_genetic_kind_and_the_next_commit_writes_the_current_format() {
     let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD)).unwrap();
     let loaded = store.load().unwrap();
     assert_eq!(loaded, Stored { params: golden_params(), sequence: 1 });
     assert_eq!(loaded.params.model.paper_params(), Some(GOLDEN_GENETIC_V1));
-    // A micro-slip set goes to slot 1 in format 3; the format-1 record stays the fallback.
+    // A micro-slip set goes to slot 1 in the current format; the format-1 record stays the fallback.
     assert_eq!(store.save(&golden_slip_params()), Ok(2));
     let mut flash = store.into_flash();
     let mut header = [0u8; HEADER_LEN];
@@ -507,7 +566,7 @@ fn with_format(record: [u8; 64], format: u8) -> [u8; 64] {
 fn a_record_of_an_unknown_format_is_ignored() {
     assert_eq!(with_format(GOLDEN_RECORD, LEGACY_FORMAT), GOLDEN_RECORD);
     assert_eq!(with_format(GOLDEN_RECORD, 0xFF), LEGACY_RECORD);
-    for format in [0u8, 4, 0x7F, 0xFE] {
+    for format in [0u8, 5, 0x7F, 0xFE] {
         let newer = with_format(GOLDEN_RECORD, format);
         let mut store = ParamStore::new(flash_with(&newer)).unwrap();
         assert_eq!(store.slots()[0], Err(SlotFault::UnknownFormat(format)));

@@ -11,9 +11,10 @@ use core::hint::black_box;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use model_core::checks::{micro_slip_set, SEED_TABLE_FIT};
+use model_core::checks::{bouc_wen_set, micro_slip_set, SEED_TABLE_FIT};
 use model_core::{Direction, Model};
-use model_core::{Knot, Spring};
+use model_core::bouc_wen::BoucWen;
+use model_core::{Hysteresis, Knot, Spring};
 use swg_joint::budget::{self, CONTROL_TICK_INSTRUCTIONS};
 use swg_joint::{Compensator, Controller, FastModel};
 use swg_protocol::{
@@ -28,6 +29,15 @@ const REPEATS: u32 = 200;
 /// Ticks of the nested motion: two cycles, as the compensator's tests run it.
 const NESTED_TICKS: u32 = 4000;
 const AMPLITUDE: f32 = 1.168e-3;
+/// Every benchmark set's deflection zero θ0, rad: the motions are x = θ − θ0, from rest.
+const ZERO: f32 = 1.0e-4;
+/// The nested motion's largest deflection per tick, A·(0.75 + 0.25·9)·2π·2/[`NESTED_TICKS`]
+/// = 11 µrad: 0.22 rad/s at 20 kHz, a full-amplitude torque swing at 30 Hz. A tick whose cost
+/// grows with the travel (Bouc–Wen's sub-steps for n ≠ 1) is measured at a gear's speed, not
+/// at the hundred times of a zigzag of ten ticks a leg.
+const TOP_TRAVEL_PER_TICK: f32 = AMPLITUDE * 3.0 * core::f32::consts::TAU * 2.0 / NESTED_TICKS as f32;
+/// The Bouc–Wen gears' largest hysteretic deflection, rad.
+const BOUC_WEN_Z_MAX: f32 = 0.4e-3;
 const RATIO: f32 = 100.0;
 
 /// SysTick ticks taken by `body` (a 24-bit down-counter; runs stay below its period).
@@ -106,10 +116,15 @@ fn nested_motion(ticks: u32) -> impl Iterator<Item = f32> + Clone {
 }
 
 /// A motion from rest that fills the genetic model's stack: a zigzag of shrinking excursions
-/// about 0.2·A, each reversing inside the last, ten ticks to each of its
-/// [`TURNING_POINTS`]` + 2` turning points (the last two find the stack full and retrace);
-/// then ten ticks out to 1.05·A, which wipe every stored point out.
+/// about 0.2·A, each reversing inside the last, to each of its [`TURNING_POINTS`]` + 2` turning
+/// points (the last two find the stack full and retrace); then out to 1.05·A, which wipes every
+/// stored point out. It moves at the nested motion's top speed, [`TOP_TRAVEL_PER_TICK`].
 fn deep_motion() -> impl Iterator<Item = f32> + Clone {
+    deep_legs(TURNING_POINTS as u32 + 3)
+}
+
+/// The first `legs` legs of [`deep_motion`].
+fn deep_legs(legs: u32) -> impl Iterator<Item = f32> + Clone {
     let target = |k: u32| {
         let size = AMPLITUDE * (1.0 - 0.05 * k as f32);
         if k % 2 == 0 {
@@ -118,21 +133,29 @@ fn deep_motion() -> impl Iterator<Item = f32> + Clone {
             -0.6 * size
         }
     };
-    let legs = TURNING_POINTS as u32 + 2;
-    (0..=legs).flat_map(move |k| {
+    let last = TURNING_POINTS as u32 + 2;
+    (0..legs.min(last + 1)).flat_map(move |k| {
         let from = if k == 0 { 0.0 } else { target(k - 1) };
-        let to = if k == legs { 1.05 * AMPLITUDE } else { target(k) };
-        (1..=10).map(move |s| from + (to - from) * s as f32 / 10.0)
+        let to = if k == last { 1.05 * AMPLITUDE } else { target(k) };
+        let ticks = libm::ceilf(libm::fabsf(to - from) / TOP_TRAVEL_PER_TICK) as u32;
+        (1..=ticks).map(move |s| from + (to - from) * s as f32 / ticks as f32)
     })
 }
 
-fn compensator_step(compensator: &mut Compensator, theta: f32) {
-    black_box(compensator.tick(theta * RATIO, 0.0, EvalPath::Fast));
+/// The motor encoder's reading at deflection θ0 + `x` (the output's at 0).
+fn reading(x: f32) -> f32 {
+    (ZERO + x) * RATIO
 }
 
-fn controller_step(state: &mut (Controller, Compensator), theta: f32) {
+/// A tick at deflection θ0 + `x`.
+fn compensator_step(compensator: &mut Compensator, x: f32) {
+    black_box(compensator.tick(reading(x), 0.0, EvalPath::Fast));
+}
+
+/// A controller tick at deflection θ0 + `x`.
+fn controller_step(state: &mut (Controller, Compensator), x: f32) {
     let (controller, compensator) = state;
-    black_box(controller.tick(&mut compensator.ticker(), theta * RATIO, 0.0, black_box(12.5)));
+    black_box(controller.tick(&mut compensator.ticker(), reading(x), 0.0, black_box(12.5)));
 }
 
 /// Mean instructions per tick along `motion`, consecutive ticks from rest with no copies (a
@@ -141,7 +164,7 @@ fn consecutive(params: JointParams, motion: impl Iterator<Item = f32> + Clone) -
     let count = motion.clone().count() as u32;
     let baseline = ticks(|| {
         for theta in motion.clone() {
-            black_box(black_box(theta) * RATIO);
+            black_box(reading(black_box(theta)));
         }
     });
     let mut compensator = installed(params);
@@ -193,9 +216,8 @@ fn controlling(compensator: Compensator, last: f32) -> (Controller, Compensator)
 /// that θ.
 fn full_stack(params: JointParams) -> (Compensator, f32) {
     let mut compensator = installed(params);
-    let legs = TURNING_POINTS + 2;
     let mut theta = 0.0;
-    for t in deep_motion().take(10 * legs) {
+    for t in deep_legs(TURNING_POINTS as u32 + 2) {
         compensator_step(&mut compensator, t);
         theta = t;
     }
@@ -245,14 +267,25 @@ fn main() -> ! {
     let hysteresis = GearModel::paper(model_core::Params { c1: 0.0, c2: 0.0, c3: 0.0, ..params });
     let genetic = JointParams {
         model_version: MODEL_VERSION,
-        model: GearModel { zero: 1.0e-4, spring, ..hysteresis },
+        model: GearModel { zero: ZERO, spring, ..hysteresis },
         gear_ratio: RATIO,
         torque_limit: 100.0,
         direction_band: 1.0e-6,
     };
     let Ok(slip_set) = micro_slip_set() else { swg_firmware_qemu::exit(false) };
     let slip_hysteresis = slip_set.map(|_, v| v as f32);
-    let slip = JointParams { model: GearModel { zero: 1.0e-4, spring, ..slip_hysteresis }, ..genetic };
+    let slip = JointParams { model: GearModel { zero: ZERO, spring, ..slip_hysteresis }, ..genetic };
+    // The simulator's Bouc–Wen gear (z_max = 0.4 mrad, k_h = 1350 N·m/rad) with n = 1 (closed
+    // form) and n = 1.5 (Taylor sub-steps), β = γ set for the same z_max.
+    let bouc_wen = |n: f32| {
+        let mut model = GearModel { zero: ZERO, spring, ..bouc_wen_set().map(|_, v| v as f32) };
+        if let Hysteresis::BoucWen(term) = &mut model.hysteresis {
+            let half_sum = 0.5 * term.shape.a / libm::powf(BOUC_WEN_Z_MAX, n);
+            term.shape = BoucWen { n, beta: half_sum, gamma: half_sum, ..term.shape };
+        }
+        JointParams { model, ..genetic }
+    };
+    let kinds = [("genetic", genetic), ("micro-slip", slip), ("bouc-wen n=1", bouc_wen(1.0)), ("bouc-wen n=1.5", bouc_wen(1.5))];
 
     // The loop and the black boxes alone, subtracted from every measurement.
     let baseline = ticks(|| {
@@ -293,8 +326,8 @@ fn main() -> ! {
         TURNING_POINTS,
         deep_motion().count()
     );
-    hprintln!("kind        motion   evaluator max (tick)   mean    controller + evaluator max (tick)   mean");
-    for (kind, params) in [("genetic", genetic), ("micro-slip", slip)] {
+    hprintln!("kind            motion   evaluator max (tick)   mean    controller + evaluator max (tick)   mean");
+    for (kind, params) in kinds {
         let evaluator_budget = budget::evaluator_tick_instructions(&params.model);
         for motion in ["nested", "deep"] {
             let (evaluator, controlled) = if motion == "nested" {
@@ -309,7 +342,7 @@ fn main() -> ! {
                 )
             };
             hprintln!(
-                "{:<11} {:<8} {:>6.1} ({:>4})          {:>6.1}  {:>6.1} ({:>4})                       {:>6.1}",
+                "{:<15} {:<8} {:>6.1} ({:>4})          {:>6.1}  {:>6.1} ({:>4})                       {:>6.1}",
                 kind,
                 motion,
                 evaluator.max,
@@ -338,7 +371,7 @@ fn main() -> ! {
             );
         }
     }
-    for (kind, params) in [("genetic", genetic), ("micro-slip", slip)] {
+    for (kind, params) in kinds {
         let (alone, controlled) = consecutive(params, nested_motion(NESTED_TICKS));
         hprintln!(
             "{} along the nested motion from consecutive ticks (no copies), mean: evaluator {:.1}, controller + evaluator {:.1}",
@@ -354,13 +387,13 @@ fn main() -> ! {
     // both paths (the direct path, for replays, has no budget).
     hprintln!("== chosen ticks from a full stack: on the branch, reversal, beyond every stored point");
     let (full, last) = full_stack(genetic);
-    let depth = full.clone().tick(last * 1.001 * RATIO, 0.0, EvalPath::Fast).memory;
+    let depth = full.clone().tick(reading(last * 1.001), 0.0, EvalPath::Fast).memory;
     let chosen = [last * 1.001, last - 0.05 * AMPLITUDE * last.signum(), 1.05 * AMPLITUDE];
     let genetic_budget = budget::evaluator_tick_instructions(&genetic.model);
     for path in [EvalPath::Fast, EvalPath::Direct] {
         let ticks = chosen.map(|theta| {
             one_step(&full, theta, &|c: &mut Compensator, t| {
-                black_box(c.tick(t * RATIO, 0.0, path));
+                black_box(c.tick(reading(t), 0.0, path));
             })
         });
         hprintln!(
@@ -402,9 +435,10 @@ fn main() -> ! {
         }
     }
     hprintln!(
-        "budgets (firmware/joint/src/budget.rs): evaluator {} (genetic) / {} (micro-slip), controller + evaluator {}: {} of {} instruction figures over",
+        "budgets (firmware/joint/src/budget.rs): evaluator {} (genetic) / {} (micro-slip) / {} (bouc-wen), controller + evaluator {}: {} of {} instruction figures over",
         genetic_budget,
         budget::evaluator_tick_instructions(&slip.model),
+        budget::evaluator_tick_instructions(&bouc_wen(1.0).model),
         CONTROL_TICK_INSTRUCTIONS,
         budgets.over,
         budgets.checked
