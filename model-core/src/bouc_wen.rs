@@ -72,7 +72,10 @@ impl<F: Real> BoucWen<F> {
     /// bounded, or the step would not be smooth at z = 0).
     pub fn check(&self) -> Result<(), Error> {
         let finite = self.a.is_finite() && self.beta.is_finite() && self.gamma.is_finite() && self.n.is_finite();
-        if finite && self.a > F::zero() && self.beta > F::zero() && self.gamma > -self.beta
+        if finite
+            && self.a > F::zero()
+            && self.beta > F::zero()
+            && self.gamma > -self.beta
             && self.n >= F::one()
             && self.n <= F::from(MAX_N).unwrap_or(F::one())
         {

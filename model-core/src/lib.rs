@@ -253,9 +253,9 @@ impl fmt::Display for Error {
             Error::InvalidSpring => f.write_str(
                 "spring knots must be finite and increasing with stiffness >= 0 N·m/rad, its range must hold x = 0",
             ),
-            Error::InvalidBoucWen => {
-                f.write_str("Bouc–Wen needs A > 0, beta > 0 1/rad^n, gamma > -beta 1/rad^n and 1 <= n <= 32, all finite")
-            }
+            Error::InvalidBoucWen => f.write_str(
+                "Bouc–Wen needs A > 0, beta > 0 1/rad^n, gamma > -beta 1/rad^n and 1 <= n <= 32, all finite",
+            ),
         }
     }
 }

@@ -1,8 +1,8 @@
 extern crate std;
 use super::*;
-use std::{vec, vec::Vec};
 use model_core::bouc_wen::{BoucWen, BoucWenTerm};
 use model_core::Hysteresis;
+use std::{vec, vec::Vec};
 
 fn params() -> JointParams {
     JointParams {
@@ -622,7 +622,8 @@ fn golden_enum_indices() {
     }
     // The kinds by their index, before their parameters.
     let mut buffer = [0u8; MAX_FRAME_LEN];
-    for (index, set) in [distinct_params(), distinct_slip_params(), distinct_bouc_wen_params()].into_iter().enumerate() {
+    for (index, set) in [distinct_params(), distinct_slip_params(), distinct_bouc_wen_params()].into_iter().enumerate()
+    {
         assert_eq!(postcard::to_slice(&set.model, &mut buffer).unwrap()[0], index as u8, "{set:?}");
     }
     assert_eq!(index_of(ParamFault::NotFinite), [0]);

@@ -388,8 +388,8 @@ mod tests {
     use super::*;
     use model_core::memory::slip_grid;
     use model_core::{
-        checks::{bouc_wen_set, PAPER_TABLE_2}, GearModel, Hysteresis, Hysteretic, Kind, Knot, ParamName, SlipElement, Spring,
-        MODEL_VERSION,
+        checks::{bouc_wen_set, PAPER_TABLE_2},
+        GearModel, Hysteresis, Hysteretic, Kind, Knot, ParamName, SlipElement, Spring, MODEL_VERSION,
     };
     use std::vec::Vec;
     use swg_protocol::{ParamFault, ParamField, SLIP_ELEMENTS};

@@ -207,13 +207,10 @@ pub fn exp(y: f32) -> f32 {
     poly * scale
 }
 
-/// ln v for a finite v > 0: v = m·2^e with m ∈ [√½, √2), ln m = 2·atanh s with
-/// s = (m − 1)/(m + 1), |s| ≤ 0.172, by its series to s⁹ (error ≤ 10⁻⁹ before f32 rounding).
-/// A subnormal v is read as a normal one of the smallest exponent: its logarithm is then too
-/// large by at most 87, and nothing on the joint takes a logarithm of one except |z|ⁿ next to
-/// z = 0, where e^(n·ln|z|) < 10⁻³⁷ either way.
+/// v = m·2^e with m ∈ [√½, √2) for a finite v > 0, from its bits (a subnormal v read as a
+/// normal one of the smallest exponent): [`ln`]'s and [`pow`]'s first step.
 #[inline(always)]
-pub fn ln(v: f32) -> f32 {
+fn split(v: f32) -> (f32, i32) {
     let bits = v.to_bits();
     let mut exponent = ((bits >> 23) & 0xff) as i32 - 127;
     let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
@@ -221,6 +218,17 @@ pub fn ln(v: f32) -> f32 {
         m *= 0.5;
         exponent += 1;
     }
+    (m, exponent)
+}
+
+/// ln v for a finite v > 0: v = m·2^e with m ∈ [√½, √2), ln m = 2·atanh s with
+/// s = (m − 1)/(m + 1), |s| ≤ 0.172, by its series to s⁹ (error ≤ 10⁻⁹ before f32 rounding).
+/// A subnormal v is read as a normal one of the smallest exponent: its logarithm is then too
+/// large by at most 87, and nothing on the joint takes a logarithm of one except |z|ⁿ next to
+/// z = 0, where e^(n·ln|z|) < 10⁻³⁷ either way.
+#[inline(always)]
+pub fn ln(v: f32) -> f32 {
+    let (m, exponent) = split(v);
     let s = (m - 1.0) / (m + 1.0);
     let s2 = s * s;
     let series = 2.0 * s * (1.0 + s2 * (1.0 / 3.0 + s2 * (1.0 / 5.0 + s2 * (1.0 / 7.0 + s2 * (1.0 / 9.0)))));
@@ -240,13 +248,7 @@ pub fn ln(v: f32) -> f32 {
 /// inlined copies in a sub-step left the compiler 50 register moves (`bench/firmware.sh`).
 #[inline(never)]
 pub fn pow(v: f32, n: f32) -> f32 {
-    let bits = v.to_bits();
-    let mut exponent = ((bits >> 23) & 0xff) as i32 - 127;
-    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
-    if m > SQRT_2 {
-        m *= 0.5;
-        exponent += 1;
-    }
+    let (m, exponent) = split(v);
     let t = m - 1.0;
     let log2 = exponent as f32
         + t * (1.442_713_5
@@ -255,17 +257,14 @@ pub fn pow(v: f32, n: f32) -> f32 {
     if y < -126.0 {
         return 0.0;
     }
-    let y = if y > 127.0 {
-        127.0
-    } else {
-        y
-    };
+    let y = if y > 127.0 { 127.0 } else { y };
     // The nearest integer by adding and taking away 1.5·2²³, as in [`exp`].
     const ROUND: f32 = 12_582_912.0;
     let whole = (y + ROUND) - ROUND;
     let f = y - whole;
     let poly = 1.000_000_1
-        + f * (core::f32::consts::LN_2 + f * (0.240_221_07 + f * (0.055_502_974 + f * (0.009_676_036 + f * 0.001_340_999))));
+        + f * (core::f32::consts::LN_2
+            + f * (0.240_221_07 + f * (0.055_502_974 + f * (0.009_676_036 + f * 0.001_340_999))));
     poly * f32::from_bits(((whole as i32 + 127) as u32) << 23)
 }
 

@@ -19,7 +19,9 @@ use defmt_semihosting as _;
 fn panic(info: &core::panic::PanicInfo) -> ! {
     let message = info.message().as_str().unwrap_or("(a formatted message)");
     match info.location() {
-        Some(at) => defmt::error!("panicked at {=str}:{=u32}:{=u32}: {=str}", at.file(), at.line(), at.column(), message),
+        Some(at) => {
+            defmt::error!("panicked at {=str}:{=u32}:{=u32}: {=str}", at.file(), at.line(), at.column(), message)
+        }
         None => defmt::error!("panicked: {=str}", message),
     }
     cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_FAILURE);

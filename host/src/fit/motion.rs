@@ -813,12 +813,18 @@ fn genetic_at(source: Source<'_>, weighting: Weighting<'_>, columns: &Columns, r
 /// The genetic model (θ0 = 0) of a solve at r: canonical point ω = 1 at A = 1, α = k·(1 + r²),
 /// so h = k per rad of half-width.
 fn genetic_model(columns: &Columns, solved: &Solved, r: f64) -> Result<GearModel<f64>, FitError> {
+    solved_model(columns, solved, |k| Hysteresis::Genetic(Genetic { alpha: k * (1.0 + r * r), beta: r, omega: 1.0 }))
+}
+
+/// The model (θ0 = 0) of a solve whose one own column is the hysteresis scaled by its
+/// coefficient k: the spring of the solve and the hysteresis `of(k)`, validated.
+fn solved_model(
+    columns: &Columns,
+    solved: &Solved,
+    of: impl FnOnce(f64) -> Hysteresis<f64>,
+) -> Result<GearModel<f64>, FitError> {
     let k = columns.own(&solved.coef).first().copied().ok_or(FitError::Degenerate)?;
-    let model = GearModel {
-        zero: 0.0,
-        spring: columns.spring(&solved.coef)?,
-        hysteresis: Hysteresis::Genetic(Genetic { alpha: k * (1.0 + r * r), beta: r, omega: 1.0 }),
-    };
+    let model = GearModel { zero: 0.0, spring: columns.spring(&solved.coef)?, hysteresis: of(k) };
     model.validate()?;
     Ok(model)
 }
@@ -923,11 +929,7 @@ fn bouc_wen_at(
 
 /// The Bouc–Wen model (θ0 = 0) of a solve.
 fn bouc_wen_model(columns: &Columns, solved: &Solved, shape: BoucWen<f64>) -> Result<GearModel<f64>, FitError> {
-    let k = columns.own(&solved.coef).first().copied().ok_or(FitError::Degenerate)?;
-    let term = BoucWenTerm { stiffness: k / columns.scale, shape };
-    let model = GearModel { zero: 0.0, spring: columns.spring(&solved.coef)?, hysteresis: Hysteresis::BoucWen(term) };
-    model.validate()?;
-    Ok(model)
+    solved_model(columns, solved, |k| Hysteresis::BoucWen(BoucWenTerm { stiffness: k / columns.scale, shape }))
 }
 
 /// Fits the Bouc–Wen kind to `motion`: its shape (z_max, ρ, n) by the swarm on a strided
@@ -1626,6 +1628,30 @@ mod tests {
         let fitted = fit_genetic(&motion, &FitOptions::default()).unwrap();
         let scale = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
         assert!(fitted.rms < 1e-6 * scale, "RMS {} of a peak {scale}: {:?}", fitted.rms, fitted.model);
+    }
+
+    #[test]
+    fn bouc_wen_recovers_its_own_asymmetric_gear_on_nested_motion() {
+        // n = 1.5 (sub-steps) with z_max = 0.4 mrad and fat loops (ρ = 0.5).
+        let theta = nested(6000, 1.2e-3);
+        let reversals = crate::prepare::reversals(&theta);
+        let (z_max, rho, n) = (0.4e-3f64, 0.5, 1.5);
+        let sum = z_max.powf(-n);
+        let shape = BoucWen { a: 1.0, beta: 0.5 * (1.0 + rho) * sum, gamma: 0.5 * (1.0 - rho) * sum, n };
+        let truth = GearModel {
+            zero: 0.0,
+            spring: asymmetric_spring(&theta),
+            hysteresis: Hysteresis::BoucWen(BoucWenTerm { stiffness: 1500.0, shape }),
+        };
+        let torque = torque_of(&truth, &theta, &reversals);
+        let motion = Motion::training_prefix(&theta, &torque, &reversals, theta.len(), None);
+        let fitted = fit_bouc_wen(&motion, &FitOptions::default()).unwrap();
+        let scale = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+        assert!(fitted.rms < 1e-3 * scale, "RMS {} of a peak {scale}: {:?}", fitted.rms, fitted.model);
+        let Hysteresis::BoucWen(found) = fitted.model.hysteresis else { panic!("{:?}", fitted.model) };
+        assert!((found.shape.n - n).abs() < 0.05, "{found:?}");
+        assert!((found.shape.z_max() / z_max - 1.0).abs() < 0.02, "{found:?}");
+        assert!((found.stiffness / 1500.0 - 1.0).abs() < 0.02, "{found:?}");
     }
 
     /// Each run's θ0 and torque offset place its samples: a gear recorded with its encoder zero

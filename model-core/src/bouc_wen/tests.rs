@@ -74,7 +74,9 @@ fn for_n_other_than_one_a_large_step_lands_within_the_stated_bound() {
     // pieces, over n from just above 1 to 6 and loops from narrow (γ > β) to wide (γ < 0).
     let mut worst = (0.0, GEAR);
     for n in [1.0 + 1e-9, 1.2, 1.5, 2.0, 3.0, 6.0] {
-        for (beta, gamma) in [(1250.0, 1250.0), (2000.0, 500.0), (500.0, 2000.0), (1000.0, -500.0), (1000.0, -950.0), (50.0, 2450.0)] {
+        for (beta, gamma) in
+            [(1250.0, 1250.0), (2000.0, 500.0), (500.0, 2000.0), (1000.0, -500.0), (1000.0, -950.0), (50.0, 2450.0)]
+        {
             let params = BoucWen { n, beta, gamma, ..GEAR };
             let (z_max, scale) = (params.z_max(), params.z_max() / params.a);
             for start in 0..9 {

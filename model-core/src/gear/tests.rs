@@ -139,6 +139,7 @@ fn check_names_the_first_bad_parameter() {
         (bouc_wen.with(ParamName::BoucWenBeta, -1.0), (ParamName::BoucWenBeta, ParamFault::OutOfRange)),
         (bouc_wen.with(ParamName::BoucWenGamma, -1250.0), (ParamName::BoucWenGamma, ParamFault::OutOfRange)),
         (bouc_wen.with(ParamName::BoucWenN, 0.5), (ParamName::BoucWenN, ParamFault::OutOfRange)),
+        (bouc_wen.with(ParamName::BoucWenN, 33.0), (ParamName::BoucWenN, ParamFault::OutOfRange)),
     ];
     for (model, fault) in cases {
         assert_eq!(model.check(), Err(fault), "{model:?}");

@@ -2,8 +2,8 @@ extern crate std;
 use super::*;
 use crate::flash::RamFlash;
 use embedded_storage::nor_flash::{ErrorType, NorFlashErrorKind, ReadNorFlash};
-use model_core::legacy::{GearModelV1, SlipParamsV1};
 use model_core::bouc_wen::{BoucWen, BoucWenTerm};
+use model_core::legacy::{GearModelV1, SlipParamsV1};
 use model_core::{Hysteresis, Knot, Params, SlipElement, Spring, MODEL_VERSION};
 use swg_protocol::{GearModel, SLIP_ELEMENTS};
 
@@ -339,7 +339,11 @@ fn golden_params_4() -> JointParams {
     let shape = BoucWen { a: 1.5, beta: 6144.5, gamma: 2048.25, n: 2.5 };
     JointParams {
         model_version: MODEL_VERSION,
-        model: GearModel { zero: 4.25e-3, spring, hysteresis: Hysteresis::BoucWen(BoucWenTerm { stiffness: 1.5e3, shape }) },
+        model: GearModel {
+            zero: 4.25e-3,
+            spring,
+            hysteresis: Hysteresis::BoucWen(BoucWenTerm { stiffness: 1.5e3, shape }),
+        },
         gear_ratio: 50.0,
         torque_limit: 30.5,
         direction_band: 4.5e-6,

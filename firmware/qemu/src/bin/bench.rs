@@ -11,9 +11,9 @@ use core::hint::black_box;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
+use model_core::bouc_wen::BoucWen;
 use model_core::checks::{bouc_wen_set, micro_slip_set, SEED_TABLE_FIT};
 use model_core::{Direction, Model};
-use model_core::bouc_wen::BoucWen;
 use model_core::{Hysteresis, Knot, Spring};
 use swg_joint::budget::{self, CONTROL_TICK_INSTRUCTIONS};
 use swg_joint::{Compensator, Controller, FastModel};
@@ -285,7 +285,12 @@ fn main() -> ! {
         }
         JointParams { model, ..genetic }
     };
-    let kinds = [("genetic", genetic), ("micro-slip", slip), ("bouc-wen n=1", bouc_wen(1.0)), ("bouc-wen n=1.5", bouc_wen(1.5))];
+    let kinds = [
+        ("genetic", genetic),
+        ("micro-slip", slip),
+        ("bouc-wen n=1", bouc_wen(1.0)),
+        ("bouc-wen n=1.5", bouc_wen(1.5)),
+    ];
 
     // The loop and the black boxes alone, subtracted from every measurement.
     let baseline = ticks(|| {
