@@ -348,7 +348,7 @@ impl<F: Real> BoucWenMemory<F> {
     pub(crate) fn step_finishing<E: Elementary<F>>(
         &mut self,
         x: F,
-        finish: impl Finish<F>,
+        finish: impl Finish<crate::Evaluation<F>>,
     ) -> Result<Evaluation<F>, Error> {
         let mut next = self.state;
         let z = next.step_with::<E>(x)?;

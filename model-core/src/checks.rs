@@ -90,6 +90,27 @@ pub fn bouc_wen_set() -> crate::GearModel<f64> {
     }
 }
 
+/// The reference set of the Preisach kind for tests and benchmarks: the spring
+/// 9000·x + 1.2·10¹⁰·x³ and a density on a grid of reach 1.4·10⁻³ rad (the seed loop's
+/// amplitude and a fifth) that is heavier towards the diagonal and towards high α, so that its
+/// loops depend on where they sit: w(i, j) = 0.06·(1 + i/4)/(1 + i − j) N·m.
+pub fn preisach_set() -> crate::GearModel<f64> {
+    use crate::preisach::{cell, Preisach, CELLS, INTERVALS};
+    let mut weights = [0.0; CELLS];
+    for i in 0..INTERVALS {
+        for j in 0..=i {
+            if let Some(w) = weights.get_mut(cell(i, j)) {
+                *w = 0.06 * (1.0 + i as f64 / 4.0) / (1.0 + (i - j) as f64);
+            }
+        }
+    }
+    crate::GearModel {
+        zero: 0.0,
+        spring: crate::Spring::polynomial(9000.0, 1.2e10, 0.0),
+        hysteresis: crate::Hysteresis::Preisach(Preisach { reach: 1.4e-3, weights }),
+    }
+}
+
 /// Both reference sets with a short name, for running a check on each.
 pub const REFERENCE_SETS: [(&str, Params<f64>); 2] =
     [("paper Table 2", PAPER_TABLE_2), ("seed table fit", SEED_TABLE_FIT)];

@@ -24,7 +24,8 @@
 //! tolerance in `tolerance`, its serde names), its fit on the host, and one arm in the firmware's
 //! budget, which bounds its per-tick cost. Nothing else branches on the kind.
 use crate::bouc_wen::{BoucWen, BoucWenMemory, BoucWenTerm};
-use crate::memory::{finite, Finish, GeneticMemory, Hysteretic, MicroSlip, SlipElement};
+use crate::memory::{finite, Finish, GeneticMemory, Hysteretic, Madelung, MicroSlip, SlipElement};
+use crate::preisach::{Preisach, PreisachMemory, PreparedPreisach, CELLS};
 use crate::range::{self, Culprit};
 use crate::spring::{PreparedSpring, Spring};
 use crate::{Direction, Elementary, Error, Evaluation, Identifiable, Libm, Model, ParamName, Params, Real};
@@ -45,11 +46,14 @@ pub enum Kind {
     MicroSlip,
     /// Bouc–Wen: smooth branches, no exact return-point memory ([`crate::bouc_wen`]).
     BoucWen,
+    /// Preisach: a density of relays over their switching thresholds, loops that depend on where
+    /// they sit ([`crate::preisach`]).
+    Preisach,
 }
 
 impl Kind {
     /// Every kind, in the order reports list them.
-    pub const ALL: [Kind; 3] = [Kind::Genetic, Kind::MicroSlip, Kind::BoucWen];
+    pub const ALL: [Kind; 4] = [Kind::Genetic, Kind::MicroSlip, Kind::BoucWen, Kind::Preisach];
 
     /// The kind's name in params files (their `model` field).
     pub const fn name(self) -> &'static str {
@@ -57,6 +61,7 @@ impl Kind {
             Kind::Genetic => crate::MODEL_NAME,
             Kind::MicroSlip => "micro-slip",
             Kind::BoucWen => "bouc-wen",
+            Kind::Preisach => "preisach",
         }
     }
 
@@ -66,6 +71,7 @@ impl Kind {
             Kind::Genetic => "genetic",
             Kind::MicroSlip => "micro-slip",
             Kind::BoucWen => "bouc-wen",
+            Kind::Preisach => "preisach",
         }
     }
 
@@ -76,6 +82,9 @@ impl Kind {
             Kind::MicroSlip => "Maxwell-slip: up to 16 elasto-slip elements, each its own slip deflection (recordings)",
             Kind::BoucWen => {
                 "Bouc–Wen: smooth branches that saturate, minor loops that drift (no return-point memory; recordings)"
+            }
+            Kind::Preisach => {
+                "Preisach: a density of relays on an 8×8 grid of thresholds, loops that depend on where they sit (recordings)"
             }
         }
     }
@@ -88,6 +97,9 @@ impl Kind {
             }
             Kind::MicroSlip => "H = Σ k_i·e_i, elasto-slip elements slipping at deflections d_i",
             Kind::BoucWen => "H = k_h·z, dz = dx·(A − |z|ⁿ·(β·sign(dx·z) + γ)) (Bouc–Wen)",
+            Kind::Preisach => {
+                "H = −Σ w_c·(share of cell c switched up − at rest), relays over thresholds β ≤ α in [−R, R]"
+            }
         }
     }
 
@@ -149,6 +161,7 @@ pub enum Hysteresis<F> {
     /// The elements, slip deflections increasing; the first `count` are used.
     MicroSlip(([SlipElement<F>; SLIP_ELEMENTS], u8)),
     BoucWen(BoucWenTerm<F>),
+    Preisach(Preisach<F>),
 }
 
 /// A gear's model: its deflection zero, its spring and its hysteresis, in `F` (f64 on the host,
@@ -173,6 +186,7 @@ impl<F> GearModel<F> {
             Hysteresis::Genetic(_) => Kind::Genetic,
             Hysteresis::MicroSlip(_) => Kind::MicroSlip,
             Hysteresis::BoucWen(_) => Kind::BoucWen,
+            Hysteresis::Preisach(_) => Kind::Preisach,
         }
     }
 }
@@ -214,7 +228,7 @@ impl<F: Real> GearModel<F> {
     pub fn slip_elements(&self) -> &[SlipElement<F>] {
         match &self.hysteresis {
             Hysteresis::MicroSlip((elements, count)) => elements.get(..usize::from(*count)).unwrap_or(&[]),
-            Hysteresis::Genetic(_) | Hysteresis::BoucWen(_) => &[],
+            Hysteresis::Genetic(_) | Hysteresis::BoucWen(_) | Hysteresis::Preisach(_) => &[],
         }
     }
 
@@ -286,6 +300,23 @@ impl<F: Real> GearModel<F> {
                 }
                 Ok(())
             }
+            Hysteresis::Preisach(preisach) => {
+                if !preisach.reach.is_finite() {
+                    return Err((ParamName::PreisachReach, ParamFault::NotFinite));
+                }
+                if preisach.reach <= F::zero() {
+                    return out_of_range(ParamName::PreisachReach);
+                }
+                for (i, w) in (0u8..).zip(&preisach.weights) {
+                    if !w.is_finite() {
+                        return Err((ParamName::PreisachWeight(i), ParamFault::NotFinite));
+                    }
+                    if *w < F::zero() {
+                        return out_of_range(ParamName::PreisachWeight(i));
+                    }
+                }
+                Ok(())
+            }
         }
     }
 
@@ -324,6 +355,9 @@ impl<F: Real> GearModel<F> {
             Hysteresis::BoucWen(term) => {
                 evaluator.hysteresis = HysteresisState::BoucWen(BoucWenMemory::new(*term)?);
             }
+            Hysteresis::Preisach(preisach) => {
+                evaluator.hysteresis = HysteresisState::Preisach(Madelung::new(PreparedPreisach::new(preisach)?, band));
+            }
         }
         self.spring.prepare_into(&mut evaluator.spring)
     }
@@ -340,7 +374,7 @@ impl<F: Real> GearModel<F> {
     pub fn has_fast_path(&self) -> bool {
         match &self.hysteresis {
             Hysteresis::Genetic(g) => g.model().is_ok_and(|model| model.has_direct_decay()),
-            Hysteresis::MicroSlip(_) | Hysteresis::BoucWen(_) => true,
+            Hysteresis::MicroSlip(_) | Hysteresis::BoucWen(_) | Hysteresis::Preisach(_) => true,
         }
     }
 
@@ -354,7 +388,7 @@ impl<F: Real> GearModel<F> {
     pub fn identifiable(&self, amplitude: F) -> Option<Identifiable<F>> {
         match &self.hysteresis {
             Hysteresis::Genetic(g) => g.params().identifiable(amplitude).ok(),
-            Hysteresis::MicroSlip(_) | Hysteresis::BoucWen(_) => None,
+            Hysteresis::MicroSlip(_) | Hysteresis::BoucWen(_) | Hysteresis::Preisach(_) => None,
         }
     }
 
@@ -412,6 +446,13 @@ impl<F: Copy + Default> GearModel<F> {
                     n: convert(ParamName::BoucWenN, term.shape.n)?,
                 },
             }),
+            Hysteresis::Preisach(preisach) => {
+                let mut weights = [G::default(); CELLS];
+                for ((i, w), slot) in (0u8..).zip(&preisach.weights).zip(weights.iter_mut()) {
+                    *slot = convert(ParamName::PreisachWeight(i), *w)?;
+                }
+                Hysteresis::Preisach(Preisach { reach: convert(ParamName::PreisachReach, preisach.reach)?, weights })
+            }
         };
         Ok(GearModel { zero, spring, hysteresis })
     }
@@ -444,20 +485,21 @@ impl<F: Copy + Default + core::fmt::LowerExp> core::fmt::Display for GearModel<F
 /// What an evaluator remembers of the motion, as the joint reports it every tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Memory {
-    /// The direction of motion the genetic and Bouc–Wen kinds follow (`None` at rest and for
-    /// the micro-slip kind, which needs none).
+    /// The direction of motion the genetic, Bouc–Wen and Preisach kinds follow (`None` at rest
+    /// and for the micro-slip kind, which needs none).
     pub direction: Option<Direction>,
-    /// How much memory is in use: turning points stored (genetic) or elements slipping
-    /// (micro-slip); Bouc–Wen keeps one state, z, whatever the motion (0).
+    /// How much memory is in use: turning points stored (genetic, Preisach) or elements
+    /// slipping (micro-slip); Bouc–Wen keeps one state, z, whatever the motion (0).
     pub depth: usize,
 }
 
 /// The kind's hysteresis with its memory, in x = θ − θ0.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum HysteresisState<F> {
+pub enum HysteresisState<F: Real> {
     Genetic(GeneticMemory<F, TURNING_POINTS>),
     MicroSlip(MicroSlip<F, SLIP_ELEMENTS>),
     BoucWen(BoucWenMemory<F>),
+    Preisach(PreisachMemory<F, TURNING_POINTS>),
 }
 
 impl<F: Real> HysteresisState<F> {
@@ -471,7 +513,7 @@ impl<F: Real> HysteresisState<F> {
 /// motion has left behind. The same on the host (f64, with libm) and on the joint (f32, with
 /// libm or the firmware's fast elementary functions).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Evaluator<F> {
+pub struct Evaluator<F: Real> {
     zero: F,
     spring: PreparedSpring<F>,
     hysteresis: HysteresisState<F>,
@@ -524,6 +566,10 @@ impl<F: Real> Evaluator<F> {
             // One path, A's: on the joint a second copy of its step in libm's functions was
             // 2.2 KiB of the 48 KiB of flash, for the same z to f32 rounding.
             HysteresisState::BoucWen(bouc_wen) => (bouc_wen.step_finishing::<A>(x, finish), bouc_wen.memory()),
+            // No elementary functions: one path.
+            HysteresisState::Preisach(memory) => {
+                (memory.step_finishing::<A>(x, finish), Memory { direction: memory.direction(), depth: memory.depth() })
+            }
         }
     }
 
@@ -534,6 +580,7 @@ impl<F: Real> Evaluator<F> {
             HysteresisState::Genetic(memory) => Memory { direction: memory.direction(), depth: memory.depth() },
             HysteresisState::MicroSlip(slip) => Memory { direction: None, depth: slip.slipping() },
             HysteresisState::BoucWen(bouc_wen) => bouc_wen.memory(),
+            HysteresisState::Preisach(memory) => Memory { direction: memory.direction(), depth: memory.depth() },
         }
     }
 
@@ -560,7 +607,7 @@ struct WithSpring<'a, F> {
     x: F,
 }
 
-impl<F: Real> Finish<F> for WithSpring<'_, F> {
+impl<F: Real> Finish<Evaluation<F>> for WithSpring<'_, F> {
     #[inline(always)]
     fn finish(self, hysteresis: Evaluation<F>) -> Result<Evaluation<F>, Error> {
         finite(self.spring.evaluate(self.x).plus(hysteresis))
@@ -573,6 +620,7 @@ impl<F: Real> Hysteretic<F> for Evaluator<F> {
             HysteresisState::Genetic(memory) => memory.reset(),
             HysteresisState::MicroSlip(slip) => slip.reset(),
             HysteresisState::BoucWen(bouc_wen) => bouc_wen.reset(),
+            HysteresisState::Preisach(memory) => memory.reset(),
         }
     }
 
@@ -621,6 +669,17 @@ mod serde_forms {
         n: F,
     }
 
+    /// The Preisach kind's parameters as a file and the wire write them.
+    #[derive(Serialize, Deserialize)]
+    #[serde(bound(deserialize = "F: Deserialize<'de> + Default + Copy"))]
+    struct PreisachForm<F> {
+        zero: F,
+        spring: Spring<F>,
+        reach: F,
+        #[serde(with = "crate::serde_array")]
+        weights: [F; CELLS],
+    }
+
     /// `{"model": "genetic-hysteresis", "params": {…}}`. The names are [`Kind::name`] (tested).
     #[derive(Serialize)]
     #[cfg_attr(feature = "use-std", derive(Deserialize))]
@@ -633,6 +692,8 @@ mod serde_forms {
         MicroSlip(MicroSlipForm<F>),
         #[serde(rename = "bouc-wen")]
         BoucWen(BoucWenForm<F>),
+        #[serde(rename = "preisach")]
+        Preisach(PreisachForm<F>),
     }
 
     #[derive(Serialize, Deserialize)]
@@ -641,6 +702,7 @@ mod serde_forms {
         Genetic(GeneticForm<F>),
         MicroSlip(MicroSlipForm<F>),
         BoucWen(BoucWenForm<F>),
+        Preisach(PreisachForm<F>),
     }
 
     /// The kind's parameters apart.
@@ -648,6 +710,7 @@ mod serde_forms {
         Genetic(GeneticForm<F>),
         MicroSlip(MicroSlipForm<F>),
         BoucWen(BoucWenForm<F>),
+        Preisach(PreisachForm<F>),
     }
 
     fn forms<F: Copy>(model: &GearModel<F>) -> Form<F> {
@@ -660,7 +723,15 @@ mod serde_forms {
             Hysteresis::BoucWen(BoucWenTerm { stiffness, shape: BoucWen { a, beta, gamma, n } }) => {
                 Form::BoucWen(BoucWenForm { zero, spring, stiffness, a, beta, gamma, n })
             }
+            Hysteresis::Preisach(Preisach { reach, weights }) => {
+                Form::Preisach(PreisachForm { zero, spring, reach, weights })
+            }
         }
+    }
+
+    fn preisach<F>(form: PreisachForm<F>) -> GearModel<F> {
+        let PreisachForm { zero, spring, reach, weights } = form;
+        GearModel { zero, spring, hysteresis: Hysteresis::Preisach(Preisach { reach, weights }) }
     }
 
     fn bouc_wen<F>(form: BoucWenForm<F>) -> GearModel<F> {
@@ -687,9 +758,11 @@ mod serde_forms {
                 (Form::Genetic(g), true) => Named::Genetic(g).serialize(serializer),
                 (Form::MicroSlip(m), true) => Named::MicroSlip(m).serialize(serializer),
                 (Form::BoucWen(b), true) => Named::BoucWen(b).serialize(serializer),
+                (Form::Preisach(p), true) => Named::Preisach(p).serialize(serializer),
                 (Form::Genetic(g), false) => Indexed::Genetic(g).serialize(serializer),
                 (Form::MicroSlip(m), false) => Indexed::MicroSlip(m).serialize(serializer),
                 (Form::BoucWen(b), false) => Indexed::BoucWen(b).serialize(serializer),
+                (Form::Preisach(p), false) => Indexed::Preisach(p).serialize(serializer),
             }
         }
     }
@@ -704,12 +777,14 @@ mod serde_forms {
                     Named::Genetic(g) => genetic(g),
                     Named::MicroSlip(m) => micro_slip(m),
                     Named::BoucWen(b) => bouc_wen(b),
+                    Named::Preisach(p) => preisach(p),
                 });
             }
             Ok(match Indexed::deserialize(deserializer)? {
                 Indexed::Genetic(g) => genetic(g),
                 Indexed::MicroSlip(m) => micro_slip(m),
                 Indexed::BoucWen(b) => bouc_wen(b),
+                Indexed::Preisach(p) => preisach(p),
             })
         }
     }
@@ -722,6 +797,7 @@ mod serde_forms {
                 Form::Genetic(g) => g.serialize(serializer),
                 Form::MicroSlip(m) => m.serialize(serializer),
                 Form::BoucWen(b) => b.serialize(serializer),
+                Form::Preisach(p) => p.serialize(serializer),
             }
         }
     }

@@ -112,6 +112,10 @@ pub enum ParamName {
     BoucWenGamma,
     /// The Bouc–Wen kind's n.
     BoucWenN,
+    /// R, the reach of the Preisach kind's grid of thresholds.
+    PreisachReach,
+    /// w of the Preisach kind's cell i ([`preisach::cell`]).
+    PreisachWeight(u8),
 }
 
 impl ParamName {
@@ -142,6 +146,8 @@ impl ParamName {
             ParamName::BoucWenBeta => "beta",
             ParamName::BoucWenGamma => "gamma",
             ParamName::BoucWenN => "n",
+            ParamName::PreisachReach => "reach",
+            ParamName::PreisachWeight(_) => "weight",
         }
     }
 
@@ -165,6 +171,8 @@ impl ParamName {
             ParamName::BoucWenBeta => "beta must be > 0",
             ParamName::BoucWenGamma => "gamma must be > -beta",
             ParamName::BoucWenN => "n must be from 1 to 32",
+            ParamName::PreisachReach => "the grid's reach must be > 0 rad",
+            ParamName::PreisachWeight(_) => "a cell's weight must be >= 0 N·m",
         }
     }
 
@@ -177,13 +185,17 @@ impl ParamName {
             | ParamName::HysteresisStiffness => "N·m/rad",
             ParamName::BoucWenA | ParamName::BoucWenN => "1",
             ParamName::BoucWenBeta | ParamName::BoucWenGamma => "rad⁻ⁿ",
+            ParamName::PreisachWeight(_) => "N·m",
             ParamName::C2 => "N·m/rad³",
             ParamName::C3 => "N·m/rad⁵",
             ParamName::Alpha => "N·m/rad per unit of ω",
             ParamName::Beta | ParamName::Omega => "1/s",
-            ParamName::Slip(_) | ParamName::Zero | ParamName::Knot(_) | ParamName::RangeMin | ParamName::RangeMax => {
-                "rad"
-            }
+            ParamName::Slip(_)
+            | ParamName::Zero
+            | ParamName::Knot(_)
+            | ParamName::RangeMin
+            | ParamName::RangeMax
+            | ParamName::PreisachReach => "rad",
         }
     }
 }
@@ -192,7 +204,11 @@ impl fmt::Display for ParamName {
     /// The name as in files; an element's stiffness with its index, `stiffness[3]`.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ParamName::SlipStiffness(i) | ParamName::Slip(i) | ParamName::Knot(i) | ParamName::KnotStiffness(i) => {
+            ParamName::SlipStiffness(i)
+            | ParamName::Slip(i)
+            | ParamName::Knot(i)
+            | ParamName::KnotStiffness(i)
+            | ParamName::PreisachWeight(i) => {
                 write!(f, "{}[{i}]", self.as_str())
             }
             name => f.write_str(name.as_str()),
@@ -226,6 +242,9 @@ pub enum Error {
     InvalidParameter(ParamName, ParamFault),
     /// Bouc–Wen hysteresis needs A > 0, β > 0 and γ > −β, all finite ([`bouc_wen::BoucWen`]).
     InvalidBoucWen,
+    /// A Preisach density needs a grid reach R > 0 and weights >= 0, all finite
+    /// ([`preisach::Preisach`]).
+    InvalidPreisach,
 }
 
 impl fmt::Display for Error {
@@ -256,6 +275,9 @@ impl fmt::Display for Error {
             Error::InvalidBoucWen => f.write_str(
                 "Bouc–Wen needs A > 0, beta > 0 1/rad^n, gamma > -beta 1/rad^n and 1 <= n <= 32, all finite",
             ),
+            Error::InvalidPreisach => {
+                f.write_str("a Preisach density needs a reach R > 0 rad and cell weights >= 0 N·m, all finite")
+            }
         }
     }
 }
@@ -824,6 +846,7 @@ pub mod bouc_wen;
 pub mod checks;
 pub mod gear;
 pub mod memory;
+pub mod preisach;
 pub mod range;
 #[cfg(feature = "serde")]
 mod serde_array;

@@ -52,15 +52,16 @@ pub(crate) fn finite<F: Real>(e: Evaluation<F>) -> Result<Evaluation<F>, Error> 
 /// What a step does with the hysteresis' H and dH/dθ before it writes its new state: adds a
 /// spring and checks the sum (a trait rather than a closure, so that the tick's one call of it
 /// is inlined whatever its size).
-pub(crate) trait Finish<F> {
-    /// T and K from H and dH/dθ, or why they cannot be used (the state is then not written).
-    fn finish(self, hysteresis: Evaluation<F>) -> Result<Evaluation<F>, Error>;
+pub(crate) trait Finish<O> {
+    /// T and K from H and dH/dθ (or a fit's columns from the shape's), or why they cannot be
+    /// used (the state is then not written).
+    fn finish(self, hysteresis: O) -> Result<O, Error>;
 }
 
 /// H and dH/dθ alone, checked.
 pub(crate) struct Alone;
 
-impl<F: Real> Finish<F> for Alone {
+impl<F: Real> Finish<Evaluation<F>> for Alone {
     #[inline(always)]
     fn finish(self, hysteresis: Evaluation<F>) -> Result<Evaluation<F>, Error> {
         finite(hysteresis)
@@ -73,7 +74,7 @@ struct WithPolynomial<F> {
     theta: F,
 }
 
-impl<F: Real> Finish<F> for WithPolynomial<F> {
+impl<F: Real> Finish<Evaluation<F>> for WithPolynomial<F> {
     #[inline(always)]
     fn finish(self, hysteresis: Evaluation<F>) -> Result<Evaluation<F>, Error> {
         finite(match self.polynomial {
@@ -93,92 +94,52 @@ fn sanitise_band<F: Real>(band: F) -> F {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Kind 1: the genetic model with Madelung's rules
+// Madelung's rules: a stack of turning points, whatever the branches between them
 // ---------------------------------------------------------------------------------------------
 
-/// A turning point of the motion: the deflection where θ reversed and the hysteretic part
-/// H = T − poly(θ) of the torque there.
+/// A turning point of the motion: the deflection where θ reversed and what the hysteresis kept
+/// there, `V`: its part H of the torque (N·m), or for a fit's columns each column's value.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct TurningPoint<F> {
+pub struct TurningPoint<F, V = F> {
     /// θ, rad.
     pub theta: F,
-    /// H = T − (c1·θ + c2·θ³ + c3·θ⁵), N·m.
-    pub hysteresis: F,
+    /// H there: for the genetic kind T − (c1·θ + c2·θ³ + c3·θ⁵), N·m.
+    pub hysteresis: V,
 }
 
-/// The hysteretic part H (and dH/dθ, as an [`Evaluation`]) at `theta` on the branch that
-/// starts at the turning point `from` = (θ_a, H_a) and heads for `to` = (θ_b, H_b):
-///
-/// ```text
-/// H(θ) = H_a·(1 − s) + H_b·s + z(θ − c; w, direction)
-/// s = (θ − θ_a)/(θ_b − θ_a),  c = (θ_a + θ_b)/2,  w = |θ_b − θ_a|/2,  direction = sign(θ_b − θ_a)
-/// ```
-///
-/// with z the paper's hysteresis term on a symmetric loop of amplitude w (h = w·k, through
-/// [`Model::scale_with`] and [`Model::hysteresis_with`], as [`Loop::evaluate_parts`](crate::Loop::evaluate_parts),
-/// so the math is the crate's one copy). dH/dθ = (H_b − H_a)/(θ_b − θ_a) + dz/dθ.
-///
-/// Why this shape:
-/// - **Exact on symmetric loops.** With the ends (∓A, 0) it is z of [`Loop`](crate::Loop) at
-///   amplitude A, bit for bit (c = 0, w = A).
-/// - **Continuity and return-point memory.** z vanishes at both ends of its loop, so the
-///   branch starts exactly at `from` and ends exactly at `to` (at s = 0 and s = 1 the term is
-///   evaluated at its clamped end, where it is 0).
-/// - **Amplitude dependence as in the paper.** An inner branch is the paper's loop of the
-///   inner excursion's own half-width: h ∝ w, so a small loop opens proportionally less, as
-///   the paper's h = A·k does for a small symmetric loop.
-///
-/// Outside the branch (s < 0 or s > 1) the straight part holds its end value and z its edge
-/// slope, as [`Loop`](crate::Loop) beyond ±A. A branch of zero width (or one so narrow that
-/// 1/w overflows) is flat: H = H_a, no z.
-pub fn branch<F: Real>(
-    model: &Model<F>,
-    from: TurningPoint<F>,
-    to: TurningPoint<F>,
-    theta: F,
-) -> Result<Evaluation<F>, Error> {
-    branch_with::<F, Libm>(model, from, to, theta)
-}
+/// How the hysteresis runs between turning points: the one thing in which the kinds that
+/// follow Madelung's rules ([`Madelung`]) differ.
+pub trait Shape<F> {
+    /// What a turning point keeps of the hysteresis.
+    type Value: Copy + PartialEq + core::fmt::Debug;
+    /// The hysteresis and its slope at a deflection.
+    type Output: Copy;
+    /// What a branch keeps, made when the branch changes, so that a step on it evaluates only
+    /// what depends on θ.
+    type Branch: Copy + PartialEq + core::fmt::Debug;
 
-/// [`branch`] with the elementary functions of `E` (ln, exp, asin, √): the firmware's fast
-/// path runs this same formula with its polynomial approximations.
-#[inline(always)]
-pub fn branch_with<F: Real, E: Elementary<F>>(
-    model: &Model<F>,
-    from: TurningPoint<F>,
-    to: TurningPoint<F>,
-    theta: F,
-) -> Result<Evaluation<F>, Error> {
-    if !theta.is_finite() {
-        return Err(Error::NonFiniteDeflection);
-    }
-    finite(Branch::new::<E>(model, from, to, false).evaluate::<E>(model, theta))
-}
-
-/// What [`branch`] computes from a branch's two ends before it looks at θ: the loop's centre,
-/// half-span, direction and [`Scale`], the straight part's ends and slope, and where θ leaves
-/// the branch. A [`GeneticMemory`] keeps its current branch's, made when the branch changes
-/// (a reversal, a wipe-out, the end of a retrace), so that a tick on the branch evaluates only
-/// what depends on θ.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Branch<F> {
-    /// H_a and H_b, the hysteretic part at the ends.
-    from: F,
-    to: F,
-    /// θ_a/2.
-    start: F,
-    /// (θ_b − θ_a)/2, signed.
-    span: F,
-    /// c = θ_a/2 + θ_b/2.
-    centre: F,
-    /// (H_b − H_a)/(θ_b − θ_a).
-    slope: F,
-    direction: Direction,
-    /// The loop's 1/w and h; `None` for a flat branch (zero width, or 1/w overflows).
-    scale: Option<Scale<F>>,
-    /// θ leaves the branch without a reversal where θ < `exits.0` or θ > `exits.1` ([`exits`]).
-    exits: (F, F),
+    /// The value at rest (H = 0).
+    fn zero(&self) -> Self::Value;
+    /// The branch at rest: the virgin curve, before the first turning point and after the last
+    /// is wiped out.
+    fn rest(&self) -> Self::Branch;
+    /// The branch from turning point `from` heading for `to` (with the elementary functions of
+    /// `E`, where the shape uses any).
+    fn branch<E: Elementary<F>>(
+        &self,
+        from: TurningPoint<F, Self::Value>,
+        to: TurningPoint<F, Self::Value>,
+    ) -> Self::Branch;
+    /// The hysteresis and its slope at `theta` (finite) on `branch`; not checked for
+    /// finiteness (a step's [`Finish`] checks what it makes of it).
+    fn evaluate<E: Elementary<F>>(&self, branch: &Self::Branch, theta: F) -> Self::Output;
+    /// What a turning point at an evaluation keeps.
+    fn value(output: &Self::Output) -> Self::Value;
+    /// The target of a branch that starts at `from` with no point under it: the mirror
+    /// deflection −θ_a, where the motion has wiped out every turning point and rejoins the
+    /// virgin curve.
+    fn mirror(from: TurningPoint<F, Self::Value>) -> TurningPoint<F, Self::Value>;
 }
 
 /// Where θ leaves the branch from θ_a = `from` to θ_b = `to` without a reversal, (below,
@@ -195,103 +156,23 @@ fn exits<F: Real>(from: F, to: F, retracing: bool) -> (F, F) {
     }
 }
 
-impl<F: Real> Branch<F> {
-    /// At rest: H = 0 everywhere, and no θ leaves it.
-    fn rest() -> Self {
-        let zero = F::zero();
-        Branch {
-            from: zero,
-            to: zero,
-            start: zero,
-            span: zero,
-            centre: zero,
-            slope: zero,
-            direction: Direction::Rising,
-            scale: None,
-            exits: exits(zero, zero, false),
-        }
-    }
-
-    /// The constants of the branch from `from` to `to`, with the elementary functions of `E`
-    /// (h = w·k: see [`Model::scale_with`]), left where [`exits`] says. Not checked: where h
-    /// overflows, no evaluation on the branch is finite.
-    #[inline(always)]
-    fn new<E: Elementary<F>>(model: &Model<F>, from: TurningPoint<F>, to: TurningPoint<F>, retracing: bool) -> Self {
-        let half = two::<F>().recip();
-        // Halves first: (θ_b − θ_a)/2 cannot overflow, and halving is exact.
-        let (start, end) = (from.theta * half, to.theta * half);
-        let span = end - start;
-        let width = span.abs();
-        let inv_width = width.recip();
-        let (ends, zero) = ((from.hysteresis, to.hysteresis), F::zero());
-        // 1/w ≥ 0 is never NaN: +∞ for w = 0 and for widths whose reciprocal overflows.
-        if inv_width == F::infinity() {
-            // Zero width, or one so narrow that 1/w overflows: flat.
-            let direction = if span > zero { Direction::Rising } else { Direction::Falling };
-            let exits = exits(from.theta, to.theta, retracing);
-            let (from, to) = ends;
-            return Branch { from, to, start, span, centre: zero, slope: zero, direction, scale: None, exits };
-        }
-        // The span is not 0, so its sign is that of θ_b − θ_a (halving keeps the order).
-        let (direction, exits) = if span > zero {
-            (Direction::Rising, (if retracing { from.theta } else { F::neg_infinity() }, to.theta))
-        } else {
-            (Direction::Falling, (to.theta, if retracing { from.theta } else { F::infinity() }))
-        };
-        let slope = (to.hysteresis * half - from.hysteresis * half) / span;
-        let scale = Some(model.scale_of::<E>(width, inv_width));
-        let (from, to) = ends;
-        Branch { from, to, start, span, centre: start + end, slope, direction, scale, exits }
-    }
-
-    /// H and dH/dθ at `theta` (finite), with the elementary functions of `E`; not checked for
-    /// finiteness (a step adds them to the spring's T and K and checks the sums, which are
-    /// not finite when they are not).
-    #[inline(always)]
-    fn evaluate<E: Elementary<F>>(&self, model: &Model<F>, theta: F) -> Evaluation<F> {
-        let Some(scale) = &self.scale else {
-            return Evaluation { torque: self.from, stiffness: F::zero() };
-        };
-        let half = two::<F>().recip();
-        // s is exactly 0 at θ_a and exactly 1 at θ_b. At and past the ends s is clamped and
-        // θ − c is beyond the loop's end (clamped there), where z = 0.
-        let s = (theta * half - self.start) / self.span;
-        // θ − c beyond the loop's end (clamped there) at and past the ends, where z = 0; ±∞
-        // where 1.5·span overflows clamps to the end all the same. Made here, on the rare ticks
-        // that need it, rather than kept with the branch.
-        let beyond = || self.span + self.span * half;
-        let (s, offset) = if s >= F::one() {
-            (F::one(), beyond())
-        } else if s <= F::zero() {
-            (F::zero(), -beyond())
-        } else {
-            (s, theta - self.centre)
-        };
-        let z = model.hysteresis_with::<E>(scale, offset, self.direction);
-        let line = self.from * (F::one() - s) + self.to * s;
-        Evaluation { torque: line + z.torque, stiffness: self.slope + z.stiffness }
-    }
-}
-
-/// The paper's genetic model for any motion, generalised by Madelung's rules; at most `N`
-/// turning points (N ≥ 3, checked at compile time).
+/// Hysteresis with Madelung's rules, branches of shape `S`, at most `N` turning points (N ≥ 3,
+/// checked at compile time): the genetic kind ([`GeneticMemory`]) and the Preisach kind
+/// ([`crate::preisach`]).
 ///
-/// T = poly(θ) + H, poly the model's memoryless spring c1·θ + c2·θ³ + c3·θ⁵ and H the
-/// hysteretic part. The state is a stack of turning points (θ_k, H_k):
+/// The state is a stack of turning points (θ_k, H_k):
 ///
-/// - **Rest (virgin).** Empty stack, H = 0. (The symmetric rule gives the same on first
-///   loading: A = max|θ| there and z(±A) = 0.)
+/// - **Rest (virgin).** Empty stack, H = 0, on the shape's virgin curve ([`Shape::rest`]).
 /// - **Reversal.** When θ moves back by more than `band` rad from its extreme since the last
 ///   reversal (band 0: every sign change of Δθ), the extreme sample (θ_r, H_r) is pushed.
 /// - **Branch.** From the top point a toward its target b, the point below it (or, when the
-///   stack holds one point, its mirror (−θ_a, −H_a)), with the shape of [`branch`].
+///   stack holds one point, the mirror deflection −θ_a, [`Shape::mirror`]), of the shape's
+///   form.
 /// - **Wipe-out.** When θ passes the target b, a and b are popped and θ continues on the
 ///   branch below, which passes through b; repeated while θ is beyond the new target. Popping
-///   the last point returns to H = 0. The bottom point was pushed from rest (H = 0) or by
-///   [`GeneticMemory::on_loop`] (H = 0), and the overflow rule never removes it, so the mirror
-///   target is on the virgin curve and the return to H = 0 is continuous. A reversal exactly
-///   at the target closes the inner loop first (a and b popped, then b pushed again), so a
-///   steady loop does not grow the stack.
+///   the last point returns to the virgin curve, which a branch from the bottom point meets
+///   at its mirror. A reversal exactly at the target closes the inner loop first (a and b
+///   popped, then b pushed again), so a steady loop does not grow the stack.
 /// - **Overflow.** A reversal that finds the stack full is not recorded: the innermost
 ///   excursion (the smallest, since the stack's loops nest) retraces the current branch
 ///   backward, reversibly. If θ moves back past that branch's start a, a is popped and θ
@@ -307,67 +188,48 @@ impl<F: Real> Branch<F> {
 /// that sample changes branch there: T moves by about the loops' difference over one band, as
 /// in the symmetric model with the firmware's direction tracker. Band 0 is continuous.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GeneticMemory<F, const N: usize> {
-    model: Model<F>,
+pub struct Madelung<F: Real, S: Shape<F>, const N: usize> {
+    shape: S,
     band: F,
-    stack: [TurningPoint<F>; N],
+    stack: [TurningPoint<F, S::Value>; N],
     depth: usize,
     /// The direction of motion; `None` at rest until θ leaves ±band.
     direction: Option<Direction>,
     /// The extreme θ in `direction` since the last reversal, with its H.
-    extreme: TurningPoint<F>,
+    extreme: TurningPoint<F, S::Value>,
     /// A reversal found the stack full: θ moves against the current branch.
     retracing: bool,
-    /// The current branch's constants ([`Branch::rest`] at rest), made with the elementary
+    /// The current branch's constants ([`Shape::rest`] at rest), made with the elementary
     /// functions of the step that changed the branch: a step with other functions evaluates
-    /// them, so a caller that changes `E` mid-branch gets that branch's h in the form it was
-    /// made in.
-    branch: Branch<F>,
+    /// them, so a caller that changes `E` mid-branch gets that branch's constants in the form
+    /// they were made in.
+    branch: S::Branch,
+    /// Where θ leaves the current branch without a reversal ([`exits`]).
+    exits: (F, F),
 }
 
-impl<F: Real, const N: usize> GeneticMemory<F, N> {
+impl<F: Real, S: Shape<F>, const N: usize> Madelung<F, S, N> {
     /// At rest (virgin), with a direction band of `band` rad (negative or NaN counts as 0).
-    pub fn new(model: Model<F>, band: F) -> Self {
-        const { assert!(N >= 3, "GeneticMemory needs room for N >= 3 turning points") };
-        let rest = TurningPoint { theta: F::zero(), hysteresis: F::zero() };
-        GeneticMemory {
-            model,
+    pub fn new(shape: S, band: F) -> Self {
+        const { assert!(N >= 3, "Madelung's memory needs room for N >= 3 turning points") };
+        let rest = TurningPoint { theta: F::zero(), hysteresis: shape.zero() };
+        let branch = shape.rest();
+        Madelung {
+            shape,
             band: sanitise_band(band),
             stack: [rest; N],
             depth: 0,
             direction: None,
             extreme: rest,
             retracing: false,
-            branch: Branch::rest(),
+            branch,
+            exits: exits(F::zero(), F::zero(), false),
         }
     }
 
-    /// At θ = 0 on the steady symmetric loop of amplitude `amplitude` (rad), moving in
-    /// `direction`: stack [(A, 0), (−A, 0)] rising, [(−A, 0), (A, 0)] falling. A sine of
-    /// amplitude A from θ = 0 then gives exactly [`Loop::evaluate`](crate::Loop::evaluate) from
-    /// its first sample, turning points included, when its samples reach ±A (a peak sample
-    /// short of A turns onto a branch narrower by that shortfall, by Madelung's rules).
-    pub fn on_loop(model: Model<F>, band: F, amplitude: F, direction: Direction) -> Result<Self, Error> {
-        if !(amplitude.is_finite() && amplitude > F::zero()) {
-            return Err(Error::InvalidAmplitude);
-        }
-        let mut memory = Self::new(model, band);
-        let (bottom, top) = match direction {
-            Direction::Rising => (amplitude, -amplitude),
-            Direction::Falling => (-amplitude, amplitude),
-        };
-        memory.push(TurningPoint { theta: bottom, hysteresis: F::zero() });
-        memory.push(TurningPoint { theta: top, hysteresis: F::zero() });
-        memory.branch = memory.fresh_branch::<Libm>();
-        let at_rest = memory.hysteresis(F::zero())?;
-        memory.direction = Some(direction);
-        memory.extreme = TurningPoint { theta: F::zero(), hysteresis: at_rest.torque };
-        Ok(memory)
-    }
-
-    /// The model's parameters.
-    pub fn model(&self) -> &Model<F> {
-        &self.model
+    /// The shape of its branches (for the genetic kind, the paper's model).
+    pub fn shape(&self) -> &S {
+        &self.shape
     }
 
     /// The direction band, rad.
@@ -381,7 +243,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     }
 
     /// The stored turning points, oldest first.
-    pub fn turning_points(&self) -> &[TurningPoint<F>] {
+    pub fn turning_points(&self) -> &[TurningPoint<F, S::Value>] {
         self.stack.get(..self.depth).unwrap_or(&[])
     }
 
@@ -395,63 +257,45 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
         self.retracing
     }
 
-    /// H and dH/dθ at `theta` on the current branch, without moving.
-    pub fn hysteresis(&self, theta: F) -> Result<Evaluation<F>, Error> {
-        self.hysteresis_with::<Libm>(theta)
-    }
-
-    /// [`GeneticMemory::hysteresis`] with the elementary functions of `E`.
-    #[inline(always)]
-    pub fn hysteresis_with<E: Elementary<F>>(&self, theta: F) -> Result<Evaluation<F>, Error> {
-        match self.current() {
-            None if theta.is_finite() => Ok(Evaluation { torque: F::zero(), stiffness: F::zero() }),
-            None => Err(Error::NonFiniteDeflection),
-            Some((from, to, _)) => branch_with::<F, E>(&self.model, from, to, theta),
-        }
-    }
-
-    /// [`Hysteretic::step`] with the elementary functions of `E` (the firmware's fast path):
-    /// the same state, the same turning-point logic, so a caller may change `E` from one
-    /// sample to the next.
+    /// Moves to `theta` by Madelung's rules, with the elementary functions of `E`; the
+    /// result is what `finish` makes of the shape's output there (a caller's sum with its
+    /// spring, checked there), and the state is written only if that succeeds.
     ///
     /// Most samples neither reverse nor leave the current branch: they are evaluated on the
-    /// branch's kept constants. The others change the stack by Madelung's rules
-    /// (`GeneticMemory::restack`) and make the new branch's constants. Either way the state
-    /// is written only once the evaluation has succeeded, so a failed step changes nothing.
-    #[inline]
-    pub fn step_with<E: Elementary<F>>(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
-        // A gear's model adds its spring itself: its hysteresis' model has none to evaluate.
-        let polynomial = self.model.has_spring().then_some(self.model.polynomial);
-        self.step_finishing::<E>(theta, WithPolynomial { polynomial, theta })
-    }
-
-    /// [`GeneticMemory::step_with`] whose result is what `finish` makes of H and dH/dθ (a
-    /// caller's sum with its spring, checked there): the state is written only if that succeeds.
+    /// branch's kept constants. The others change the stack ([`Madelung::restack`]) and make
+    /// the new branch's constants. Either way a failed step changes nothing.
     #[inline(always)]
     pub(crate) fn step_finishing<E: Elementary<F>>(
         &mut self,
         theta: F,
-        finish: impl Finish<F>,
-    ) -> Result<Evaluation<F>, Error> {
+        finish: impl Finish<S::Output>,
+    ) -> Result<S::Output, Error> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);
         }
         let (direction, new_extreme, turned) = self.motion(theta);
-        let (below, above) = self.branch.exits;
+        let (below, above) = self.exits;
         let (evaluation, h) = if !(turned || theta < below || theta > above) {
-            let h = self.branch.evaluate::<E>(&self.model, theta);
-            (finish.finish(h)?, h.torque)
+            let h = self.shape.evaluate::<E>(&self.branch, theta);
+            (finish.finish(h)?, S::value(&h))
         } else {
             let plan = self.restack(theta, turned);
-            let branch = match plan.current {
-                Some((from, to, _)) if plan.changed => Branch::new::<E>(&self.model, from, to, plan.retracing),
-                // A retrace that starts or ends: the same branch, left elsewhere.
-                Some((from, to, _)) => Branch { exits: exits(from.theta, to.theta, plan.retracing), ..self.branch },
-                None => Branch::rest(),
+            let (branch, exits) = match plan.current {
+                Some((from, to, _)) => {
+                    let exits = exits(from.theta, to.theta, plan.retracing);
+                    if plan.changed {
+                        (self.shape.branch::<E>(from, to), exits)
+                    } else {
+                        // A retrace that starts or ends: the same branch, left elsewhere.
+                        (self.branch, exits)
+                    }
+                }
+                None => (self.shape.rest(), exits(F::zero(), F::zero(), false)),
             };
-            let h = branch.evaluate::<E>(&self.model, theta);
+            let h = self.shape.evaluate::<E>(&branch, theta);
             let evaluation = finish.finish(h)?;
             self.branch = branch;
+            self.exits = exits;
             if let Some(point) = plan.pushed {
                 if let Some(slot) = self.stack.get_mut(plan.depth) {
                     *slot = point;
@@ -459,7 +303,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
             }
             self.depth = plan.depth + usize::from(plan.pushed.is_some());
             self.retracing = plan.retracing;
-            (evaluation, h.torque)
+            (evaluation, S::value(&h))
         };
         self.direction = direction;
         if new_extreme {
@@ -498,26 +342,26 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     }
 
     /// The current branch's constants made afresh from the stack with the elementary
-    /// functions of `E` ([`Branch::rest`] at rest).
+    /// functions of `E` ([`Shape::rest`] at rest), and where θ leaves it.
     #[inline(always)]
-    fn fresh_branch<E: Elementary<F>>(&self) -> Branch<F> {
+    fn fresh_branch<E: Elementary<F>>(&self) -> (S::Branch, (F, F)) {
         match self.current() {
-            None => Branch::rest(),
-            Some((from, to, _)) => Branch::new::<E>(&self.model, from, to, self.retracing),
+            None => (self.shape.rest(), exits(F::zero(), F::zero(), false)),
+            Some((from, to, _)) => (self.shape.branch::<E>(from, to), exits(from.theta, to.theta, self.retracing)),
         }
     }
 
     /// The current branch: its start, its target, and whether the target is stored (not the
     /// mirror of a single point).
     #[inline(always)]
-    fn current(&self) -> Option<(TurningPoint<F>, TurningPoint<F>, bool)> {
+    fn current(&self) -> Option<Current<F, S::Value>> {
         let below = self.depth.checked_sub(1)?;
         let from = *self.stack.get(below)?;
         let (to, stored) = self.target_of(from, below);
         Some((from, to, stored))
     }
 
-    fn push(&mut self, point: TurningPoint<F>) -> bool {
+    fn push(&mut self, point: TurningPoint<F, S::Value>) -> bool {
         match self.stack.get_mut(self.depth) {
             Some(slot) => {
                 *slot = point;
@@ -531,10 +375,10 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     /// The target of a branch that starts at `from` with the points `stack[..below]` under it:
     /// the top of those (stored), or when there are none the mirror of `from` (not stored).
     #[inline(always)]
-    fn target_of(&self, from: TurningPoint<F>, below: usize) -> (TurningPoint<F>, bool) {
+    fn target_of(&self, from: TurningPoint<F, S::Value>, below: usize) -> (TurningPoint<F, S::Value>, bool) {
         match below.checked_sub(1).and_then(|i| self.stack.get(i)) {
             Some(to) => (*to, true),
-            None => (TurningPoint { theta: -from.theta, hysteresis: -from.hysteresis }, false),
+            None => (S::mirror(from), false),
         }
     }
 
@@ -554,7 +398,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
     /// Written out case by case (the pushed point first, then the stored ones), each point
     /// read once: this runs on the ticks that change the branch, the joint's dearest.
     #[inline(always)]
-    fn restack(&self, theta: F, turned: bool) -> Restack<F> {
+    fn restack(&self, theta: F, turned: bool) -> Restack<F, S::Value> {
         let (mut depth, mut retracing, mut changed) = (self.depth, self.retracing, false);
         let mut pushed = None;
         if turned {
@@ -605,7 +449,7 @@ impl<F: Real, const N: usize> GeneticMemory<F, N> {
             let Some((&from, below)) = points.split_last() else { break None };
             let (to, stored) = match below.last() {
                 Some(&to) => (to, true),
-                None => (TurningPoint { theta: -from.theta, hysteresis: -from.hysteresis }, false),
+                None => (S::mirror(from), false),
             };
             let past_target = passes(from.theta, to.theta, theta);
             // Retraced back past the branch's start: θ continues on the branch it lay on.
@@ -634,20 +478,258 @@ fn passes<F: Real>(from: F, to: F, theta: F) -> bool {
     (to > from && theta > to) || (to < from && theta < to)
 }
 
-/// The stack after a step that changes it ([`GeneticMemory::restack`]): the points
+/// The current branch: its start, its target, and whether the target is stored (not the mirror
+/// of a single point).
+type Current<F, V> = (TurningPoint<F, V>, TurningPoint<F, V>, bool);
+
+/// The stack after a step that changes it ([`Madelung::restack`]): the points
 /// `stack[..depth]` kept, `pushed` on top of them, the current branch there and whether it
 /// differs from the one before.
-struct Restack<F> {
+struct Restack<F, V> {
     depth: usize,
-    pushed: Option<TurningPoint<F>>,
+    pushed: Option<TurningPoint<F, V>>,
     retracing: bool,
-    current: Option<(TurningPoint<F>, TurningPoint<F>, bool)>,
+    current: Option<Current<F, V>>,
     changed: bool,
 }
 
-impl<F: Real, const N: usize> Hysteretic<F> for GeneticMemory<F, N> {
+// ---------------------------------------------------------------------------------------------
+// Kind 1: the genetic model with Madelung's rules
+// ---------------------------------------------------------------------------------------------
+
+/// The hysteretic part H (and dH/dθ, as an [`Evaluation`]) at `theta` on the branch that
+/// starts at the turning point `from` = (θ_a, H_a) and heads for `to` = (θ_b, H_b):
+///
+/// ```text
+/// H(θ) = H_a·(1 − s) + H_b·s + z(θ − c; w, direction)
+/// s = (θ − θ_a)/(θ_b − θ_a),  c = (θ_a + θ_b)/2,  w = |θ_b − θ_a|/2,  direction = sign(θ_b − θ_a)
+/// ```
+///
+/// with z the paper's hysteresis term on a symmetric loop of amplitude w (h = w·k, through
+/// [`Model::scale_with`] and [`Model::hysteresis_with`], as [`Loop::evaluate_parts`](crate::Loop::evaluate_parts),
+/// so the math is the crate's one copy). dH/dθ = (H_b − H_a)/(θ_b − θ_a) + dz/dθ.
+///
+/// Why this shape:
+/// - **Exact on symmetric loops.** With the ends (∓A, 0) it is z of [`Loop`](crate::Loop) at
+///   amplitude A, bit for bit (c = 0, w = A).
+/// - **Continuity and return-point memory.** z vanishes at both ends of its loop, so the
+///   branch starts exactly at `from` and ends exactly at `to` (at s = 0 and s = 1 the term is
+///   evaluated at its clamped end, where it is 0).
+/// - **Amplitude dependence as in the paper.** An inner branch is the paper's loop of the
+///   inner excursion's own half-width: h ∝ w, so a small loop opens proportionally less, as
+///   the paper's h = A·k does for a small symmetric loop.
+///
+/// Outside the branch (s < 0 or s > 1) the straight part holds its end value and z its edge
+/// slope, as [`Loop`](crate::Loop) beyond ±A. A branch of zero width (or one so narrow that
+/// 1/w overflows) is flat: H = H_a, no z.
+pub fn branch<F: Real>(
+    model: &Model<F>,
+    from: TurningPoint<F>,
+    to: TurningPoint<F>,
+    theta: F,
+) -> Result<Evaluation<F>, Error> {
+    branch_with::<F, Libm>(model, from, to, theta)
+}
+
+/// [`branch`] with the elementary functions of `E` (ln, exp, asin, √): the firmware's fast
+/// path runs this same formula with its polynomial approximations.
+#[inline(always)]
+pub fn branch_with<F: Real, E: Elementary<F>>(
+    model: &Model<F>,
+    from: TurningPoint<F>,
+    to: TurningPoint<F>,
+    theta: F,
+) -> Result<Evaluation<F>, Error> {
+    if !theta.is_finite() {
+        return Err(Error::NonFiniteDeflection);
+    }
+    finite(model.evaluate::<E>(&model.branch::<E>(from, to), theta))
+}
+
+/// What [`branch`] computes from a branch's two ends before it looks at θ: the loop's centre,
+/// half-span, direction and [`Scale`], the straight part's ends and slope. A
+/// [`GeneticMemory`] keeps its current branch's, made when the branch changes (a reversal, a
+/// wipe-out, the end of a retrace), so that a tick on the branch evaluates only what depends
+/// on θ.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Branch<F> {
+    /// H_a and H_b, the hysteretic part at the ends.
+    from: F,
+    to: F,
+    /// θ_a/2.
+    start: F,
+    /// (θ_b − θ_a)/2, signed.
+    span: F,
+    /// c = θ_a/2 + θ_b/2.
+    centre: F,
+    /// (H_b − H_a)/(θ_b − θ_a).
+    slope: F,
+    direction: Direction,
+    /// The loop's 1/w and h; `None` for a flat branch (zero width, or 1/w overflows).
+    scale: Option<Scale<F>>,
+}
+
+impl<F: Real> Shape<F> for Model<F> {
+    type Value = F;
+    type Output = Evaluation<F>;
+    type Branch = Branch<F>;
+
+    fn zero(&self) -> F {
+        F::zero()
+    }
+
+    /// At rest: H = 0 everywhere.
+    #[inline(always)]
+    fn rest(&self) -> Branch<F> {
+        let zero = F::zero();
+        Branch {
+            from: zero,
+            to: zero,
+            start: zero,
+            span: zero,
+            centre: zero,
+            slope: zero,
+            direction: Direction::Rising,
+            scale: None,
+        }
+    }
+
+    /// The constants of the branch from `from` to `to`, with the elementary functions of `E`
+    /// (h = w·k: see [`Model::scale_with`]). Not checked: where h overflows, no evaluation on
+    /// the branch is finite.
+    #[inline(always)]
+    fn branch<E: Elementary<F>>(&self, from: TurningPoint<F>, to: TurningPoint<F>) -> Branch<F> {
+        let half = two::<F>().recip();
+        // Halves first: (θ_b − θ_a)/2 cannot overflow, and halving is exact.
+        let (start, end) = (from.theta * half, to.theta * half);
+        let span = end - start;
+        let width = span.abs();
+        let inv_width = width.recip();
+        let (ends, zero) = ((from.hysteresis, to.hysteresis), F::zero());
+        // 1/w ≥ 0 is never NaN: +∞ for w = 0 and for widths whose reciprocal overflows.
+        if inv_width == F::infinity() {
+            // Zero width, or one so narrow that 1/w overflows: flat.
+            let direction = if span > zero { Direction::Rising } else { Direction::Falling };
+            let (from, to) = ends;
+            return Branch { from, to, start, span, centre: zero, slope: zero, direction, scale: None };
+        }
+        // The span is not 0, so its sign is that of θ_b − θ_a (halving keeps the order).
+        let direction = if span > zero { Direction::Rising } else { Direction::Falling };
+        let slope = (to.hysteresis * half - from.hysteresis * half) / span;
+        let scale = Some(self.scale_of::<E>(width, inv_width));
+        let (from, to) = ends;
+        Branch { from, to, start, span, centre: start + end, slope, direction, scale }
+    }
+
+    /// H and dH/dθ at `theta` (finite), with the elementary functions of `E`; not checked for
+    /// finiteness (a step adds them to the spring's T and K and checks the sums, which are
+    /// not finite when they are not).
+    #[inline(always)]
+    fn evaluate<E: Elementary<F>>(&self, branch: &Branch<F>, theta: F) -> Evaluation<F> {
+        let Some(scale) = &branch.scale else {
+            return Evaluation { torque: branch.from, stiffness: F::zero() };
+        };
+        let half = two::<F>().recip();
+        // s is exactly 0 at θ_a and exactly 1 at θ_b. At and past the ends s is clamped and
+        // θ − c is beyond the loop's end (clamped there), where z = 0.
+        let s = (theta * half - branch.start) / branch.span;
+        // θ − c beyond the loop's end (clamped there) at and past the ends, where z = 0; ±∞
+        // where 1.5·span overflows clamps to the end all the same. Made here, on the rare ticks
+        // that need it, rather than kept with the branch.
+        let beyond = || branch.span + branch.span * half;
+        let (s, offset) = if s >= F::one() {
+            (F::one(), beyond())
+        } else if s <= F::zero() {
+            (F::zero(), -beyond())
+        } else {
+            (s, theta - branch.centre)
+        };
+        let z = self.hysteresis_with::<E>(scale, offset, branch.direction);
+        let line = branch.from * (F::one() - s) + branch.to * s;
+        Evaluation { torque: line + z.torque, stiffness: branch.slope + z.stiffness }
+    }
+
+    #[inline(always)]
+    fn value(output: &Evaluation<F>) -> F {
+        output.torque
+    }
+
+    /// (−θ_a, −H_a): the genetic kind's virgin curve is H = 0, and a branch from the bottom
+    /// point heads for the point opposite it.
+    #[inline(always)]
+    fn mirror(from: TurningPoint<F>) -> TurningPoint<F> {
+        TurningPoint { theta: -from.theta, hysteresis: -from.hysteresis }
+    }
+}
+
+/// The paper's genetic model for any motion, generalised by Madelung's rules ([`Madelung`]:
+/// the stack, its wipe-outs, its overflow and the band), at most `N` turning points.
+///
+/// T = poly(θ) + H, poly the model's memoryless spring c1·θ + c2·θ³ + c3·θ⁵ and H the
+/// hysteretic part, on each branch of the shape of [`branch`]. The virgin curve is H = 0: the
+/// bottom point was pushed from rest (H = 0) or by [`GeneticMemory::on_loop`] (H = 0), and the
+/// overflow rule never removes it, so the mirror target is on the virgin curve and the return
+/// to H = 0 is continuous.
+pub type GeneticMemory<F, const N: usize> = Madelung<F, Model<F>, N>;
+
+impl<F: Real, const N: usize> Madelung<F, Model<F>, N> {
+    /// At θ = 0 on the steady symmetric loop of amplitude `amplitude` (rad), moving in
+    /// `direction`: stack [(A, 0), (−A, 0)] rising, [(−A, 0), (A, 0)] falling. A sine of
+    /// amplitude A from θ = 0 then gives exactly [`Loop::evaluate`](crate::Loop::evaluate) from
+    /// its first sample, turning points included, when its samples reach ±A (a peak sample
+    /// short of A turns onto a branch narrower by that shortfall, by Madelung's rules).
+    pub fn on_loop(model: Model<F>, band: F, amplitude: F, direction: Direction) -> Result<Self, Error> {
+        if !(amplitude.is_finite() && amplitude > F::zero()) {
+            return Err(Error::InvalidAmplitude);
+        }
+        let mut memory = Self::new(model, band);
+        let (bottom, top) = match direction {
+            Direction::Rising => (amplitude, -amplitude),
+            Direction::Falling => (-amplitude, amplitude),
+        };
+        memory.push(TurningPoint { theta: bottom, hysteresis: F::zero() });
+        memory.push(TurningPoint { theta: top, hysteresis: F::zero() });
+        (memory.branch, memory.exits) = memory.fresh_branch::<Libm>();
+        let at_rest = memory.hysteresis(F::zero())?;
+        memory.direction = Some(direction);
+        memory.extreme = TurningPoint { theta: F::zero(), hysteresis: at_rest.torque };
+        Ok(memory)
+    }
+
+    /// The model's parameters.
+    pub fn model(&self) -> &Model<F> {
+        &self.shape
+    }
+
+    /// H and dH/dθ at `theta` on the current branch, without moving.
+    pub fn hysteresis(&self, theta: F) -> Result<Evaluation<F>, Error> {
+        self.hysteresis_with::<Libm>(theta)
+    }
+
+    /// [`GeneticMemory::hysteresis`] with the elementary functions of `E`.
+    #[inline(always)]
+    pub fn hysteresis_with<E: Elementary<F>>(&self, theta: F) -> Result<Evaluation<F>, Error> {
+        match self.current() {
+            None if theta.is_finite() => Ok(Evaluation { torque: F::zero(), stiffness: F::zero() }),
+            None => Err(Error::NonFiniteDeflection),
+            Some((from, to, _)) => branch_with::<F, E>(&self.shape, from, to, theta),
+        }
+    }
+
+    /// [`Hysteretic::step`] with the elementary functions of `E` (the firmware's fast path):
+    /// the same state, the same turning-point logic, so a caller may change `E` from one
+    /// sample to the next.
+    #[inline]
+    pub fn step_with<E: Elementary<F>>(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
+        // A gear's model adds its spring itself: its hysteresis' model has none to evaluate.
+        let polynomial = self.shape.has_spring().then_some(self.shape.polynomial);
+        self.step_finishing::<E>(theta, WithPolynomial { polynomial, theta })
+    }
+}
+
+impl<F: Real, const N: usize> Hysteretic<F> for Madelung<F, Model<F>, N> {
     fn reset(&mut self) {
-        *self = Self::new(self.model, self.band);
+        *self = Self::new(self.shape, self.band);
     }
 
     fn step(&mut self, theta: F) -> Result<Evaluation<F>, Error> {
@@ -872,7 +954,11 @@ impl<F: Real, const M: usize> MicroSlip<F, M> {
     /// (Stepping a copy of the elements, evaluating it in a second pass and counting in a third
     /// cost the M4F far more instructions per tick.)
     #[inline(always)]
-    pub(crate) fn step_finishing(&mut self, theta: F, finish: impl Finish<F>) -> Result<Evaluation<F>, Error> {
+    pub(crate) fn step_finishing(
+        &mut self,
+        theta: F,
+        finish: impl Finish<Evaluation<F>>,
+    ) -> Result<Evaluation<F>, Error> {
         if !theta.is_finite() {
             return Err(Error::NonFiniteDeflection);
         }

@@ -133,6 +133,16 @@ fn bound<F: Real>(model: &GearModel<F>, max_deflection: F, neutral: Option<Param
             let slope = shape.a * F::one().max(two * shape.beta / (shape.beta + shape.gamma));
             (stiffness * shape.z_max().min(shape.a * width), stiffness * slope)
         }
+        // |H| ≤ Σ w (P moves within ±Σ w of rest); a cell's share moves at most 2 per interval
+        // of h = 2R/INTERVALS, so |dH/dx| ≤ Σ w·INTERVALS/R. A neutral R is a wide one.
+        Hysteresis::Preisach(preisach) => {
+            let total = (0..)
+                .zip(&preisach.weights)
+                .fold(F::zero(), |sum, (i, w)| sum + value(ParamName::PreisachWeight(i), *w).abs());
+            let per_reach = if neutral == Some(ParamName::PreisachReach) { F::zero() } else { preisach.reach.recip() };
+            let intervals = F::from(crate::preisach::INTERVALS).unwrap_or_else(F::one);
+            (total, total * intervals * per_reach)
+        }
     };
     // A NaN (∞·0, ∞ − ∞) counts as ∞.
     let nan_inf = |v: F| if v.is_nan() { F::infinity() } else { v };
@@ -164,6 +174,10 @@ pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culp
     // as Bouc–Wen's k_h = 0 does (its A, which scales z with k_h, has no neutral value).
     let genetic = matches!(model.hysteresis, Hysteresis::Genetic(_));
     let bouc_wen = matches!(model.hysteresis, Hysteresis::BoucWen(_));
+    let preisach = match &model.hysteresis {
+        Hysteresis::Preisach(p) => p.weights.len(),
+        _ => 0,
+    };
     let first =
         [ParamName::C1, ParamName::C2, ParamName::C3, ParamName::RangeMin, ParamName::RangeMax, ParamName::Zero]
             .into_iter()
@@ -175,6 +189,8 @@ pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culp
         .chain(elements)
         .chain(genetic.then_some(ParamName::Alpha))
         .chain(bouc_wen.then_some(ParamName::HysteresisStiffness))
+        .chain((preisach > 0).then_some(ParamName::PreisachReach))
+        .chain((0..preisach).map(|i| ParamName::PreisachWeight(i as u8)))
         .find(|&name| fits(bound(model, d, Some(name))))
         .map_or(Err(Culprit::Several), |name| Err(Culprit::Param(name)))
 }
@@ -182,7 +198,7 @@ pub fn gear<F: Real>(model: &GearModel<F>, max_deflection: F) -> Result<(), Culp
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::checks::{bouc_wen_set, micro_slip_set, PAPER_TABLE_2, SEED_TABLE_FIT};
+    use crate::checks::{bouc_wen_set, micro_slip_set, preisach_set, PAPER_TABLE_2, SEED_TABLE_FIT};
 
     const D: f32 = 0.1;
 
@@ -227,5 +243,14 @@ mod tests {
         for name in [ParamName::BoucWenBeta, ParamName::BoucWenGamma, ParamName::BoucWenN] {
             assert_eq!(gear(&bouc_wen.with(name, 1.0e38), D), Ok(()), "{name:?}");
         }
+        let preisach = preisach_set().map(|_, v| v as f32);
+        assert_eq!(gear(&preisach, D), Ok(()));
+        for i in [0, 17, 35] {
+            let name = ParamName::PreisachWeight(i);
+            assert_eq!(gear(&preisach.with(name, 1.0e38), D), Err(Culprit::Param(name)), "{name:?}");
+        }
+        // A reach so small that the relays switch within it: the stiffness bound overflows.
+        let tiny = Err(Culprit::Param(ParamName::PreisachReach));
+        assert_eq!(gear(&preisach.with(ParamName::PreisachReach, 1.0e-38), D), tiny);
     }
 }

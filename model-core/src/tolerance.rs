@@ -112,6 +112,10 @@ impl GearModel<f64> {
                 let slope = shape.a * 1f64.max(2.0 * shape.beta / (shape.beta + shape.gamma));
                 (term.stiffness.abs() * shape.z_max().min(shape.a * width), term.stiffness.abs() * slope)
             }
+            Hysteresis::Preisach(preisach) => {
+                let total = preisach.total();
+                (total, total * crate::preisach::INTERVALS as f64 / preisach.reach)
+            }
         };
         Ok((torque + hysteresis.0, stiffness + hysteresis.1))
     }
@@ -178,6 +182,22 @@ impl Evaluator<f64> {
                 // dz/dx moves with z: by |n·z^(n−1)·(β + |γ|)| per unit of z, at most n·A/z_max.
                 let slope_per_z = term.shape.n * term.shape.a / z_max * 2.0;
                 rounding.stiffness += term.stiffness.abs() * slope_per_z * BOUC_WEN_DRIFT * z_max;
+            }
+            HysteresisState::Preisach(memory) => {
+                // Each stored H and each table entry rounds by 2⁻²⁴ of Σ w; x and the branch's
+                // start round in the grid's coordinates, where E moves by at most
+                // Σ w·INTERVALS/R per rad. Within that rounding of a node, f32 and f64 may read
+                // neighbouring intervals, whose slopes differ by up to that much again.
+                let shape = memory.shape();
+                let (total, reach) = (shape.total(), shape.reach());
+                let slope = total * crate::preisach::INTERVALS as f64 / reach;
+                let margin = 4.0 * ROUNDING * (x.abs() + reach);
+                rounding.torque += slope * margin + (memory.depth() as f64 + 2.0) * ROUNDING * total;
+                let h = 2.0 * reach / crate::preisach::INTERVALS as f64;
+                let from_node = ((x + reach) / h - ((x + reach) / h).round()).abs() * h;
+                if from_node <= margin {
+                    rounding.stiffness += slope;
+                }
             }
         }
         Ok(rounding)

@@ -25,5 +25,6 @@ pub const fn evaluator_tick_instructions(model: &GearModel<f32>) -> u32 {
         Kind::Genetic => 400,
         Kind::MicroSlip => 400,
         Kind::BoucWen => 400,
+        Kind::Preisach => 400,
     }
 }

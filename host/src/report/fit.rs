@@ -2,7 +2,8 @@
 use crate::fit::baselines::{BranchLine, ThreeSegment};
 use crate::fit::{Fit, Identified, MotionFit, RunOutcome, SearchSummary};
 use crate::prepare::{NoiseModel, OriginSource, RunOrigin};
-use model_core::{GearModel, ParamName, MODEL_VERSION};
+use model_core::preisach::{self, Preisach};
+use model_core::{GearModel, Hysteresis, ParamName, MODEL_VERSION};
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -413,6 +414,9 @@ fn write_parameters(s: &mut String, model: &GearModel<f64>) {
         let _ = writeln!(s, "    slip, mrad         {}", row(&|e| format!("{:>7.4}", e.slip * 1e3)));
         let _ = writeln!(s, "    stiffness, N·m/rad {}", row(&|e| format!("{:>7}", Compact(e.stiffness))));
     }
+    if let Hysteresis::Preisach(density) = &model.hysteresis {
+        write_density(s, density);
+    }
     let mut lines: Vec<(ParamName, f64)> = Vec::new();
     model.map(|name, value| {
         let spring_part = matches!(
@@ -427,6 +431,7 @@ fn write_parameters(s: &mut String, model: &GearModel<f64>) {
                 | ParamName::RangeMax
                 | ParamName::Slip(_)
                 | ParamName::SlipStiffness(_)
+                | ParamName::PreisachWeight(_)
         );
         if !spring_part {
             lines.push((name, value));
@@ -435,6 +440,30 @@ fn write_parameters(s: &mut String, model: &GearModel<f64>) {
     });
     for (name, value) in lines {
         let _ = writeln!(s, "  {:<9} = {value:>12.5e} {}", name.as_str(), name.unit());
+    }
+}
+
+/// The Preisach density as a triangle: a row per interval of the up threshold α, a column per
+/// interval of the down threshold β ≤ α, each cell's weight in N·m (what the torque loses when
+/// its relays switch up), blank where no relay lies.
+fn write_density(s: &mut String, density: &Preisach<f64>) {
+    let h = 2.0 * density.reach / preisach::INTERVALS as f64;
+    let edge = |k: usize| (-density.reach + k as f64 * h) * 1e3;
+    let _ = writeln!(
+        s,
+        "  relays over thresholds in [{:.4}, {:.4}] mrad, {} intervals of {:.4} mrad; Σ weight {:.5e} N·m",
+        -density.reach * 1e3,
+        density.reach * 1e3,
+        preisach::INTERVALS,
+        h * 1e3,
+        density.total()
+    );
+    let _ = writeln!(s, "    weight, N·m by α (rows) and β (columns) interval, mrad");
+    let header: Vec<String> = (0..preisach::INTERVALS).map(|j| format!("{:>7.3}", edge(j))).collect();
+    let _ = writeln!(s, "    {:>8} {}", "α \\ β", header.join(" "));
+    for i in (0..preisach::INTERVALS).rev() {
+        let row: Vec<String> = (0..=i).map(|j| format!("{:>7.4}", density.weights[preisach::cell(i, j)])).collect();
+        let _ = writeln!(s, "    {:>8.3} {}", edge(i), row.join(" "));
     }
 }
 

@@ -125,7 +125,10 @@ mod tests {
         let other = r#"{"model": "dahl", "params": {"c1": 1, "c2": 2, "c3": 3, "alpha": 4, "beta": 5, "omega": 1}}"#;
         let err = parse_params(path, other).unwrap_err();
         assert!(matches!(err, ParamsFileError::UnknownModel { .. }), "{err}");
-        assert!(err.to_string().ends_with("(\"genetic-hysteresis\", \"micro-slip\" or \"bouc-wen\")"), "{err}");
+        assert!(
+            err.to_string().ends_with("(\"genetic-hysteresis\", \"micro-slip\", \"bouc-wen\" or \"preisach\")"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -1,6 +1,6 @@
 extern crate std;
 use super::*;
-use crate::checks::{bouc_wen_set, micro_slip_set, MICRO_SLIP_V1, PAPER_TABLE_2, SEED_TABLE_FIT};
+use crate::checks::{bouc_wen_set, micro_slip_set, preisach_set, MICRO_SLIP_V1, PAPER_TABLE_2, SEED_TABLE_FIT};
 use crate::legacy::GearModelV1;
 use crate::spring::Knot;
 use std::string::ToString;
@@ -19,8 +19,8 @@ fn knotted() -> GearModel<f64> {
     GearModel::micro_slip(-8.4e-3, spring, micro_slip_set().unwrap().slip_elements()).unwrap()
 }
 
-fn all() -> [GearModel<f64>; 4] {
-    [GearModel::paper(SEED_TABLE_FIT), micro_slip_set().unwrap(), knotted(), bouc_wen_set()]
+fn all() -> [GearModel<f64>; 5] {
+    [GearModel::paper(SEED_TABLE_FIT), micro_slip_set().unwrap(), knotted(), bouc_wen_set(), preisach_set()]
 }
 
 #[test]
@@ -166,6 +166,12 @@ fn the_evaluator_is_the_spring_plus_the_kinds_own_memory() {
                 std::boxed::Box::new(MicroSlip::<f64, SLIP_ELEMENTS>::new(model.slip_elements()).unwrap())
             }
             Hysteresis::BoucWen(term) => std::boxed::Box::new(BoucWenMemory::new(*term).unwrap()),
+            Hysteresis::Preisach(preisach) => {
+                std::boxed::Box::new(crate::preisach::PreisachMemory::<f64, TURNING_POINTS>::new(
+                    crate::preisach::PreparedPreisach::new(preisach).unwrap(),
+                    1.0e-7,
+                ))
+            }
         };
         for &theta in &motion {
             let theta = theta + model.zero;
@@ -204,7 +210,10 @@ fn a_step_that_overflows_leaves_the_evaluator_as_it_was() {
 
 #[test]
 fn the_papers_form_is_told_apart() {
-    let [genetic, slip, knots, bouc_wen] = all();
+    let [genetic, slip, knots, bouc_wen, preisach] = all();
+    assert_eq!(preisach.paper_params(), None);
+    assert!(!preisach.kind().has_symmetric_loop());
+    assert_eq!(preisach.linear_stiffness(), 9000.0);
     assert_eq!(bouc_wen.paper_params(), None);
     assert!(!bouc_wen.kind().has_symmetric_loop());
     assert_eq!(bouc_wen.linear_stiffness(), 0.85 * 9000.0);

@@ -1,6 +1,6 @@
 //! Host tests of the evaluators with memory: exactness on the symmetric loop, Madelung's
 //! rules (continuity, return-point memory, wipe-out), the stack's overflow, bad inputs and
-//! determinism, for both kinds.
+//! determinism, for the genetic, micro-slip and Preisach kinds.
 extern crate std;
 
 use super::*;
@@ -26,6 +26,19 @@ fn slip_elements() -> [SlipElement<f64>; 8] {
 
 fn micro_slip() -> MicroSlip<f64, 8> {
     MicroSlip::new(&slip_elements()).unwrap()
+}
+
+/// The Preisach test set: a density heavier near the diagonal and towards high α, on a grid
+/// of reach `reach` (rad), at most `N` turning points.
+fn preisach<const N: usize>(reach: f64) -> crate::preisach::PreisachMemory<f64, N> {
+    use crate::preisach::{cell, Preisach, PreparedPreisach, CELLS, INTERVALS};
+    let mut weights = [0.0; CELLS];
+    for i in 0..INTERVALS {
+        for j in 0..=i {
+            weights[cell(i, j)] = 0.02 * PAPER_TABLE_2.c1 * A * (1.0 + i as f64) / (1.0 + (i - j) as f64);
+        }
+    }
+    Madelung::new(PreparedPreisach::new(&Preisach { reach, weights }).unwrap(), 0.0)
 }
 
 /// The test set with three giant elements (stiffness F::MAX/16, slipping at 8 rad): finite on
@@ -581,8 +594,8 @@ fn kept_branch_is_fresh<const N: usize>(thetas: &[f64], band: f64) -> Result<(),
     let (mut log, mut direct) = (GeneticMemory::<f64, N>::new(m, band), GeneticMemory::<f64, N>::new(m, band));
     for (i, &theta) in thetas.iter().enumerate() {
         let (by_log, by_direct) = (log.step(theta).unwrap(), direct.step_with::<DirectLibm>(theta).unwrap());
-        prop_assert_eq!(log.branch, log.fresh_branch::<Libm>(), "N={} sample {}", N, i);
-        prop_assert_eq!(direct.branch, direct.fresh_branch::<DirectLibm>(), "N={} sample {}", N, i);
+        prop_assert_eq!((log.branch, log.exits), log.fresh_branch::<Libm>(), "N={} sample {}", N, i);
+        prop_assert_eq!((direct.branch, direct.exits), direct.fresh_branch::<DirectLibm>(), "N={} sample {}", N, i);
         let thetas =
             |memory: &GeneticMemory<f64, N>| memory.turning_points().iter().map(|p| p.theta).collect::<Vec<_>>();
         prop_assert_eq!(thetas(&log), thetas(&direct));
@@ -600,7 +613,7 @@ fn kept_branch_is_fresh<const N: usize>(thetas: &[f64], band: f64) -> Result<(),
 }
 
 // ---------------------------------------------------------------------------------------------
-// Property tests for both kinds
+// Property tests for every kind with return-point memory
 // ---------------------------------------------------------------------------------------------
 
 /// Turning points as grid indices in [−1000, 1000] (the grid step A/1000: |θ| ≤ A).
@@ -626,7 +639,8 @@ fn nested_points() -> impl Strategy<Value = Vec<i32>> {
     })
 }
 
-/// The genetic kind with stacks of 3, 4 and 16, and the micro-slip kind, on the same path.
+/// The genetic kind with stacks of 3, 4 and 16, the micro-slip kind and the Preisach kind (its grid
+/// beyond the motion, and within it with a stack of 3), on the same path.
 fn every_kind(thetas: &[f64]) -> Vec<(&'static str, Vec<Evaluation<f64>>)> {
     let m = model(PAPER_TABLE_2);
     std::vec![
@@ -635,6 +649,8 @@ fn every_kind(thetas: &[f64]) -> Vec<(&'static str, Vec<Evaluation<f64>>)> {
         ("genetic N=16", run(&mut GeneticMemory::<f64, 16>::new(m, 0.0), thetas)),
         ("genetic on loop", run(&mut GeneticMemory::<f64, 16>::on_loop(m, 0.0, A, Direction::Rising).unwrap(), thetas)),
         ("micro-slip", run(&mut micro_slip(), thetas)),
+        ("preisach N=16", run(&mut preisach::<16>(1.2 * A), thetas)),
+        ("preisach N=3, grid within the motion", run(&mut preisach::<3>(0.6 * A), thetas)),
     ]
 }
 
@@ -648,6 +664,8 @@ fn every_kind_is_continuous(thetas: &[f64]) {
     continuous(on_loop, thetas, "genetic on loop");
     continuous(GeneticMemory::<f64, 16>::new(model(SEED_TABLE_FIT), 0.0), thetas, "genetic, seed fit");
     continuous(micro_slip(), thetas, "micro-slip");
+    continuous(preisach::<16>(1.2 * A), thetas, "preisach N=16");
+    continuous(preisach::<3>(0.6 * A), thetas, "preisach N=3, grid within the motion");
 }
 
 proptest! {
@@ -724,14 +742,19 @@ proptest! {
         let mut thetas = grid_path(&points, A / 1000.0);
         let mut memory = GeneticMemory::<f64, 16>::new(model(PAPER_TABLE_2), 0.0);
         let mut slip = micro_slip();
+        let (mut relays, mut virgin) = (preisach::<16>(1.2 * A), preisach::<16>(1.2 * A));
         run(&mut memory, &thetas);
         run(&mut slip, &thetas);
+        run(&mut relays, &thetas);
         let depth = memory.depth();
         let far = if sign { 3.0 * A } else { -3.0 * A };
         thetas.push(far);
         memory.step(far).unwrap();
         slip.step(far).unwrap();
         prop_assert!(memory.depth() == 0 && depth <= 16);
+        // Every relay switched one way: the same H as from rest.
+        prop_assert_eq!(relays.step(far).unwrap(), virgin.step(far).unwrap());
+        prop_assert_eq!(relays.depth(), 0);
         let limit = if sign { 1.0 } else { -1.0 };
         for (e, d) in slip.elastic().iter().zip(slip.slip()) {
             prop_assert_eq!(*e, limit * d);
@@ -752,12 +775,14 @@ proptest! {
         let m = model(PAPER_TABLE_2);
         let mut memory = GeneticMemory::<f64, 4>::new(m, band);
         let mut slip = micro_slip();
+        let mut relays = preisach::<4>(A);
         for &theta in &thetas {
             for alternating in [theta, -theta] {
-                let (memory_copy, slip_copy) = (memory, slip);
-                let results = [memory.step(alternating), slip.step(alternating)];
-                let (mut memory_again, mut slip_again) = (memory_copy, slip_copy);
-                let again = [memory_again.step(alternating), slip_again.step(alternating)];
+                let (memory_copy, slip_copy, relays_copy) = (memory, slip, relays);
+                let results = [memory.step(alternating), slip.step(alternating), relays.step(alternating)];
+                let (mut memory_again, mut slip_again, mut relays_again) = (memory_copy, slip_copy, relays_copy);
+                let again =
+                    [memory_again.step(alternating), slip_again.step(alternating), relays_again.step(alternating)];
                 for (result, again) in results.iter().zip(&again) {
                     match (result, again) {
                         (Ok(e), Ok(f)) => {
@@ -768,7 +793,7 @@ proptest! {
                         _ => prop_assert!(false, "not deterministic at {}", alternating),
                     }
                 }
-                prop_assert!(memory.depth() <= 4);
+                prop_assert!(memory.depth() <= 4 && relays.depth() <= 4);
             }
         }
     }
@@ -780,14 +805,18 @@ proptest! {
         let cut = cut.min(thetas.len());
         let mut first = GeneticMemory::<f64, 4>::new(model(SEED_TABLE_FIT), 0.0);
         let mut first_slip = micro_slip();
+        let mut first_relays = preisach::<4>(A);
         run(&mut first, &thetas[..cut]);
         run(&mut first_slip, &thetas[..cut]);
-        let (mut second, mut second_slip) = (first, first_slip);
+        run(&mut first_relays, &thetas[..cut]);
+        let (mut second, mut second_slip, mut second_relays) = (first, first_slip, first_relays);
         for &theta in &thetas[cut..] {
             prop_assert!(same_bits(first.step(theta).unwrap(), second.step(theta).unwrap()));
             prop_assert!(same_bits(first_slip.step(theta).unwrap(), second_slip.step(theta).unwrap()));
+            prop_assert!(same_bits(first_relays.step(theta).unwrap(), second_relays.step(theta).unwrap()));
         }
         prop_assert_eq!(first, second);
         prop_assert_eq!(first_slip, second_slip);
+        prop_assert_eq!(first_relays, second_relays);
     }
 }
