@@ -1,6 +1,7 @@
 //! The prediction corpus shared by the benchmark (`prediction_bench.rs`, every case, figures)
-//! and the system test (`prediction.rs`, the goals on a few cases): gears of three truth
-//! physics recorded under five motions, the models fitted on one motion, run along another.
+//! and the system test (`prediction.rs`, the goals on a few cases): gears of five truth
+//! physics recorded under five motions, the models of every kind (and `fit --model auto`'s
+//! choice) fitted on one motion, run along another.
 //!
 //! Two stiffness errors, where the truth has a tangent (micro-slip, catalogue):
 //! - **K err** ([`centre_stiffness_error`]), the goal's: K is the slope of the loop's centre
@@ -82,20 +83,35 @@ pub fn max_step(t: &[f64]) -> f64 {
 /// The models fitted to one training recording.
 pub struct Fitted {
     pub symmetric: Params<f64>,
-    pub genetic: GearModel<f64>,
-    pub micro_slip: GearModel<f64>,
+    /// The kinds fitted as `fit --model KIND` fits them, in the order asked.
+    pub kinds: Vec<GearModel<f64>>,
+    /// What `fit --model auto` chose, where asked.
+    pub auto: Option<GearModel<f64>>,
 }
 
+impl Fitted {
+    /// The model of kind `kind`.
+    pub fn of(&self, kind: Kind) -> &GearModel<f64> {
+        self.kinds.iter().find(|m| m.kind() == kind).expect("the kind was fitted")
+    }
+}
+
+/// The symmetric rule, every kind and auto's choice, fitted to `recording`.
 pub fn fit_all(recording: &Recording) -> Fitted {
+    fit_some(recording, &Kind::ALL, true)
+}
+
+/// The symmetric rule, `kinds` and, where `auto`, auto's choice, fitted to `recording`.
+pub fn fit_some(recording: &Recording, kinds: &[Kind], auto: bool) -> Fitted {
     let prepared = from_recording(recording).expect("segmentation");
     let options = FitOptions { noise: prepared.noise, ..FitOptions::default() };
     let symmetric = fit(&prepared.data, &options, |_| {}).expect("symmetric fit").params;
-    // The stateful kinds as `fit --model KIND` fits them.
-    let stateful = |kind: Kind| {
+    let stateful = |choice: ModelChoice| {
         let input = FitInput::Recordings(std::slice::from_ref(recording));
-        fit_input(input, ModelChoice::Kind(kind), &[], options.seed, |_| {}).expect("fit").identified.model()
+        fit_input(input, choice, &[], options.seed, |_| {}).expect("fit").identified.model()
     };
-    Fitted { symmetric, genetic: stateful(Kind::Genetic), micro_slip: stateful(Kind::MicroSlip) }
+    let kinds = kinds.iter().map(|&kind| stateful(ModelChoice::Kind(kind))).collect();
+    Fitted { symmetric, kinds, auto: auto.then(|| stateful(ModelChoice::Auto)) }
 }
 
 /// The symmetric rule along a recording: each sample on the loop of its leg.
@@ -159,14 +175,17 @@ pub struct Predicted {
     pub stiffness: Vec<f64>,
 }
 
-/// The symmetric rule, the genetic and the micro-slip model along `case`.
-pub fn predictions(fitted: &Fitted, case: &Case) -> [Predicted; 3] {
-    let measured = &case.measured;
-    let stateful = |model: &GearModel<f64>| -> Predicted {
-        let prediction = predict(model, measured, None, Zeroing::RestWindow).expect("runs");
-        Predicted { torque: prediction.torque, stiffness: prediction.stiffness }
-    };
-    [symmetric_prediction(&fitted.symmetric, measured), stateful(&fitted.genetic), stateful(&fitted.micro_slip)]
+/// `model` along `case`'s measured angles, as `predict` runs it.
+pub fn prediction(model: &GearModel<f64>, case: &Case) -> Predicted {
+    let prediction = predict(model, &case.measured, None, Zeroing::RestWindow).expect("runs");
+    Predicted { torque: prediction.torque, stiffness: prediction.stiffness }
+}
+
+/// Along `case`: the symmetric rule, then each kind fitted in its order, then auto's choice.
+pub fn predictions(fitted: &Fitted, case: &Case) -> Vec<Predicted> {
+    std::iter::once(symmetric_prediction(&fitted.symmetric, &case.measured))
+        .chain(fitted.kinds.iter().chain(&fitted.auto).map(|model| prediction(model, case)))
+        .collect()
 }
 
 /// Points on the loop's centre-curve grid: |θ| ≤ 0.95 A in steps of A/50.

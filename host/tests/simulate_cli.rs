@@ -343,11 +343,11 @@ fn bad_options_are_named_and_nothing_is_written() {
     let params = repo("data/seed/lht-20-50-fit.json");
     let cases: [(&[&str], &str); 11] = [
         (&["--motion", "sinus"], "invalid value 'sinus' for '--motion"),
-        (&["--physics", "preisach"], "invalid value 'preisach' for '--physics"),
+        (&["--physics", "dahl"], "invalid value 'dahl' for '--physics"),
         (&["--bias", "1e-3"], "--bias is for --motion biased or hold, not --motion sine"),
         (
             &["--physics-params", json.to_str().unwrap()],
-            "--physics-params is for --physics micro-slip, bouc-wen or catalogue",
+            "--physics-params is for --physics micro-slip, bouc-wen, catalogue or preisach",
         ),
         (&["--physics", "bouc-wen", "--params", &params], "--params sets the model of --physics genetic"),
         (
@@ -367,6 +367,9 @@ fn bad_options_are_named_and_nothing_is_written() {
     std::fs::write(&json, r#"{"a": 1.5}"#).unwrap();
     let stderr = fails(&out, &["--physics", "bouc-wen", "--physics-params", json.to_str().unwrap()]);
     assert!(stderr.contains("bouc-wen parameter a must be in [0, 1), got 1.5"), "{stderr}");
+    std::fs::write(&json, r#"{"skew": 1.0}"#).unwrap();
+    let stderr = fails(&out, &["--physics", "preisach", "--physics-params", json.to_str().unwrap()]);
+    assert!(stderr.contains("preisach parameter skew must be in (-1, 1)"), "{stderr}");
     std::fs::write(&json, r#"{"t1_nm": 25}"#).unwrap();
     let stderr = fails(&out, &["--physics", "catalogue", "--physics-params", json.to_str().unwrap()]);
     assert!(stderr.contains("catalogue parameter t2_nm must be > t1_nm N·m, got 19"), "{stderr}");

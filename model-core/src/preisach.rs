@@ -314,9 +314,8 @@ impl<F: Real> PreparedPreisach<F> {
     /// place in it, from 0 to 1.
     #[inline(always)]
     fn interval(t: F) -> (usize, F) {
-        // t ≥ 0: truncation is the floor (a libm call less on the joint).
-        let k = t.to_usize().unwrap_or(0).min(INTERVALS - 1);
-        (k, t - index::<F>(k))
+        let end = End::of(t);
+        (end.interval, end.place)
     }
 
     #[inline(always)]
@@ -324,15 +323,17 @@ impl<F: Real> PreparedPreisach<F> {
         self.everett.get(node(p, q)).copied().unwrap_or(F::zero())
     }
 
-    /// E(u, v) and its derivatives in u and v, node coordinates, u and v within the grid.
+    /// E(u, v) and its derivatives in u and v, node coordinates within the grid, each end with
+    /// its interval ([`End::of`]: a branch finds its fixed end's once).
     #[inline(always)]
-    fn everett(&self, u: F, v: F) -> (F, F, F) {
+    fn everett_at(&self, up: End<F>, down: End<F>) -> (F, F, F) {
         let zero = F::zero();
+        let (u, v) = (up.at, down.at);
         if u <= v {
             return (zero, zero, zero);
         }
-        let (p, f) = Self::interval(u);
-        let (q, rest) = Self::interval(v);
+        let (p, f) = (up.interval, up.place);
+        let (q, rest) = (down.interval, down.place);
         let w_pp = self.diagonal.get(p).copied().unwrap_or(zero);
         if p == q {
             // Within one diagonal cell: a triangle of side u − v.
@@ -354,16 +355,35 @@ impl<F: Real> PreparedPreisach<F> {
     }
 }
 
+/// A node coordinate with its interval (the last for t = INTERVALS) and its place in it, from
+/// 0 to 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct End<F> {
+    at: F,
+    interval: usize,
+    place: F,
+}
+
+impl<F: Real> End<F> {
+    /// Node coordinate `t` ∈ [0, INTERVALS].
+    #[inline(always)]
+    fn of(t: F) -> Self {
+        // t ≥ 0: truncation is the floor (a libm call less on the joint).
+        let interval = t.to_usize().unwrap_or(0).min(INTERVALS - 1);
+        End { at: t, interval, place: t - index::<F>(interval) }
+    }
+}
+
 /// A branch of the Preisach kind: the turning point it starts from (its H and its node
 /// coordinate) and which way it runs; or the virgin curve at rest.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PreisachBranch<F> {
     /// From rest: the virgin curve.
     Virgin,
-    /// From a minimum at node coordinate `from` (β fixed, α = x).
-    Rising { hysteresis: F, from: F },
-    /// From a maximum at node coordinate `from` (α fixed, β = x).
-    Falling { hysteresis: F, from: F },
+    /// From a minimum at `from` (β fixed, α = x).
+    Rising { hysteresis: F, from: End<F> },
+    /// From a maximum at `from` (α fixed, β = x).
+    Falling { hysteresis: F, from: End<F> },
     /// A branch of zero width: H holds.
     Flat { hysteresis: F },
 }
@@ -383,7 +403,7 @@ impl<F: Real> Shape<F> for PreparedPreisach<F> {
 
     #[inline(always)]
     fn branch<E: Elementary<F>>(&self, from: TurningPoint<F>, to: TurningPoint<F>) -> PreisachBranch<F> {
-        let (at, _) = self.coordinate(from.theta);
+        let at = End::of(self.coordinate(from.theta).0);
         let hysteresis = from.hysteresis;
         if to.theta > from.theta {
             PreisachBranch::Rising { hysteresis, from: at }
@@ -399,11 +419,11 @@ impl<F: Real> Shape<F> for PreparedPreisach<F> {
         let (u, du_dx) = self.coordinate(theta);
         match *branch {
             PreisachBranch::Rising { hysteresis, from } => {
-                let (e, de, _) = self.everett(u, from);
+                let (e, de, _) = self.everett_at(End::of(u), from);
                 Evaluation { torque: hysteresis - e, stiffness: -(de * du_dx) }
             }
             PreisachBranch::Falling { hysteresis, from } => {
-                let (e, _, de) = self.everett(from, u);
+                let (e, _, de) = self.everett_at(from, End::of(u));
                 Evaluation { torque: hysteresis + e, stiffness: de * du_dx }
             }
             PreisachBranch::Flat { hysteresis } => Evaluation { torque: hysteresis, stiffness: F::zero() },
@@ -526,7 +546,7 @@ impl<F: Real> Shape<F> for PreisachCells<F> {
         from: TurningPoint<F, [F; CELLS]>,
         to: TurningPoint<F, [F; CELLS]>,
     ) -> CellBranch<F> {
-        let (at, _) = self.coordinate(from.theta);
+        let at = End::of(self.coordinate(from.theta).0);
         let zero = F::zero();
         let kind = if to.theta > from.theta {
             PreisachBranch::Rising { hysteresis: zero, from: at }
@@ -544,11 +564,11 @@ impl<F: Real> Shape<F> for PreisachCells<F> {
         for (c, i, j) in cells() {
             let (value, slope) = match branch.kind {
                 PreisachBranch::Rising { from, .. } => {
-                    let (e, de, _) = triangle_share(i, j, u, from);
+                    let (e, de, _) = triangle_share(i, j, u, from.at);
                     (-e, -de)
                 }
                 PreisachBranch::Falling { from, .. } => {
-                    let (e, _, de) = triangle_share(i, j, from, u);
+                    let (e, _, de) = triangle_share(i, j, from.at, u);
                     (e, de)
                 }
                 PreisachBranch::Flat { .. } => continue,

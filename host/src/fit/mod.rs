@@ -173,10 +173,8 @@ pub struct RunOutcome {
     pub held_out_samples: usize,
 }
 
-/// The kinds `auto` fits and chooses among. The Bouc–Wen kind (`--model bouc-wen`) joins them
-/// once `bench/prediction.sh`, `bench/real.sh` and `bench/scale.sh` have measured `auto` with it
-/// (issue 17): its fit is a swarm, and the figures in README are of these two.
-pub const AUTO_KINDS: [Kind; 2] = [Kind::Genetic, Kind::MicroSlip];
+/// The kinds `auto` fits and chooses among: every kind.
+pub const AUTO_KINDS: [Kind; 4] = Kind::ALL;
 
 /// What the fit of recordings found: the chosen model and every candidate tried.
 #[derive(Clone, Debug)]
@@ -427,6 +425,8 @@ fn fit_recordings(
                     fit_with_zero(kind, &training, &at_rest, &options, FinalSolve::Strided).map(with_zero)
                 })
                 .collect::<Result<Vec<_>, _>>()?;
+            // The lowest held-out error: fitted without those samples, a kind that follows the
+            // training samples by its many parameters is not rewarded on them.
             let (best, best_origins) = candidates
                 .iter()
                 .min_by(|(a, _), (b, _)| a.held_out_rms.unwrap_or(a.rms).total_cmp(&b.held_out_rms.unwrap_or(b.rms)))

@@ -1286,9 +1286,11 @@ pub fn micro_slip_with_columns(
 /// (or switch over a sliver of the cell), and its weight, fitted on that sliver, came out at
 /// 14 N·m beside its neighbours' 0.05 (`simulate`'s micro-slip gear, random motion: the sine to
 /// the longer side's extent then predicted at 5.0 N·m RMS against micro-slip's 0.16). Such a cell
-/// takes the weight of its point mirror (α, β) → (−β, −α), which the data cover: the density of
-/// a gear whose loops are point-symmetric, as the spring's shorter side is continued with the
-/// longer side's shape (`super::spring`).
+/// takes the weight of the nearest covered cell along the diagonal: relays of the same width,
+/// their centres moved towards the data, as the spring continues with its edge's stiffness.
+/// (The point mirror (α, β) → (−β, −α), a point-symmetric gear's, was tried first: on the
+/// Preisach gear that grips harder on the + side, trained on the random motion, it predicted
+/// the sine at 1.66× the floor, the shift at 1.08×.)
 #[derive(Clone, Debug)]
 struct Cells {
     reach: f64,
@@ -1311,20 +1313,37 @@ impl Cells {
         let covered =
             |i: usize, j: usize| -reach + (i + 1) as f64 * h <= hi + slack && -reach + j as f64 * h >= lo - slack;
         let mut groups: Vec<Vec<usize>> = Vec::new();
+        // The covered cell an uncovered one takes its weight from, if any: along the diagonal,
+        // towards the data, the same relay widths at the nearest centres.
+        let source = |i: usize, j: usize| -> Option<(usize, usize)> {
+            if covered(i, j) {
+                return None;
+            }
+            let (mut a, mut b) = (i as isize, j as isize);
+            let step: isize = if -reach + (i + 1) as f64 * h > hi + slack { -1 } else { 1 };
+            loop {
+                a += step;
+                b += step;
+                if a < 0 || b < 0 || a >= n as isize || b > a {
+                    return None;
+                }
+                if covered(a as usize, b as usize) {
+                    return Some((a as usize, b as usize));
+                }
+            }
+        };
         for i in 0..n {
             for j in 0..=i {
-                let (mi, mj) = (n - 1 - j, n - 1 - i);
-                if covered(i, j) || !covered(mi, mj) {
+                if source(i, j).is_none() {
                     groups.push(vec![preisach::cell(i, j)]);
                 }
             }
         }
         for i in 0..n {
             for j in 0..=i {
-                let (mi, mj) = (n - 1 - j, n - 1 - i);
-                if !covered(i, j) && covered(mi, mj) {
-                    let mirror = preisach::cell(mi, mj);
-                    if let Some(group) = groups.iter_mut().find(|g| g[0] == mirror) {
+                if let Some((si, sj)) = source(i, j) {
+                    let from = preisach::cell(si, sj);
+                    if let Some(group) = groups.iter_mut().find(|g| g[0] == from) {
                         group.push(preisach::cell(i, j));
                     }
                 }
@@ -1390,7 +1409,56 @@ fn preisach_solve(
             Ok(())
         })
     })?;
+    let mut equations = equations;
+    smooth_density(&mut equations, columns, cells);
     columns.solve(&equations)
+}
+
+/// The smoothness asked of the Preisach density, relative to its columns' mean Gram diagonal:
+/// Σ λ·(w_c/a_c − w_c'/a_c')² over cells c, c' that share an edge (a_c the cell's area in
+/// squares, ½ on the diagonal). A motion identifies the density only along the triangles it
+/// sweeps (a sine: the major loop's edges), and the least-squares density is anything in the
+/// rest; with the penalty it is the smoothest that fits. On the prediction corpus' Preisach
+/// fits (`bench/prediction.sh`), worst over the motions predicted, trained on the sine with
+/// λ = 0 / 10⁻⁴ / 10⁻³ / 10⁻²: micro-slip gear 1.45 / 1.12 / 1.05 / 1.04× the floor, Preisach
+/// gear 1.22 / 1.09 / 1.06 / 1.06×; trained on the random motion 1.07 / 1.07 / 1.06 / 1.05× and
+/// 1.15 / 1.13 / 1.14 / 1.19×.
+const DENSITY_SMOOTHING: f64 = 1e-3;
+
+/// Adds [`DENSITY_SMOOTHING`]'s penalty to the equations of a Preisach solve.
+fn smooth_density(equations: &mut Equations, columns: &Columns, cells: &Cells) {
+    let n = columns.len();
+    let first = columns.spring.len();
+    let own = cells.groups.len();
+    let mean = (first..first + own).map(|j| equations.gram[j * n + j]).sum::<f64>() / own.max(1) as f64;
+    let lambda = DENSITY_SMOOTHING * mean;
+    // Each cell's group and area (a diagonal cell is half a square).
+    let mut group_of = vec![None; preisach::CELLS];
+    for (g, group) in cells.groups.iter().enumerate() {
+        for &c in group {
+            group_of[c] = Some(g);
+        }
+    }
+    let m = preisach::INTERVALS;
+    let area = |i: usize, j: usize| if i == j { 0.5 } else { 1.0 };
+    for i in 0..m {
+        for j in 0..=i {
+            for (a, b) in [(i + 1, j), (i, j + 1)] {
+                if a >= m || b > a {
+                    continue;
+                }
+                let (Some(g1), Some(g2)) = (group_of[preisach::cell(i, j)], group_of[preisach::cell(a, b)]) else {
+                    continue;
+                };
+                let (c1, c2) = (1.0 / area(i, j), -1.0 / area(a, b));
+                let (k1, k2) = (first + g1, first + g2);
+                equations.gram[k1 * n + k1] += lambda * c1 * c1;
+                equations.gram[k2 * n + k2] += lambda * c2 * c2;
+                equations.gram[k1 * n + k2] += lambda * c1 * c2;
+                equations.gram[k2 * n + k1] += lambda * c1 * c2;
+            }
+        }
+    }
 }
 
 /// The Preisach model (θ0 = 0) of a solve, validated.
@@ -1821,8 +1889,10 @@ mod tests {
         assert!((found.stiffness / 1500.0 - 1.0).abs() < 0.02, "{found:?}");
     }
 
-    /// A gear of the Preisach kind's own form (a density that is not Masing, on the grid a fit of
-    /// the motion places) is recovered from a nested motion, and predicts a biased one.
+    /// A gear of the Preisach kind's own form (a smooth density that is not Masing: it grows with
+    /// the relays' centre, on the grid a fit of the motion places) is recovered from a nested
+    /// motion to within what the smoothness asked of the density costs, and predicts a biased
+    /// one.
     #[test]
     fn preisach_recovers_its_own_gear_and_predicts_a_biased_motion() {
         let theta = nested(6000, 1.2e-3);
@@ -1831,7 +1901,8 @@ mod tests {
         let mut weights = [0.0; preisach::CELLS];
         for i in 0..preisach::INTERVALS {
             for j in 0..=i {
-                weights[preisach::cell(i, j)] = 0.05 * (1.0 + i as f64 / 3.0) / (1.0 + (i - j) as f64);
+                let area = if i == j { 0.5 } else { 1.0 };
+                weights[preisach::cell(i, j)] = area * 0.05 * (1.0 + (i + j) as f64 / 8.0);
             }
         }
         let truth = GearModel {
@@ -1843,7 +1914,7 @@ mod tests {
         let motion = Motion::training_prefix(&theta, &torque, &reversals, theta.len(), None);
         let fitted = fit_preisach(&motion, &FitOptions::default()).unwrap();
         let scale = torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
-        assert!(fitted.rms < 1e-6 * scale, "RMS {} of a peak {scale}: {:?}", fitted.rms, fitted.model);
+        assert!(fitted.rms < 2e-5 * scale, "RMS {} of a peak {scale}: {:?}", fitted.rms, fitted.model);
         // Oscillations about 0.4 mrad after a ramp: relays the nested motion switched, in loops
         // it never ran.
         let biased: Vec<f64> = (0..4000)
@@ -1856,7 +1927,11 @@ mod tests {
         let turns = crate::prepare::reversals(&biased);
         let (want, got) = (torque_of(&truth, &biased, &turns), torque_of(&fitted.model, &biased, &turns));
         let error = want.iter().zip(&got).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-        assert!(error < 1e-4 * scale, "biased motion: worst {error} N·m of a peak {scale}");
+        println!(
+            "Preisach gear recovered: RMS {:.2e} N·m, biased motion worst {error:.2e} N·m, peak {scale:.2} N·m",
+            fitted.rms
+        );
+        assert!(error < 1e-5 * scale, "biased motion: worst {error} N·m of a peak {scale}");
     }
 
     /// Each run's θ0 and torque offset place its samples: a gear recorded with its encoder zero

@@ -14,7 +14,7 @@ use model_core::{Direction, Evaluator, GearModel, Hysteretic, Model};
 pub use motion::{read_trajectory, Motion, Trajectory};
 use motion::{Played, Timing};
 use physics::Gear;
-pub use physics::{read_physics_params, BoucWen, Catalogue, MicroSlip, Physics, PhysicsParamError};
+pub use physics::{read_physics_params, BoucWen, Catalogue, MicroSlip, Physics, PhysicsParamError, Preisach};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use std::f64::consts::TAU;
@@ -399,12 +399,13 @@ mod tests {
         ]
     }
 
-    fn physics() -> [Physics; 4] {
+    fn physics() -> [Physics; 5] {
         [
             Physics::Model,
             Physics::BoucWen(BoucWen::default()),
             Physics::MicroSlip(MicroSlip::default()),
             Physics::Catalogue(Catalogue::default()),
+            Physics::Preisach(physics::Preisach::default()),
         ]
     }
 

@@ -60,7 +60,7 @@ fn the_tabulated_everett_function_is_the_cells_shares() {
         for b in 0..=a {
             // Off the nodes as well as on them (1/20 of an interval).
             let (u, v) = (top * a as f64 / 160.0, top * b as f64 / 160.0);
-            let (value, du, dv) = prepared.everett(u, v);
+            let (value, du, dv) = prepared.everett_at(End::of(u), End::of(v));
             let (mut want, mut want_du, mut want_dv) = (0.0, 0.0, 0.0);
             for (c, i, j) in cells() {
                 let (share, d_u, d_v) = triangle_share(i, j, u, v);

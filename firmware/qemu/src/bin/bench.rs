@@ -12,7 +12,7 @@ use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use model_core::bouc_wen::BoucWen;
-use model_core::checks::{bouc_wen_set, micro_slip_set, SEED_TABLE_FIT};
+use model_core::checks::{bouc_wen_set, micro_slip_set, preisach_set, SEED_TABLE_FIT};
 use model_core::{Direction, Model};
 use model_core::{Hysteresis, Knot, Spring};
 use swg_joint::budget::{self, CONTROL_TICK_INSTRUCTIONS};
@@ -285,11 +285,15 @@ fn main() -> ! {
         }
         JointParams { model, ..genetic }
     };
+    // model-core's Preisach set: its grid of reach 1.4 mrad holds every motion here.
+    let preisach =
+        JointParams { model: GearModel { zero: ZERO, spring, ..preisach_set().map(|_, v| v as f32) }, ..genetic };
     let kinds = [
         ("genetic", genetic),
         ("micro-slip", slip),
         ("bouc-wen n=1", bouc_wen(1.0)),
         ("bouc-wen n=1.5", bouc_wen(1.5)),
+        ("preisach", preisach),
     ];
 
     // The loop and the black boxes alone, subtracted from every measurement.
