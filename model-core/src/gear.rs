@@ -493,8 +493,11 @@ pub struct Memory {
     pub depth: usize,
 }
 
-/// The kind's hysteresis with its memory, in x = θ − θ0.
+/// The kind's hysteresis with its memory, in x = θ − θ0. A tag of its own (`repr(u8)`): left to
+/// the compiler, the tag went into a spare value of the Preisach kind's fields, and every kind's
+/// tick read it from there (the genetic kind's 7 instructions more, `bench/firmware.sh`).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(u8)]
 pub enum HysteresisState<F: Real> {
     Genetic(GeneticMemory<F, TURNING_POINTS>),
     MicroSlip(MicroSlip<F, SLIP_ELEMENTS>),

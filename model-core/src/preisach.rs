@@ -245,42 +245,50 @@ impl<F: Real> PreparedPreisach<F> {
     /// The tables of `preisach` (checked first).
     pub fn new(preisach: &Preisach<F>) -> Result<Self, Error> {
         preisach.check()?;
-        let w = &preisach.weights;
+        let w = |i: usize, j: usize| weight(&preisach.weights, cell(i, j));
         let zero = F::zero();
         let inv_h = index::<F>(INTERVALS) / (preisach.reach + preisach.reach);
+        // At the nodes every cell is in the triangle or out of it: E(P, Q) sums the cells
+        // (i, j) with Q ≤ j ≤ i < P, row by row. (The cells' shares, which the fit's columns
+        // use, give the same at the nodes: tested.)
         let mut everett = [zero; NODES];
-        for p in 0..=INTERVALS {
-            for q in 0..=p {
-                let (u, v) = (index::<F>(p), index::<F>(q));
-                let sum = cells().fold(zero, |sum, (c, i, j)| sum + weight(w, c) * triangle_share(i, j, u, v).0);
+        for p in 1..=INTERVALS {
+            let row = p - 1;
+            let mut along = zero;
+            for q in (0..p).rev() {
+                along = along + w(row, q);
+                let below = if q < row { everett.get(node(row, q)).copied().unwrap_or(zero) } else { zero };
                 if let Some(slot) = everett.get_mut(node(p, q)) {
-                    *slot = sum;
+                    *slot = below + along;
                 }
             }
         }
         let mut diagonal = [zero; INTERVALS];
         for (k, slot) in diagonal.iter_mut().enumerate() {
-            *slot = w.get(cell(k, k)).copied().unwrap_or(zero);
+            *slot = w(k, k);
         }
-        // Each virgin curve is a quadratic per interval: its value at the interval's start,
-        // its slope there and its curvature, from the cells' shares at f (or g) = 0, ½, 1.
+        // Each virgin curve, per interval: its value at the interval's start, then f (or g)
+        // times the cells between the line a + b = 0 and the diagonal, and f² times the
+        // diagonal cell and half the cell that line halves.
         let half = F::from(0.5).unwrap_or(zero);
-        let quadratic = |at: &dyn Fn(F) -> F, start: F, sign: F| {
-            let (y0, y1, y2) = (at(start), at(start + sign * half), at(start + sign));
-            // y = y0 + a·t + b·t² through t = 0, ½, 1.
-            let b = (y2 - y1 - y1 + y0) + (y2 - y1 - y1 + y0);
-            let a = y2 - y0 - b;
-            [y0, a, b]
-        };
         let mut up = [[zero; 3]; MIDDLE];
+        let mut start = zero;
         for (k, slot) in up.iter_mut().enumerate() {
-            let v_at = |u: F| cells().fold(zero, |sum, (c, i, j)| sum + weight(w, c) * virgin_up_share(i, j, u).0);
-            *slot = quadratic(&v_at, index::<F>(MIDDLE + k), F::one());
+            let p = MIDDLE + k;
+            let anti = INTERVALS - 1 - p;
+            let between = (anti + 1..p).fold(zero, |sum, j| sum + w(p, j));
+            let square = w(p, p) + half * w(p, anti);
+            *slot = [start, between, square];
+            start = start + between + square;
         }
         let mut down = [[zero; 3]; MIDDLE];
-        for (q, slot) in down.iter_mut().enumerate() {
-            let w_at = |v: F| cells().fold(zero, |sum, (c, i, j)| sum + weight(w, c) * virgin_down_share(i, j, v).0);
-            *slot = quadratic(&w_at, index::<F>(q + 1), -F::one());
+        let mut start = zero;
+        for (q, slot) in down.iter_mut().enumerate().rev() {
+            let anti = INTERVALS - 1 - q;
+            let between = (q + 1..anti).fold(zero, |sum, i| sum + w(i, q));
+            let square = w(q, q) + half * w(anti, q);
+            *slot = [start, between, square];
+            start = start + between + square;
         }
         Ok(PreparedPreisach { reach: preisach.reach, inv_h, everett, diagonal, up, down })
     }
