@@ -495,7 +495,8 @@ pub struct Memory {
 
 /// The kind's hysteresis with its memory, in x = θ − θ0. A tag of its own (`repr(u8)`): left to
 /// the compiler, the tag went into a spare value of the Preisach kind's fields, and every kind's
-/// tick read it from there (the genetic kind's 7 instructions more, `bench/firmware.sh`).
+/// tick read it from there (Bouc–Wen's tick 284 instructions against 279, Preisach's 409
+/// against 405, `bench/firmware.sh`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(u8)]
 pub enum HysteresisState<F: Real> {
