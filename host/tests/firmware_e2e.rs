@@ -179,8 +179,15 @@ fn every_kind_follows_arbitrary_motion_as_the_host_model_does() {
     let expected = joint_params(&slip_model(), &SETTINGS).unwrap();
     assert_eq!(link.call::<endpoint::ReadParams>(&()).unwrap(), Some(expected));
     assert_eq!(expected.model.kind(), model_core::Kind::MicroSlip);
-    // Each with the depth of memory the motions must reach: Bouc–Wen's one state is z.
-    let models = [(slip_model(), 2), (GearModel::paper(SEED), 2), (bouc_wen(1.0), 0), (bouc_wen(1.5), 0)];
+    // Each with the depth of memory the motions must reach: Bouc–Wen's one state is z; the
+    // Preisach set's grid (±1.4 mrad) holds both motions.
+    let models = [
+        (slip_model(), 2),
+        (GearModel::paper(SEED), 2),
+        (bouc_wen(1.0), 0),
+        (bouc_wen(1.5), 0),
+        (model_core::checks::preisach_set(), 2),
+    ];
     for (model, depth) in models {
         let joint = joint_params(&model, &SETTINGS).unwrap();
         push(&mut link, &joint).unwrap();

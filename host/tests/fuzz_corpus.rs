@@ -192,6 +192,8 @@ fn frame_seeds() -> Vec<(String, Vec<u8>)> {
     seeds.push(("garbage-then-frame.bin".into(), [&[0x13, 0x37, 0xff, 0x00][..], &frames[0]].concat()));
     let bouc_wen = JointParams { model: model_core::checks::bouc_wen_set().map(|_, v| v as f32), ..params };
     seeds.push(("write-bouc-wen.bin".into(), encode_to_vec(RequestId(200), &Request::WriteParams(bouc_wen)).unwrap()));
+    let preisach = JointParams { model: model_core::checks::preisach_set().map(|_, v| v as f32), ..params };
+    seeds.push(("write-preisach.bin".into(), encode_to_vec(RequestId(201), &Request::WriteParams(preisach)).unwrap()));
     seeds
 }
 

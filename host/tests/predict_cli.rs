@@ -39,34 +39,19 @@ fn simulate_with(dir: &std::path::Path, name: &str, physics: &str, motion: &str,
     path
 }
 
-/// A Maxwell-slip gear: `auto` tries every kind and keeps micro-slip or Preisach, of which
-/// micro-slip is the special case (held out within 2 % of each other here).
 #[test]
-fn auto_picks_a_masing_kind_for_a_micro_slip_gear_and_predicts_other_motions() {
+fn auto_picks_micro_slip_for_a_micro_slip_gear_and_predicts_other_motions() {
     let dir = tempfile::tempdir().unwrap();
     let train = simulate(dir.path(), "train.csv", "micro-slip", "random");
     let params = dir.path().join("params.json");
     let report = json(&swg_host(&["fit", train.to_str().unwrap(), "--json", "--out", params.to_str().unwrap()]));
+    assert_eq!(report["model"], "micro-slip", "{report:#}");
     let candidates = report["candidates"].as_array().unwrap();
-    let kinds: Vec<&str> = candidates.iter().map(|c| c["model"].as_str().unwrap()).collect();
-    assert_eq!(kinds, ["genetic-hysteresis", "micro-slip", "bouc-wen", "preisach"]);
+    assert_eq!(candidates.len(), 2);
     assert!(report["held_out"]["samples"].as_u64().unwrap() > 0);
-    let hysteresis = match report["model"].as_str().unwrap() {
-        "micro-slip" => &report["params"]["elements"],
-        "preisach" => &report["params"]["weights"],
-        other => panic!("{other} chosen: {report:#}"),
-    };
-    assert!(!hysteresis.as_array().unwrap().is_empty());
+    assert!(!report["params"]["elements"].as_array().unwrap().is_empty());
 
-    // Within the random motion's ±1.168 mrad: near the noise (0.02 N·m and 20-bit encoders
-    // through a stiffness of ≈ 10⁴ N·m/rad).
-    let within = simulate(dir.path(), "within.csv", "micro-slip", "nested");
-    let summary = json(&swg_host(&["predict", params.to_str().unwrap(), within.to_str().unwrap(), "--json"]));
-    assert_eq!(summary["beyond_range_samples"], 0, "{summary:#}");
-    assert!(summary["rms"].as_f64().unwrap() < 0.07, "{summary:#}");
-
-    // 1.3 mrad: beyond the random motion's 1.168 mrad on both sides, where the spring continues
-    // with its edge's stiffness (and the Preisach kind's relays end: H holds there), reported.
+    // 1.3 mrad: beyond the random motion's 1.168 mrad on both sides.
     let other = simulate_with(dir.path(), "nested.csv", "micro-slip", "nested", &["--amplitude", "1.3e-3"]);
     let pred = dir.path().join("pred.csv");
     let summary = json(&swg_host(&[
@@ -78,9 +63,10 @@ fn auto_picks_a_masing_kind_for_a_micro_slip_gear_and_predicts_other_motions() {
         pred.to_str().unwrap(),
     ]));
     let n = summary["n"].as_u64().unwrap() as usize;
-    // Bounded beyond: micro-slip 0.066 N·m within the range, Preisach 0.13 (its relays beyond
-    // the fitted range are not identified, so none switch there).
-    assert!(summary["within_range_rms"].as_f64().unwrap() < 0.15, "{summary:#}");
+    // Near the noise (0.02 N·m and 20-bit encoders through a stiffness of ≈ 10⁴ N·m/rad) where
+    // the random motion identified the spring; the wider nested motion reaches beyond that
+    // range, where the spring continues with its edge's stiffness, and that is reported.
+    assert!(summary["within_range_rms"].as_f64().unwrap() < 0.1, "{summary:#}");
     assert!(summary["beyond_range_samples"].as_u64().unwrap() > 0, "{summary:#}");
     assert!(summary["max_excess_rad"].as_f64().unwrap() > 0.0, "{summary:#}");
     assert!(summary["max_step_nm"].as_f64().unwrap() > 0.0);

@@ -55,8 +55,10 @@ use serde::{Deserialize, Serialize};
 /// ([`ParamField::Model`]); [`JointParams::model`] is model-core's [`GearModel`], encoded as
 /// version 4's model was. Version 6: [`JointParams::model`] is the model of model version 2 (the
 /// deflection's zero, the free-form spring, the micro-slip kind's elements each with its own slip
-/// deflection); frames up to [`MAX_FRAME_LEN`] = 512 bytes.
-pub const PROTOCOL_VERSION: u16 = 7;
+/// deflection); frames up to [`MAX_FRAME_LEN`] = 512 bytes. Version 7: the Bouc–Wen kind.
+/// Version 8: the Preisach kind (its index 3, its reach and 36 weights; [`ParamName`]'s
+/// `PreisachReach` and `PreisachWeight`).
+pub const PROTOCOL_VERSION: u16 = 8;
 
 /// Largest encoded frame, delimiter included: the longest message (a micro-slip
 /// [`Response::Params`] with 17 knots, 16 elements and every varint at its maximum, the request

@@ -439,10 +439,25 @@ mod tests {
         JointParams { model, ..paper() }
     }
 
+    /// model-core's Preisach set (its grid of reach 1.4 mrad).
+    fn preisach() -> JointParams {
+        JointParams { model: model_core::checks::preisach_set().map(|_, v| v as f32), ..paper() }
+    }
+
     /// Every set the tests run: every kind, with the polynomial spring and with knots (Bouc–Wen
     /// with n = 1, integrated in closed form, and with n = 1.5, in Runge–Kutta sub-steps).
-    fn sets() -> [JointParams; 7] {
-        [paper(), slip(), bouc_wen(1.0), bouc_wen(1.5), knotted(paper()), knotted(slip()), knotted(bouc_wen(1.0))]
+    fn sets() -> [JointParams; 9] {
+        [
+            paper(),
+            slip(),
+            bouc_wen(1.0),
+            bouc_wen(1.5),
+            preisach(),
+            knotted(paper()),
+            knotted(slip()),
+            knotted(bouc_wen(1.0)),
+            knotted(preisach()),
+        ]
     }
 
     /// model-core's own evaluator of `params`, at rest, in f32 with libm.
@@ -672,7 +687,7 @@ mod tests {
                             let exact_step = (exact_b.torque - exact_a.torque).abs();
                             let allowed = match params.model.kind() {
                                 Kind::MicroSlip => by_stiffness,
-                                Kind::Genetic | Kind::BoucWen => by_stiffness.max(exact_step),
+                                Kind::Genetic | Kind::BoucWen | Kind::Preisach => by_stiffness.max(exact_step),
                             } + tolerance;
                             assert!(
                                 step <= allowed,
@@ -864,6 +879,8 @@ mod tests {
             for name in names(&base.model) {
                 let huge = match name {
                     ParamName::Omega => 1.0e-38,
+                    // A wider grid only spreads the relays thinner; a narrow one steepens them.
+                    ParamName::PreisachReach => 1.0e-38,
                     // A larger β, γ or n only narrows Bouc–Wen's z: nothing overflows (model-core's
                     // range tests); A is tested below.
                     ParamName::BoucWenA | ParamName::BoucWenBeta | ParamName::BoucWenGamma | ParamName::BoucWenN => {

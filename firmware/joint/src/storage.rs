@@ -14,19 +14,19 @@
 //! | 8..10 | payload length n, u16 LE (≤ 384) |
 //! | 10 | record format, [`RECORD_FORMAT`] |
 //! | 11 | reserved, 0xFF |
-//! | 12..12 + n | the parameter set, postcard-encoded (format 4: [`JointParams`] as on the link of protocol 7) |
+//! | 12..12 + n | the parameter set, postcard-encoded (format 5: [`JointParams`] as on the link of protocol 8) |
 //! | then | 0xFF up to a multiple of 8 bytes, then the CRC-32 (ISO-HDLC, LE) of bytes 0..12 + n, in an 8-byte block |
 //!
 //! The formats this firmware reads:
 //!
-//! - **4** (written now): the payload is [`JointParams`] of model version 2 (θ0, the free-form
-//!   spring, the kind's hysteresis: [`swg_protocol::GearModel`]), any kind, the Bouc–Wen kind
-//!   included. The longest, a micro-slip set with 17 knots and 16 elements, is 306 bytes at
-//!   most: a record of 328 bytes with its CRC block.
-//! - **3**: the same encoding before the Bouc–Wen kind (protocol 6): the genetic or the
-//!   micro-slip kind, whose bytes format 4 keeps (a kind is its index, and the Bouc–Wen kind took
-//!   the next). It loads as it is. Format 3 firmware refuses a format 4 record by its format
-//!   byte instead of misreading a kind it does not know.
+//! - **5** (written now): the payload is [`JointParams`] of model version 2 (θ0, the free-form
+//!   spring, the kind's hysteresis: [`swg_protocol::GearModel`]), any kind, the Preisach kind
+//!   included. The longest, a Preisach set with 17 knots and 36 weights, is 325 bytes at most: a
+//!   record of 344 bytes with its CRC block.
+//! - **4** and **3**: the same encoding before the Preisach kind (protocol 7) and before the
+//!   Bouc–Wen kind (protocol 6), whose bytes format 5 keeps (a kind is its index, and each new
+//!   kind took the next). They load as they are. Older firmware refuses a newer record by its
+//!   format byte instead of misreading a kind it does not know.
 //! - **2**: the payload is protocol 2–5's [`JointParams`] of model version 1 (the odd polynomial
 //!   spring, the genetic kind or the micro-slip kind on a log grid: [`LegacyJointParamsV2`]); it
 //!   loads as today's model with the same torque (model-core's `legacy` upgrade).
@@ -35,7 +35,7 @@
 //!   genetic only ([`LegacyJointParams`]); it loads as the paper's model with the same
 //!   numbers.
 //!
-//! So parameters stored before an update survive it; the next commit writes format 4.
+//! So parameters stored before an update survive it; the next commit writes format 5.
 //!
 //! A slot whose format byte is another value is not read ([`SlotFault::UnknownFormat`]).
 use embedded_storage::nor_flash::NorFlash;
@@ -48,8 +48,10 @@ const MAGIC: [u8; 4] = *b"SWGP";
 /// The record format this firmware writes (header byte 10). A change of the record's layout
 /// or of the payload's encoding takes the next number; the loader then refuses records of
 /// formats it does not know instead of misreading them.
-pub const RECORD_FORMAT: u8 = 4;
-/// Records of protocol 6's parameter sets (no Bouc–Wen kind), read as format 4.
+pub const RECORD_FORMAT: u8 = 5;
+/// Records of protocol 7's parameter sets (no Preisach kind), read as format 5.
+pub const FORMAT_4: u8 = 4;
+/// Records of protocol 6's parameter sets (no Bouc–Wen kind), read as format 5.
 pub const FORMAT_3: u8 = 3;
 /// Records of model version 1's parameter sets, either kind ([`LegacyJointParamsV2`]).
 pub const FORMAT_2: u8 = 2;
@@ -62,8 +64,8 @@ const HEADER_LEN: usize = 12;
 const FORMAT_AT: usize = 10;
 /// Writes are padded to this; every supported flash's WRITE_SIZE divides it.
 const ALIGN: usize = 8;
-/// Room for the longest payload of every format (306 bytes: a micro-slip set with 17 knots, 16
-/// elements and a three-byte model version) and some growth. Changing it changes no record's
+/// Room for the longest payload of every format (325 bytes: a Preisach set with 17 knots, 36
+/// weights and a three-byte model version) and some growth. Changing it changes no record's
 /// bytes.
 const MAX_PAYLOAD_LEN: usize = 384;
 const MAX_BODY_LEN: usize = (HEADER_LEN + MAX_PAYLOAD_LEN).div_ceil(ALIGN) * ALIGN;
@@ -287,7 +289,7 @@ fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
     }
     // Before anything else of the layout: another format may place it differently.
     let format = match header.get(FORMAT_AT).copied() {
-        Some(format @ (RECORD_FORMAT | FORMAT_3 | FORMAT_2 | LEGACY_FORMAT | UNVERSIONED_FORMAT)) => format,
+        Some(format @ (RECORD_FORMAT | FORMAT_4 | FORMAT_3 | FORMAT_2 | LEGACY_FORMAT | UNVERSIONED_FORMAT)) => format,
         Some(format) => return Err(SlotFault::UnknownFormat(format)),
         None => return Err(SlotFault::Corrupt),
     };
@@ -305,7 +307,7 @@ fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
     }
     let payload = rest.get(..payload_len).ok_or(SlotFault::Corrupt)?;
     let params = match format {
-        RECORD_FORMAT | FORMAT_3 => decode_format_4(payload)?,
+        RECORD_FORMAT | FORMAT_4 | FORMAT_3 => decode_format_5(payload)?,
         FORMAT_2 => decode_format_2(payload)?,
         _ => decode_format_1(payload)?,
     };
@@ -316,9 +318,9 @@ fn decode(record: &[u8; RECORD_LEN]) -> Result<Stored, SlotFault> {
 // One function per format, none inlined: the stack then holds one format's temporaries at a
 // time, not all of theirs.
 
-/// The payload of a format 4 (or 3) record.
+/// The payload of a format 5 (or 4, or 3) record.
 #[inline(never)]
-fn decode_format_4(payload: &[u8]) -> Result<JointParams, SlotFault> {
+fn decode_format_5(payload: &[u8]) -> Result<JointParams, SlotFault> {
     JointParams::from_postcard(payload).map_err(|_| SlotFault::Encoding)
 }
 

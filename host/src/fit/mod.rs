@@ -173,8 +173,15 @@ pub struct RunOutcome {
     pub held_out_samples: usize,
 }
 
-/// The kinds `auto` fits and chooses among: every kind.
-pub const AUTO_KINDS: [Kind; 4] = Kind::ALL;
+/// The kinds `auto` fits and chooses among. The Bouc–Wen and Preisach kinds (`--model
+/// bouc-wen`, `--model preisach`) are not among them yet: on the measured spring
+/// (`bash bench/real.sh`, fitted on 1-4 and 5-1, 3-4 held out) they held out 0.59 and
+/// 0.30 N·m against micro-slip's 0.72, and fitted on all three runs they missed the
+/// prototype's figure on 5 and 8 of the 12 other runs, micro-slip on none: one held-out run
+/// does not rank them as the other runs do (the Preisach grid, 8 intervals over the 5 A range,
+/// is coarse at 1–2 A, and its relays end at the fitted range, which the later 5 A runs leave
+/// by their remanence).
+pub const AUTO_KINDS: [Kind; 2] = [Kind::Genetic, Kind::MicroSlip];
 
 /// What the fit of recordings found: the chosen model and every candidate tried.
 #[derive(Clone, Debug)]

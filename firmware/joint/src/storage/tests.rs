@@ -4,6 +4,7 @@ use crate::flash::RamFlash;
 use embedded_storage::nor_flash::{ErrorType, NorFlashErrorKind, ReadNorFlash};
 use model_core::bouc_wen::{BoucWen, BoucWenTerm};
 use model_core::legacy::{GearModelV1, SlipParamsV1};
+use model_core::preisach::Preisach;
 use model_core::{Hysteresis, Knot, Params, SlipElement, Spring, MODEL_VERSION};
 use swg_protocol::{GearModel, SLIP_ELEMENTS};
 
@@ -273,7 +274,7 @@ fn flash_with(slot_0: &[u8]) -> Flash {
 
 #[test]
 fn golden_params_have_distinct_fields() {
-    for p in [golden_params(), golden_slip_params(), golden_params_3(), golden_params_4()] {
+    for p in [golden_params(), golden_slip_params(), golden_params_3(), golden_params_4(), golden_params_5()] {
         let mut fields = std::vec::Vec::new();
         p.model.map(|_, v| {
             fields.push(v);
@@ -449,7 +450,28 @@ const GOLDEN_RECORD_3: [u8; 96] = [
     0x4A, 0x24, 0x28, 0x0D, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..87, LE
 ];
 
-/// The record of [`golden_params_4`] in format 4, as the first save writes it into slot 0.
+/// A Preisach set with every field different: θ0, a spring on two knots (exact in f32), the
+/// reach and 36 weights (c + 1)/8 N·m.
+fn golden_params_5() -> JointParams {
+    let knots = [Knot { x: -0.375e-3, stiffness: 1.125e4 }, Knot { x: 0.5e-3, stiffness: 0.625e4 }];
+    let spring = Spring::of_knots(&knots, [-1.25e-3, 1.0e-3]).unwrap();
+    let weights = core::array::from_fn(|c| (c + 1) as f32 / 8.0);
+    JointParams {
+        model_version: MODEL_VERSION,
+        model: GearModel {
+            zero: -2.75e-3,
+            spring,
+            hysteresis: Hysteresis::Preisach(Preisach { reach: 1.25e-3, weights }),
+        },
+        gear_ratio: 120.0,
+        torque_limit: 25.5,
+        direction_band: 5.5e-6,
+    }
+}
+
+/// The record of [`golden_params_4`] in format 4, as firmware of protocol 7 wrote it into slot 0.
+#[rustfmt::skip]
+
 #[rustfmt::skip]
 const GOLDEN_RECORD_4: [u8; 96] = [
     b'S', b'W', b'G', b'P', // magic
@@ -477,19 +499,58 @@ const GOLDEN_RECORD_4: [u8; 96] = [
     0xDF, 0x2E, 0xAB, 0xB4, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..87, LE
 ];
 
+/// The record of [`golden_params_5`] in format 5, as the first save writes it into slot 0.
+#[rustfmt::skip]
+const GOLDEN_RECORD_5: [u8; 224] = [
+    b'S', b'W', b'G', b'P', // magic
+    0x01, 0x00, 0x00, 0x00, // sequence 1
+    0xCB, 0x00, // payload length 203
+    0x05, // format 5
+    0xFF, // reserved
+    0x02, // model_version 2 (postcard varint)
+    0x03, // the Preisach kind
+    0x58, 0x39, 0x34, 0xBB, // zero -2.75e-3 (f32 LE)
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, // spring: c1, c2, c3 = 0
+    0x02, // two knots
+    0xA6, 0x9B, 0xC4, 0xB9, 0x00, 0xC8, 0x2F, 0x46, // x -3.75e-4, stiffness 1.125e4
+    0x6F, 0x12, 0x03, 0x3A, 0x00, 0x50, 0xC3, 0x45, // x 5e-4, stiffness 6.25e3
+    0x0A, 0xD7, 0xA3, 0xBA, 0x6F, 0x12, 0x83, 0x3A, // range -1.25e-3 … 1e-3
+    0x0A, 0xD7, 0xA3, 0x3A, // reach 1.25e-3
+    0x00, 0x00, 0x00, 0x3E, 0x00, 0x00, 0x80, 0x3E, 0x00, 0x00, 0xC0, 0x3E, 0x00, 0x00, 0x00, 0x3F, // weights 0..3: (1 … 4)/8
+    0x00, 0x00, 0x20, 0x3F, 0x00, 0x00, 0x40, 0x3F, 0x00, 0x00, 0x60, 0x3F, 0x00, 0x00, 0x80, 0x3F, // weights 4..7: (5 … 8)/8
+    0x00, 0x00, 0x90, 0x3F, 0x00, 0x00, 0xA0, 0x3F, 0x00, 0x00, 0xB0, 0x3F, 0x00, 0x00, 0xC0, 0x3F, // weights 8..11: (9 … 12)/8
+    0x00, 0x00, 0xD0, 0x3F, 0x00, 0x00, 0xE0, 0x3F, 0x00, 0x00, 0xF0, 0x3F, 0x00, 0x00, 0x00, 0x40, // weights 12..15: (13 … 16)/8
+    0x00, 0x00, 0x08, 0x40, 0x00, 0x00, 0x10, 0x40, 0x00, 0x00, 0x18, 0x40, 0x00, 0x00, 0x20, 0x40, // weights 16..19: (17 … 20)/8
+    0x00, 0x00, 0x28, 0x40, 0x00, 0x00, 0x30, 0x40, 0x00, 0x00, 0x38, 0x40, 0x00, 0x00, 0x40, 0x40, // weights 20..23: (21 … 24)/8
+    0x00, 0x00, 0x48, 0x40, 0x00, 0x00, 0x50, 0x40, 0x00, 0x00, 0x58, 0x40, 0x00, 0x00, 0x60, 0x40, // weights 24..27: (25 … 28)/8
+    0x00, 0x00, 0x68, 0x40, 0x00, 0x00, 0x70, 0x40, 0x00, 0x00, 0x78, 0x40, 0x00, 0x00, 0x80, 0x40, // weights 28..31: (29 … 32)/8
+    0x00, 0x00, 0x84, 0x40, 0x00, 0x00, 0x88, 0x40, 0x00, 0x00, 0x8C, 0x40, 0x00, 0x00, 0x90, 0x40, // weights 32..35: (33 … 36)/8
+    0x00, 0x00, 0xF0, 0x42, // gear_ratio 120
+    0x00, 0x00, 0xCC, 0x41, // torque_limit 25.5
+    0xA4, 0x8C, 0xB8, 0x36, // direction_band 5.5e-6
+    0xFF, // padding to 216 bytes
+    0x44, 0x2F, 0xE3, 0x14, 0xFF, 0xFF, 0xFF, 0xFF, // CRC-32 of bytes 0..215, LE
+];
+
 #[test]
 fn a_saved_record_matches_the_golden_bytes() {
     let mut store = ParamStore::new(Flash::new()).unwrap();
-    assert_eq!(store.save(&golden_params_4()), Ok(1));
-    let mut record = [0u8; 96];
+    assert_eq!(store.save(&golden_params_5()), Ok(1));
+    let mut record = [0u8; 224];
     store.into_flash().read(0, &mut record).unwrap();
-    assert_eq!(record, GOLDEN_RECORD_4);
+    assert_eq!(record, GOLDEN_RECORD_5);
+    let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD_5)).unwrap();
+    assert_eq!(store.load(), Some(Stored { params: golden_params_5(), sequence: 1 }));
+}
+
+#[test]
+fn format_4_records_load_as_they_are() {
     let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD_4)).unwrap();
     assert_eq!(store.load(), Some(Stored { params: golden_params_4(), sequence: 1 }));
 }
 
 #[test]
-fn format_3_records_load_and_the_next_commit_writes_format_4() {
+fn format_3_records_load_and_the_next_commit_writes_the_current_format() {
     let mut store = ParamStore::new(flash_with(&GOLDEN_RECORD_3)).unwrap();
     assert_eq!(store.load(), Some(Stored { params: golden_params_3(), sequence: 1 }));
     assert_eq!(store.save(&golden_params_4()), Ok(2));
@@ -570,7 +631,7 @@ fn with_format(record: [u8; 64], format: u8) -> [u8; 64] {
 fn a_record_of_an_unknown_format_is_ignored() {
     assert_eq!(with_format(GOLDEN_RECORD, LEGACY_FORMAT), GOLDEN_RECORD);
     assert_eq!(with_format(GOLDEN_RECORD, 0xFF), LEGACY_RECORD);
-    for format in [0u8, 5, 0x7F, 0xFE] {
+    for format in [0u8, 6, 0x7F, 0xFE] {
         let newer = with_format(GOLDEN_RECORD, format);
         let mut store = ParamStore::new(flash_with(&newer)).unwrap();
         assert_eq!(store.slots()[0], Err(SlotFault::UnknownFormat(format)));
