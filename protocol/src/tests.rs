@@ -881,6 +881,28 @@ fn every_message_round_trips() {
     for request in requests {
         let (out, len) = frame_of(&request);
         assert_eq!(message_of::<Request>(&out[..len]), Ok(request));
+        // The device's decoding: the same request, a parameter set's bytes left in the frame.
+        let mut frame = out[..len - 1].to_vec();
+        let (Envelope { id, message }, rest) = decode_request(&mut frame).unwrap();
+        assert_eq!(id, ID);
+        let deferred = match request {
+            Request::GetDeviceInfo => RequestOf::GetDeviceInfo,
+            Request::WriteParams(params) => {
+                assert_eq!(JointParams::from_postcard(&frame[rest.clone()]), Ok(params));
+                RequestOf::WriteParams(Deferred)
+            }
+            Request::ReadParams => RequestOf::ReadParams,
+            Request::Commit => RequestOf::Commit,
+            Request::Replay(sample) => RequestOf::Replay(sample),
+            Request::Configure(config) => RequestOf::Configure(config),
+            Request::SetReference(reference) => RequestOf::SetReference(reference),
+            Request::Control(sample) => RequestOf::Control(sample),
+            Request::GetStatus => RequestOf::GetStatus,
+        };
+        assert_eq!(message, deferred);
+        if !matches!(request, Request::WriteParams(_)) {
+            assert!(rest.is_empty(), "{request:?}: {rest:?}");
+        }
     }
     let responses = [
         Response::DeviceInfo(DeviceInfo {
