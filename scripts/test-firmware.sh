@@ -26,9 +26,8 @@ echo "== firmware library (firmware/joint) on the host"
 # From firmware/, where .cargo/config.toml would otherwise build for the Cortex-M4F.
 (cd firmware && cargo test --locked -p swg-joint --target "$host_triple")
 
-# One board per cargo invocation, for clippy as for the builds below: the STM32 HAL turns on
-# cortex-m-rt's `device` feature (its interrupt vectors), which the QEMU board must not get
-# through feature unification.
+# One board per cargo invocation, for clippy as for the builds below: each board's build sees
+# its own features only (see firmware/Cargo.toml).
 if [ "$THUMB_ROUTE" = rustup ]; then
     echo "== clippy over the firmware workspace (-D warnings)"
     cargo clippy --version >/dev/null 2>&1 || rustup component add clippy

@@ -637,6 +637,8 @@ impl<F: Real> Hysteretic<F> for Evaluator<F> {
 #[cfg(feature = "serde")]
 mod serde_forms {
     use super::*;
+    use core::marker::PhantomData;
+    use serde::de::{self, DeserializeSeed, EnumAccess, SeqAccess, VariantAccess, Visitor};
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
     /// The genetic kind's parameters as a file and the wire write them.
@@ -700,8 +702,8 @@ mod serde_forms {
         Preisach(PreisachForm<F>),
     }
 
-    #[derive(Serialize, Deserialize)]
-    #[serde(bound(deserialize = "F: Deserialize<'de> + Default + Copy"))]
+    /// By index (on the wire, in flash); read by [`Compact`].
+    #[derive(Serialize)]
     enum Indexed<F> {
         Genetic(GeneticForm<F>),
         MicroSlip(MicroSlipForm<F>),
@@ -733,11 +735,13 @@ mod serde_forms {
         }
     }
 
+    #[cfg(feature = "use-std")]
     fn preisach<F>(form: PreisachForm<F>) -> GearModel<F> {
         let PreisachForm { zero, spring, reach, weights } = form;
         GearModel { zero, spring, hysteresis: Hysteresis::Preisach(Preisach { reach, weights }) }
     }
 
+    #[cfg(feature = "use-std")]
     fn bouc_wen<F>(form: BoucWenForm<F>) -> GearModel<F> {
         let BoucWenForm { zero, spring, stiffness, a, beta, gamma, n } = form;
         GearModel {
@@ -747,11 +751,13 @@ mod serde_forms {
         }
     }
 
+    #[cfg(feature = "use-std")]
     fn genetic<F>(form: GeneticForm<F>) -> GearModel<F> {
         let GeneticForm { zero, spring, alpha, beta, omega } = form;
         GearModel { zero, spring, hysteresis: Hysteresis::Genetic(Genetic { alpha, beta, omega }) }
     }
 
+    #[cfg(feature = "use-std")]
     fn micro_slip<F>(form: MicroSlipForm<F>) -> GearModel<F> {
         GearModel { zero: form.zero, spring: form.spring, hysteresis: Hysteresis::MicroSlip(form.elements) }
     }
@@ -784,12 +790,134 @@ mod serde_forms {
                     Named::Preisach(p) => preisach(p),
                 });
             }
-            Ok(match Indexed::deserialize(deserializer)? {
-                Indexed::Genetic(g) => genetic(g),
-                Indexed::MicroSlip(m) => micro_slip(m),
-                Indexed::BoucWen(b) => bouc_wen(b),
-                Indexed::Preisach(p) => preisach(p),
-            })
+            deserializer.deserialize_enum(
+                "Indexed",
+                &["Genetic", "MicroSlip", "BoucWen", "Preisach"],
+                Compact(PhantomData),
+            )
+        }
+    }
+
+    /// [`Indexed`]'s deserialization, the bytes read in the same order, the model made of them
+    /// directly: through `Indexed` and the kind's form, a model (300 bytes on the joint) was
+    /// made three times in the frame that decodes a set, the link's deepest stack.
+    struct Compact<F>(PhantomData<F>);
+
+    impl<'de, F: Deserialize<'de> + Default + Copy> Visitor<'de> for Compact<F> {
+        type Value = GearModel<F>;
+
+        fn expecting(&self, formatter: &mut core::fmt::Formatter) -> core::fmt::Result {
+            formatter.write_str("enum Indexed")
+        }
+
+        fn visit_enum<A: EnumAccess<'de>>(self, data: A) -> Result<GearModel<F>, A::Error> {
+            let (KindIndex(kind), variant) = data.variant()?;
+            variant.newtype_variant_seed(Fields(kind, PhantomData))
+        }
+    }
+
+    /// The index of [`Indexed`]'s variant: a kind.
+    struct KindIndex(Kind);
+
+    impl<'de> Deserialize<'de> for KindIndex {
+        fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<KindIndex, D::Error> {
+            struct Index;
+            impl Visitor<'_> for Index {
+                type Value = KindIndex;
+                fn expecting(&self, formatter: &mut core::fmt::Formatter) -> core::fmt::Result {
+                    formatter.write_str("variant index 0 <= i < 4")
+                }
+                fn visit_u64<E: de::Error>(self, index: u64) -> Result<KindIndex, E> {
+                    match index {
+                        0 => Ok(KindIndex(Kind::Genetic)),
+                        1 => Ok(KindIndex(Kind::MicroSlip)),
+                        2 => Ok(KindIndex(Kind::BoucWen)),
+                        3 => Ok(KindIndex(Kind::Preisach)),
+                        _ => Err(E::invalid_value(de::Unexpected::Unsigned(index), &self)),
+                    }
+                }
+            }
+            deserializer.deserialize_identifier(Index)
+        }
+    }
+
+    /// The fields of the kind's form ([`GeneticForm`], [`MicroSlipForm`], [`BoucWenForm`],
+    /// [`PreisachForm`]) in their order.
+    struct Fields<F>(Kind, PhantomData<F>);
+
+    impl<'de, F: Deserialize<'de> + Default + Copy> DeserializeSeed<'de> for Fields<F> {
+        type Value = GearModel<F>;
+
+        fn deserialize<D: Deserializer<'de>>(self, deserializer: D) -> Result<GearModel<F>, D::Error> {
+            let (name, fields): (_, &[&str]) = match self.0 {
+                Kind::Genetic => ("GeneticForm", &["zero", "spring", "alpha", "beta", "omega"]),
+                Kind::MicroSlip => ("MicroSlipForm", &["zero", "spring", "elements"]),
+                Kind::BoucWen => ("BoucWenForm", &["zero", "spring", "stiffness", "a", "beta", "gamma", "n"]),
+                Kind::Preisach => ("PreisachForm", &["zero", "spring", "reach", "weights"]),
+            };
+            deserializer.deserialize_struct(name, fields, self)
+        }
+    }
+
+    impl<'de, F: Deserialize<'de> + Default + Copy> Visitor<'de> for Fields<F> {
+        type Value = GearModel<F>;
+
+        fn expecting(&self, formatter: &mut core::fmt::Formatter) -> core::fmt::Result {
+            write!(formatter, "the {} kind's parameters", self.0.name())
+        }
+
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<GearModel<F>, A::Error> {
+            let zero = field(&mut seq, 0, &self)?;
+            let spring = field(&mut seq, 1, &self)?;
+            let hysteresis = match self.0 {
+                Kind::Genetic => {
+                    let (alpha, beta) = (field(&mut seq, 2, &self)?, field(&mut seq, 3, &self)?);
+                    Hysteresis::Genetic(Genetic { alpha, beta, omega: field(&mut seq, 4, &self)? })
+                }
+                Kind::MicroSlip => {
+                    let Elements(elements) = field(&mut seq, 2, &self)?;
+                    Hysteresis::MicroSlip(elements)
+                }
+                Kind::BoucWen => {
+                    let (stiffness, a) = (field(&mut seq, 2, &self)?, field(&mut seq, 3, &self)?);
+                    let (beta, gamma) = (field(&mut seq, 4, &self)?, field(&mut seq, 5, &self)?);
+                    let shape = BoucWen { a, beta, gamma, n: field(&mut seq, 6, &self)? };
+                    Hysteresis::BoucWen(BoucWenTerm { stiffness, shape })
+                }
+                Kind::Preisach => {
+                    let reach = field(&mut seq, 2, &self)?;
+                    let Weights(weights) = field(&mut seq, 3, &self)?;
+                    Hysteresis::Preisach(Preisach { reach, weights })
+                }
+            };
+            Ok(GearModel { zero, spring, hysteresis })
+        }
+    }
+
+    /// The next field, the `index`th, of a form.
+    fn field<'de, T: Deserialize<'de>, A: SeqAccess<'de>>(
+        seq: &mut A,
+        index: usize,
+        form: &dyn de::Expected,
+    ) -> Result<T, A::Error> {
+        seq.next_element()?.ok_or_else(|| de::Error::invalid_length(index, form))
+    }
+
+    /// [`PreisachForm::weights`] alone.
+    struct Weights<F>([F; CELLS]);
+
+    impl<'de, F: Deserialize<'de> + Default + Copy> Deserialize<'de> for Weights<F> {
+        fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+            crate::serde_array::deserialize(deserializer).map(Weights)
+        }
+    }
+
+    /// [`MicroSlipForm::elements`] alone.
+    struct Elements<F>(([SlipElement<F>; SLIP_ELEMENTS], u8));
+
+    impl<'de, F: Deserialize<'de> + Default + Copy> Deserialize<'de> for Elements<F> {
+        fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+            crate::serde_array::prefix::deserialize(deserializer).map(Elements)
         }
     }
 

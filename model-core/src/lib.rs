@@ -44,18 +44,47 @@ pub trait Real: Float + FloatConst + Default + fmt::Debug + private::Sealed {
     const THREE: Self;
     /// 5, used by dT/dθ of the polynomial.
     const FIVE: Self;
+    /// α/(ω(1 + r²)) formed in f64 and rounded to `Self` once (ω ≠ 0, all three finite).
+    fn decay_factor(alpha: Self, omega: Self, r: Self) -> Self;
 }
 
 impl Real for f32 {
     const MIN_COS: Self = 0.01;
     const THREE: Self = 3.0;
     const FIVE: Self = 5.0;
+    /// In [`binary64`]'s integer arithmetic, rounded as f64's: the same bits, without the
+    /// software f64 helpers on an FPU of single precision.
+    fn decay_factor(alpha: f32, omega: f32, r: f32) -> f32 {
+        use binary64::Double;
+        // 1 + r² > 0, so the sign is α's times ω's; α = ±0 gives ±0.
+        let negative = alpha.is_sign_negative() != omega.is_sign_negative();
+        let magnitude = match (Double::from_f32(alpha), Double::from_f32(omega)) {
+            (Some(alpha), Some(omega)) => {
+                // r² is exact in f64 (48 bits).
+                let one_plus_r2 = Double::from_f32(r).map_or(Double::ONE, |r| {
+                    let (m, e) = (r.significand >> 29, r.exponent + 29);
+                    Double::ONE.plus(Double::exact(m * m, 2 * e))
+                });
+                let (m, e) = (omega.significand >> 29, omega.exponent + 29);
+                alpha.over(one_plus_r2.times(m as u32, e)).to_f32()
+            }
+            _ => 0.0,
+        };
+        if negative {
+            -magnitude
+        } else {
+            magnitude
+        }
+    }
 }
 
 impl Real for f64 {
     const MIN_COS: Self = 0.01;
     const THREE: Self = 3.0;
     const FIVE: Self = 5.0;
+    fn decay_factor(alpha: f64, omega: f64, r: f64) -> f64 {
+        alpha / (omega * (1.0 + r * r))
+    }
 }
 
 mod private {
@@ -433,8 +462,7 @@ impl<F: Real> Model<F> {
         if r.abs() > max_r {
             return None;
         }
-        let (alpha, omega, r) = (params.alpha.to_f64()?, params.omega.to_f64()?, r.to_f64()?);
-        let k = F::from(alpha / (omega * (1.0 + r * r)))?;
+        let k = F::decay_factor(params.alpha, params.omega, r);
         k.is_finite().then_some(k)
     }
 
@@ -841,6 +869,7 @@ impl<F: Real> Evaluation<F> {
     }
 }
 
+pub mod binary64;
 pub mod bouc_wen;
 #[cfg(any(test, feature = "checks"))]
 pub mod checks;

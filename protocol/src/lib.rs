@@ -556,15 +556,20 @@ pub struct ControlOutput {
 }
 
 /// Host → device. Each variant is one [`endpoint`]'s request.
+pub type Request = RequestOf<JointParams>;
+
+/// [`Request`] with `P` for the parameter set of [`Request::WriteParams`]: the device decodes
+/// requests as `RequestOf<Deferred>` ([`decode_request`]), which leaves a set's bytes in the
+/// frame for it to decode where it handles the request. The same bytes either way.
 // A request is decoded into one stack slot of the link's task and never stored in a queue, and
 // no_std has no Box: the large parameter set stays inline.
 #[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Request {
+pub enum RequestOf<P> {
     GetDeviceInfo,
     /// Validate and activate (at the next tick); not yet stored.
-    WriteParams(JointParams),
+    WriteParams(P),
     /// The active set, exactly as the firmware holds it.
     ReadParams,
     /// Store the active set in flash.
@@ -916,11 +921,25 @@ pub fn encode_to_vec<T: Serialize>(id: RequestId, message: &T) -> Result<std::ve
     Ok(out.get(..len).ok_or(FrameError::BufferTooSmall)?.to_vec())
 }
 
-/// A device's frames: [`decode`] of a [`Request`] and [`encode`] of a [`Response`], not inlined
-/// nor generic, so compiled once with this crate's settings (for size).
+/// A [`Request::WriteParams`]'s parameter set not decoded yet: it reads nothing, and the set's
+/// bytes follow ([`decode_request`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Deferred;
+
+/// A device's request frames: [`decode`] of a [`Request`], but a [`Request::WriteParams`]'s
+/// parameter set left in `frame`, at the range returned with the request (what follows the
+/// message's other bytes, the set's postcard bytes for that request), for the device to decode
+/// with [`JointParams::from_postcard`] where it handles the request: decoded here, the set went
+/// up through every frame of the decoding, the link's deepest stack. A set that does not decode
+/// is the same [`FrameError::Message`] (with the request's id) as if decoded here. Not inlined
+/// nor generic, so compiled once with this crate's settings (for size), as
+/// [`encode_response`].
 #[inline(never)]
-pub fn decode_request(frame: &mut [u8]) -> Result<Envelope<Request>, FrameError> {
-    decode(frame)
+pub fn decode_request(
+    frame: &mut [u8],
+) -> Result<(Envelope<RequestOf<Deferred>>, core::ops::Range<usize>), FrameError> {
+    decode_leaving_rest(frame)
 }
 
 /// See [`decode_request`].
@@ -931,7 +950,15 @@ pub fn encode_response(id: RequestId, response: &Response, out: &mut [u8]) -> Re
 
 /// Decodes one frame (the bytes between two delimiters) in place.
 pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<Envelope<T>, FrameError> {
-    let len = cobs::decode_in_place(frame).map_err(|_| FrameError::Malformed)?;
+    decode_leaving_rest(frame).map(|(message, _)| message)
+}
+
+/// [`decode`], and where in `frame` the bytes after the message lie (none but the CRC in a frame
+/// [`encode`] writes).
+fn decode_leaving_rest<'a, T: Deserialize<'a>>(
+    frame: &'a mut [u8],
+) -> Result<(Envelope<T>, core::ops::Range<usize>), FrameError> {
+    let len = cobs_decode_in_place(frame).ok_or(FrameError::Malformed)?;
     let payload = frame.get(..len).ok_or(FrameError::Malformed)?;
     let body_len = len.checked_sub(CRC_LEN).filter(|&n| n > 0).ok_or(FrameError::Malformed)?;
     let (body, crc) = payload.split_at(body_len);
@@ -945,8 +972,42 @@ pub fn decode<'a, T: Deserialize<'a>>(frame: &'a mut [u8]) -> Result<Envelope<T>
     }
     let (id, message) =
         postcard::take_from_bytes::<RequestId>(rest).map_err(|_| FrameError::Message(RequestId::UNKNOWN))?;
-    let message = postcard::from_bytes(message).map_err(|_| FrameError::Message(id))?;
-    Ok(Envelope { id, message })
+    let (message, rest) = postcard::take_from_bytes(message).map_err(|_| FrameError::Message(id))?;
+    // `rest` ends where the body does.
+    Ok((Envelope { id, message }, body_len - rest.len()..body_len))
+}
+
+/// COBS-decodes `frame` in place up to its first 0x00 (or its end); the decoded length, or `None`
+/// where a block runs past that end (or the frame is empty). `cobs::decode_in_place`'s decoding,
+/// byte for byte and refusal for refusal (tested against it), without its indexing: that one's
+/// bounds check, which never fails, linked core::fmt's integer formatting into the firmware for
+/// its panic message (0.7 KiB of flash).
+fn cobs_decode_in_place(frame: &mut [u8]) -> Option<usize> {
+    if frame.is_empty() {
+        return None;
+    }
+    let end = frame.iter().position(|&byte| byte == 0).unwrap_or(frame.len());
+    let (mut read, mut written) = (0, 0);
+    while read < end {
+        // A block: its code n (≠ 0 before `end`), then n − 1 data bytes, then a zero unless
+        // n = 0xFF or the frame ends there.
+        let code = *frame.get(read)?;
+        let block_end = read + usize::from(code);
+        if block_end > end {
+            return None;
+        }
+        for at in read + 1..block_end {
+            let byte = *frame.get(at)?;
+            *frame.get_mut(written)? = byte;
+            written += 1;
+        }
+        read = block_end;
+        if code != 0xFF && read < end {
+            *frame.get_mut(written)? = 0;
+            written += 1;
+        }
+    }
+    Some(written)
 }
 
 /// The position in an encoded frame (as [`encode`] writes it) of byte `n` of what it carries

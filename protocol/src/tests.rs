@@ -955,6 +955,28 @@ fn every_message_round_trips() {
     for request in requests {
         let (out, len) = frame_of(&request);
         assert_eq!(message_of::<Request>(&out[..len]), Ok(request));
+        // The device's decoding: the same request, a parameter set's bytes left in the frame.
+        let mut frame = out[..len - 1].to_vec();
+        let (Envelope { id, message }, rest) = decode_request(&mut frame).unwrap();
+        assert_eq!(id, ID);
+        let deferred = match request {
+            Request::GetDeviceInfo => RequestOf::GetDeviceInfo,
+            Request::WriteParams(params) => {
+                assert_eq!(JointParams::from_postcard(&frame[rest.clone()]), Ok(params));
+                RequestOf::WriteParams(Deferred)
+            }
+            Request::ReadParams => RequestOf::ReadParams,
+            Request::Commit => RequestOf::Commit,
+            Request::Replay(sample) => RequestOf::Replay(sample),
+            Request::Configure(config) => RequestOf::Configure(config),
+            Request::SetReference(reference) => RequestOf::SetReference(reference),
+            Request::Control(sample) => RequestOf::Control(sample),
+            Request::GetStatus => RequestOf::GetStatus,
+        };
+        assert_eq!(message, deferred);
+        if !matches!(request, Request::WriteParams(_)) {
+            assert!(rest.is_empty(), "{request:?}: {rest:?}");
+        }
     }
     let responses = [
         Response::DeviceInfo(DeviceInfo {
@@ -1179,4 +1201,50 @@ fn controller_validation_names_the_gain() {
     let error = ErrorReply::InvalidGain { field: GainField::CommandLimit, fault: ParamFault::OutOfRange };
     assert_eq!(std::format!("{error}"), "controller gain command_limit is out of range");
     assert_eq!(std::format!("{}", ControlMode::OpenLoop), "open-loop");
+}
+
+/// The frames' COBS decoder decodes and refuses exactly as the `cobs` crate's
+/// `decode_in_place` (which `encode`'s `cobs::try_encode` pairs with), leaving the same bytes
+/// behind: every string of up to 6 bytes over an alphabet of the codes that matter, then
+/// encoded and damaged frames of every length up to a frame's.
+#[test]
+fn cobs_decoding_is_the_cobs_crate_s() {
+    fn same(bytes: &[u8]) {
+        let (mut ours, mut theirs) = (bytes.to_vec(), bytes.to_vec());
+        let got = cobs_decode_in_place(&mut ours);
+        let want = cobs::decode_in_place(&mut theirs).ok();
+        assert_eq!((got, &ours), (want, &theirs), "{bytes:?}");
+    }
+    const ALPHABET: [u8; 8] = [0, 1, 2, 3, 5, 0x7F, 0xFE, 0xFF];
+    for len in 0..=6u32 {
+        for index in 0..ALPHABET.len().pow(len) {
+            let bytes: Vec<u8> = (0..len).map(|at| ALPHABET[index / ALPHABET.len().pow(at) % ALPHABET.len()]).collect();
+            same(&bytes);
+        }
+    }
+    // xorshift32: reproducible without a dependency.
+    let mut state = 0x9E37_79B9u32;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state
+    };
+    let mut encoded = [0u8; 2 * MAX_FRAME_LEN];
+    for round in 0..20_000 {
+        let len = next() as usize % (MAX_FRAME_LEN + 1);
+        // Runs of zeros and of non-zero bytes of every length, blocks of 254 included.
+        let zeros = next() % 64;
+        let data: Vec<u8> = (0..len).map(|_| if next() % 64 < zeros { 0 } else { next() as u8 | 1 }).collect();
+        let n = cobs::try_encode(&data, &mut encoded).unwrap();
+        let mut frame = encoded[..n].to_vec();
+        same(&frame);
+        if n > 0 && round % 2 == 1 {
+            let at = next() as usize % n;
+            frame[at] = next() as u8;
+            same(&frame);
+            frame.truncate(at);
+            same(&frame);
+        }
+    }
 }

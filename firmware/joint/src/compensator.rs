@@ -1,7 +1,8 @@
+use crate::direct::DirectMath;
 use crate::fast::FastMath;
 use core::cell::UnsafeCell;
 use core::sync::atomic::{fence, AtomicBool, AtomicU32, AtomicU8, Ordering};
-use model_core::{Evaluator, Libm};
+use model_core::Evaluator;
 use swg_protocol::{Compensation, ErrorReply, EvalPath, Feedforward, JointParams};
 
 /// Largest plausible torsional deflection, rad (≈ 5.7°; strain wave gears deflect a few mrad).
@@ -355,7 +356,7 @@ impl Ticker<'_> {
         }
         // The same state whichever path runs the sample.
         let fast = installed.fast && path == EvalPath::Fast;
-        let (evaluation, memory) = evaluator.step_reporting_either::<FastMath, Libm>(deflection, fast);
+        let (evaluation, memory) = evaluator.step_reporting_either::<FastMath, DirectMath>(deflection, fast);
         // Beyond the identified range the spring runs on with its edge's stiffness; such
         // samples are counted (the status reports them).
         // At most TURNING_POINTS or SLIP_ELEMENTS, both 16.

@@ -1,7 +1,8 @@
 //! The per-tick evaluation of T(θ) and dT/dθ with polynomial elementary functions.
 //!
-//! model-core's f32 path calls libm's `asinf`/`expf`, which on the Cortex-M4F go through
-//! software double-precision helpers (`bench/firmware.sh` measures both paths). This path runs
+//! model-core's f32 path calls libm's `asinf`/`expf` (on the joint, libm's results bit for bit
+//! without its f64 steps: [`crate::direct`]), hundreds of instructions per tick
+//! (`bench/firmware.sh` measures both paths). This path runs
 //! model-core's own formula with [`FastMath`]: a polynomial arcsine (Abramowitz–Stegun
 //! 4.4.46), a range-reduced polynomial exponential and the FPU's `vsqrt`, and h·e^(−rφ) formed
 //! directly ([`Elementary::DIRECT_DECAY`]), which needs |r| ≤ [`MAX_ABS_R`]. The constants that

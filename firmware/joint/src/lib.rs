@@ -23,6 +23,7 @@ pub mod as5047p;
 pub mod budget;
 mod compensator;
 pub mod controller;
+pub mod direct;
 pub mod drive;
 pub mod fast;
 pub mod flash;

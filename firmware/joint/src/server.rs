@@ -12,9 +12,14 @@ use swg_protocol::endpoint::{
     Commit, Configure, Control, GetDeviceInfo, GetStatus, ReadParams, Replay, SetReference, WriteParams,
 };
 use swg_protocol::{
-    decode_request, encode_response, ControlMode, ControllerConfig, DeviceInfo, Endpoint, Envelope, ErrorReply,
-    FrameError, FrameReader, JointParams, Request, RequestId, Response, MAX_FRAME_LEN, MODEL_VERSION, PROTOCOL_VERSION,
+    decode_request, encode_response, ControlMode, ControllerConfig, Deferred, DeviceInfo, Endpoint, Envelope,
+    ErrorReply, FrameError, FrameReader, JointParams, RequestId, RequestOf, Response, MAX_FRAME_LEN, MODEL_VERSION,
+    PROTOCOL_VERSION,
 };
+
+/// A request as the link decodes it: a parameter set's bytes left in the frame buffer
+/// ([`decode_request`]).
+type Request = RequestOf<Deferred>;
 
 /// The device end of the link.
 pub struct Server<F> {
@@ -75,20 +80,22 @@ impl<F: NorFlash> Server<F> {
 
     /// The reply to the frame of `frame` bytes that the frame buffer holds (or to one that could
     /// not be read), encoded in that buffer; its length. Not inlined, as the others that make a
-    /// reply: the request and its response are on the stack only while they run, and never in
-    /// the same frame (a request decoded and a response made are a parameter set each; the
-    /// link's stack is deepest while a request's set is decoded).
+    /// reply: a response is on the stack only while it runs. A parameter set is decoded from the
+    /// frame buffer by [`Server::write_params`], under this frame only (the link's stack is
+    /// deepest while a set is decoded).
     #[inline(never)]
     fn answer(&mut self, frame: Result<usize, FrameError>, port: &mut LinkPort) -> Option<usize> {
         let request = match frame {
             Ok(len) => decode_request(self.reader.spare()?.get_mut(..len)?),
             Err(error) => Err(error),
         };
-        // By reference throughout: a request or a response moved is a parameter set copied
-        // on the stack.
-        match &request {
-            Ok(Envelope { id, message }) => self.handle(*id, message, port),
-            Err(error) => self.refuse(error.request_id(), (*error).into()),
+        match request {
+            Ok((Envelope { id, message: Request::WriteParams(Deferred) }, set)) => {
+                let accepted = self.write_params(set, port);
+                self.accept(id, accepted)
+            }
+            Ok((Envelope { id, message }, _)) => self.handle(id, &message, port),
+            Err(error) => self.refuse(error.request_id(), error.into()),
         }
     }
 
@@ -120,6 +127,13 @@ impl<F: NorFlash> Server<F> {
         self.reply(id, &Response::Error(reason))
     }
 
+    /// The reply to a [`swg_protocol::Request::WriteParams`], `id`, encoded as
+    /// [`Server::reply`]'s. Not inlined, as [`Server::refuse`].
+    #[inline(never)]
+    fn accept(&mut self, id: RequestId, accepted: Result<(), ErrorReply>) -> Option<usize> {
+        self.reply(id, &answer::<WriteParams>(accepted))
+    }
+
     /// The reply to `request`, encoded as [`Server::reply`]'s, or `None` when the tick has been
     /// handed its sample. Not inlined: what a request needs on the stack (a set staged, a
     /// commit, a response) is there only while it runs.
@@ -132,7 +146,8 @@ impl<F: NorFlash> Server<F> {
                 model_version: MODEL_VERSION,
             }),
             Request::GetStatus => GetStatus::reply(port.status()),
-            Request::WriteParams(ref params) => answer::<WriteParams>(self.write_params(params, port)),
+            // Never here: `answer` answers it (and decodes its set).
+            Request::WriteParams(Deferred) => Response::Error(ErrorReply::UndecodableRequest),
             Request::ReadParams => ReadParams::reply(self.params),
             Request::Commit => answer::<Commit>(self.commit()),
             Request::Configure(config) => answer::<Configure>(self.configure(config, port)),
@@ -154,7 +169,16 @@ impl<F: NorFlash> Server<F> {
         self.reply(id, &response)
     }
 
-    fn write_params(&mut self, params: &JointParams, port: &mut LinkPort) -> Result<(), ErrorReply> {
+    /// Decodes the parameter set of a [`swg_protocol::Request::WriteParams`] from the frame
+    /// buffer's bytes `set` (as [`decode_request`] leaves them; a set that does not decode is
+    /// refused as the request would have been, [`ErrorReply::UndecodableRequest`]) and stages it.
+    /// Not inlined: the set is on the stack only while it runs.
+    #[inline(never)]
+    fn write_params(&mut self, set: core::ops::Range<usize>, port: &mut LinkPort) -> Result<(), ErrorReply> {
+        let bytes = self.reader.spare().and_then(|buffer| buffer.get(set)).ok_or(ErrorReply::UndecodableRequest)?;
+        // By reference: a set moved out of the result is a second copy on the stack.
+        let decoded = JointParams::from_postcard(bytes);
+        let Ok(params) = &decoded else { return Err(ErrorReply::UndecodableRequest) };
         port.stage(params)?;
         self.params = Some(*params);
         Ok(())
@@ -259,6 +283,7 @@ mod tests {
     use crate::test_support::Recorder;
     use model_core::Params;
     use std::vec::Vec;
+    use swg_protocol::Request;
     use swg_protocol::{
         decode, encode, encode_with_version, Compensation, ControlSample, DriveErrorKind, EncoderSample, EvalPath,
         GainField, GearModel, ParamFault, ParamField, ParamName, SlipElement, Spring, StorageError, SLIP_ELEMENTS,

@@ -33,6 +33,25 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
 pub mod timer;
 pub mod uart;
 
+extern "C" {
+    /// cortex-m-rt's handler of the interrupts without one of their own: a program's own
+    /// (`#[exception] fn DefaultHandler`, as `joint-qemu`'s for UART0) or its default.
+    fn DefaultHandler();
+}
+
+/// The interrupt vectors after the exceptions' (cortex-m-rt's `device` feature, as a PAC
+/// provides them): the one interrupt the board enables, UART0's receive interrupt (IRQ 0,
+/// [`uart::Uart0Rx`]), to `DefaultHandler`. Without it cortex-m-rt puts in all 240 of
+/// ARMv7-M's, 960 B of flash. An interrupt beyond this table must stay masked (none is
+/// unmasked: the NVIC resets with every line disabled).
+// SAFETY (the unsafe_code lint's `no_mangle` and `link_section`): this is the symbol and
+// section cortex-m-rt's link.x places right after the exception vectors; nothing else is
+// named so.
+#[allow(unsafe_code)]
+#[link_section = ".vector_table.interrupts"]
+#[no_mangle]
+pub static __INTERRUPTS: [unsafe extern "C" fn(); 1] = [DefaultHandler];
+
 /// The QEMU board's motor drive: this machine has no motor, the plant is simulated on the host
 /// (`swg-host hil`), and the command reaches it in the lockstep [`swg_protocol::Response::Control`]
 /// that answers each control tick. The drive keeps the last command and counts them (for a

@@ -34,6 +34,20 @@ fn main() -> ! {
             record(name, result.as_ref().map(|_| ()).map_err(|v| v as &dyn core::fmt::Debug));
         }
     }
+    // The direct path's √ (the FPU's `vsqrt`) and asin (integer f64 steps) against libm's, on
+    // the target's own FPU and integer code: every 67th f32 from 0.5 to 1 of either sign (the
+    // asin branch libm computes in f64), every 4099th non-negative f32 for √.
+    let asin_misses = (0x3f00_0000u32..=0x3f80_0000)
+        .step_by(67)
+        .flat_map(|bits| [f32::from_bits(bits), -f32::from_bits(bits)])
+        .find(|&x| swg_joint::direct::asin(x).to_bits() != libm::asinf(x).to_bits());
+    record("direct path: asin is libm's, bit for bit", asin_misses.as_ref().map_or(Ok(()), |x| Err(x as _)));
+    let sqrt_misses = (0..0x7f80_0000u32)
+        .step_by(4099)
+        .map(f32::from_bits)
+        .find(|&v| swg_joint::fast::sqrt(v).to_bits() != libm::sqrtf(v).to_bits());
+    let name = "direct path: vsqrt is libm's sqrtf, bit for bit";
+    record(name, sqrt_misses.as_ref().map_or(Ok(()), |v| Err(v as _)));
     hprintln!("model-core on Cortex-M4F (QEMU): {} passed, {} failed", passed, failed);
     swg_firmware_qemu::exit(failed == 0)
 }
