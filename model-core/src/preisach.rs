@@ -422,7 +422,10 @@ impl<F: Real> Shape<F> for PreparedPreisach<F> {
         }
     }
 
-    #[inline(always)]
+    /// Out of line: the memory's step evaluates in two places (on the branch, and after a
+    /// change of it), and a copy in each was 1,016 B of the joint's flash; the call costs the
+    /// tick up to 16 instructions (`bench/firmware.sh`: 372 → 388 at most, of 400).
+    #[inline(never)]
     fn evaluate<E: Elementary<F>>(&self, branch: &PreisachBranch<F>, theta: F) -> Evaluation<F> {
         let (u, du_dx) = self.coordinate(theta);
         let at = End::of(u);
