@@ -328,6 +328,15 @@ impl JointParams {
         self.model.prepare(self.direction_band, evaluator).map_err(|_| ErrorReply::ModelOverflow)
     }
 
+    /// A model of model version 1 (from a flash record written before version 2) as today's,
+    /// with the same torque: model-core's [`GearModelV1::upgrade`](model_core::legacy::GearModelV1::upgrade),
+    /// compiled once with this crate's settings (for size; its 14 exponentials of the micro-slip
+    /// grid were unrolled at the joint's), as [`JointParams::prepare_evaluator`].
+    #[inline(never)]
+    pub fn upgrade_model(model: &model_core::legacy::GearModelV1<f32>) -> Result<GearModel<f32>, model_core::Error> {
+        model.upgrade()
+    }
+
     /// The set as postcard writes it (a record's payload in flash); its length in `out`.
     #[inline(never)]
     pub fn to_postcard(&self, out: &mut [u8]) -> Result<usize, postcard::Error> {

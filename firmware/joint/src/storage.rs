@@ -42,7 +42,7 @@ use embedded_storage::nor_flash::NorFlash;
 use model_core::legacy::GearModelV1;
 use model_core::Params;
 use serde::Deserialize;
-use swg_protocol::{ErrorReply, GearModel, JointParams, MODEL_VERSION};
+use swg_protocol::{ErrorReply, JointParams, MODEL_VERSION};
 
 const MAGIC: [u8; 4] = *b"SWGP";
 /// The record format this firmware writes (header byte 10). A change of the record's layout
@@ -137,7 +137,7 @@ fn upgrade(model_version: u16, model: GearModelV1<f32>, joint: [f32; 3]) -> Resu
     if model_version != VERSION_1 {
         return Err(SlotFault::Invalid(ErrorReply::ModelVersion { got: model_version, supported: MODEL_VERSION }));
     }
-    let model: GearModel<f32> = model.upgrade().map_err(|_| SlotFault::Encoding)?;
+    let model = JointParams::upgrade_model(&model).map_err(|_| SlotFault::Encoding)?;
     let [gear_ratio, torque_limit, direction_band] = joint;
     Ok(JointParams { model_version: MODEL_VERSION, model, gear_ratio, torque_limit, direction_band })
 }
