@@ -471,8 +471,6 @@ fn golden_params_5() -> JointParams {
 
 /// The record of [`golden_params_4`] in format 4, as firmware of protocol 7 wrote it into slot 0.
 #[rustfmt::skip]
-
-#[rustfmt::skip]
 const GOLDEN_RECORD_4: [u8; 96] = [
     b'S', b'W', b'G', b'P', // magic
     0x01, 0x00, 0x00, 0x00, // sequence 1
