@@ -325,6 +325,7 @@ struct Equations {
 
 /// Weighted normal equations of the fitted samples: Σ w·x·xᵀ (upper triangle while summing),
 /// Σ w·x·T, Σ w·T², and Σ w over how many samples.
+#[derive(Clone)]
 struct Normal {
     n: usize,
     gram: Vec<f64>,
@@ -407,6 +408,115 @@ where
     });
     let normal = per_run.into_iter().try_fold(Normal::new(n), |sum, run| run.map(|run| sum.merge(run)))?;
     Ok(normal.finish())
+}
+
+/// A stored subsample's fitted samples with the spring's columns fixed, for a search whose
+/// every point changes one column only (the genetic kind's r, the Bouc–Wen shape): the spring's
+/// rows, weighted, and the part of the normal equations without that column are made once, and
+/// each point steps the column along the samples and sums its products with them. The same
+/// equations, to the last bit, as [`normal_equations`] over the subsample with its carried
+/// weights.
+struct SearchRows {
+    /// The columns: the spring's, then the one searched.
+    n: usize,
+    runs: Vec<SearchRun>,
+}
+
+struct SearchRun {
+    /// Every sample's projection, in order: the searched column steps through them all.
+    at: Vec<Projected>,
+    /// The indices (in `at`) of the fitted samples, increasing.
+    fitted: Vec<usize>,
+    /// Per fitted sample, w·x_a for each spring column a.
+    weighted: Vec<f64>,
+    /// Per fitted sample, its weight and torque.
+    weight: Vec<f64>,
+    torque: Vec<f64>,
+    /// The normal equations' sums without the searched column (its entries 0).
+    fixed: Normal,
+}
+
+impl SearchRows {
+    /// The rows of `sub` for `columns` (the spring's and one own column, no extras).
+    fn new(sub: &Subsample, columns: &Columns) -> Result<SearchRows, FitError> {
+        if columns.own.len() != 1 || !columns.extra.is_empty() {
+            return Err(FitError::Degenerate);
+        }
+        let n = columns.len();
+        let springs = columns.spring.len();
+        let runs = sub
+            .runs
+            .par_iter()
+            .map(|samples| {
+                let fitted_count = samples.iter().filter(|s| s.role == Role::Fitted).count();
+                let mut run = SearchRun {
+                    at: Vec::with_capacity(samples.len()),
+                    fitted: Vec::with_capacity(fitted_count),
+                    weighted: Vec::with_capacity(fitted_count * springs),
+                    weight: Vec::with_capacity(fitted_count),
+                    torque: Vec::with_capacity(fitted_count),
+                    fixed: Normal::new(n),
+                };
+                let mut x = vec![0.0; n];
+                for (i, sample) in samples.iter().enumerate() {
+                    run.at.push(sample.at);
+                    if sample.role != Role::Fitted {
+                        continue;
+                    }
+                    let w = sample.weight;
+                    columns.row(sample, |own| own.fill(0.0), &mut x);
+                    run.fixed.add(&x, sample.torque, w);
+                    run.fitted.push(i);
+                    run.weighted.extend(x.iter().take(springs).map(|&value| w * value));
+                    run.weight.push(w);
+                    run.torque.push(sample.torque);
+                }
+                run
+            })
+            .collect();
+        Ok(SearchRows { n, runs })
+    }
+
+    /// The normal equations with the searched column that `column` gives: one column stepper per
+    /// run, called on every sample in order.
+    fn equations<C>(&self, column: impl Fn() -> Result<C, FitError> + Sync) -> Result<Equations, FitError>
+    where
+        C: FnMut(Projected) -> Result<f64, FitError>,
+    {
+        let n = self.n;
+        let own = n - 1;
+        let per_run: Vec<Result<Normal, FitError>> = self
+            .runs
+            .par_iter()
+            .map(|run| {
+                let mut step = column()?;
+                let mut cross = vec![0.0; own];
+                let (mut square, mut with_torque) = (0.0, 0.0);
+                let mut next =
+                    run.fitted.iter().copied().zip(run.weight.iter().zip(&run.torque)).enumerate().peekable();
+                for (i, &at) in run.at.iter().enumerate() {
+                    let h = step(at)?;
+                    let Some((k, (_, (&w, &torque)))) = next.next_if(|(_, (index, _))| *index == i) else { continue };
+                    let weighted = run.weighted.get(k * own..(k + 1) * own).ok_or(FitError::Degenerate)?;
+                    for (sum, wx) in cross.iter_mut().zip(weighted) {
+                        *sum += wx * h;
+                    }
+                    let wh = w * h;
+                    with_torque += wh * torque;
+                    square += wh * h;
+                }
+                let mut normal = run.fixed.clone();
+                for (a, sum) in cross.into_iter().enumerate() {
+                    normal.gram[a * n + own] = sum;
+                }
+                normal.gram[own * n + own] = square;
+                normal.rhs[own] = with_torque;
+                Ok(normal)
+            })
+            .collect();
+        let normal = per_run.into_iter().try_fold(Normal::new(n), |sum, run| run.map(|run| sum.merge(run)))?;
+        Ok(normal.finish())
+    }
 }
 
 /// A stateful model fitted to a motion, with its errors.
@@ -811,6 +921,15 @@ fn genetic_at(source: Source<'_>, weighting: Weighting<'_>, columns: &Columns, r
     columns.solve(&equations)
 }
 
+/// [`genetic_at`] on a subsample's search rows, with its carried weights.
+fn genetic_on(rows: &SearchRows, columns: &Columns, r: f64) -> Result<Solved, FitError> {
+    let equations = rows.equations(|| {
+        let mut hysteresis = unit_hysteresis(r)?;
+        Ok(move |at: Projected| Ok(step_offline(&mut hysteresis, at)?.torque))
+    })?;
+    columns.solve(&equations)
+}
+
 /// The genetic model (θ0 = 0) of a solve at r: canonical point ω = 1 at A = 1, α = k·(1 + r²),
 /// so h = k per rad of half-width.
 fn genetic_model(columns: &Columns, solved: &Solved, r: f64) -> Result<GearModel<f64>, FitError> {
@@ -837,9 +956,8 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
     let spring = motion.spring_basis();
     let columns = Columns { spring: &spring, own: vec![false], extra: &[], scale: motion.scale() };
     let s_limit = R_LIMIT.asinh();
-    let objective = |sub: &Subsample, s: f64| {
-        genetic_at(Source::Stored(sub), Weighting::Carried, &columns, s.sinh()).map_or(f64::INFINITY, |fit| fit.rss)
-    };
+    let objective =
+        |rows: &SearchRows, s: f64| genetic_on(rows, &columns, s.sinh()).map_or(f64::INFINITY, |fit| fit.rss);
     let start = options.start.as_ref().and_then(|model| model.identifiable(1.0)).map(|id| id.r.asinh());
     if let (Some(s), Some(start), true) = (start, &options.start, options.hold_start) {
         let weighed_by = GearModel { zero: 0.0, ..*start };
@@ -851,7 +969,7 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
         Some(s) => (s, START_HALF_WIDTH, 0),
         None => {
             // The swarm on a strided subsample: the same states at the samples it keeps.
-            let coarse = motion.subsample(SWARM_SAMPLES);
+            let coarse = SearchRows::new(&motion.subsample(SWARM_SAMPLES), &columns)?;
             let swarm = pso(
                 |x| objective(&coarse, x[0]),
                 &[(-s_limit, s_limit)],
@@ -874,12 +992,13 @@ pub fn fit_genetic(motion: &Motion, options: &FitOptions) -> Result<MotionFit, F
     for _ in 0..rounds {
         let previous = fitted.map(|(model, _)| model);
         polish.reweigh(motion.weighting(previous.as_ref()))?;
+        let rows = SearchRows::new(&polish, &columns)?;
         let (lo, hi) = ((s - half_width).max(-s_limit), (s + half_width).min(s_limit));
-        let (polished, _, used) = brent(|s| objective(&polish, s), lo, hi, POLISH_TOLERANCE);
+        let (polished, _, used) = brent(|s| objective(&rows, s), lo, hi, POLISH_TOLERANCE);
         evaluations += used;
         s = polished;
         half_width = 0.05;
-        let solved = genetic_at(Source::Stored(&polish), Weighting::Carried, &columns, s.sinh())?;
+        let solved = genetic_on(&rows, &columns, s.sinh())?;
         fitted = Some((genetic_model(&columns, &solved, s.sinh())?, solved.rss));
         weighed_by = previous;
     }
@@ -928,6 +1047,15 @@ fn bouc_wen_at(
     columns.solve(&equations)
 }
 
+/// [`bouc_wen_at`] on a subsample's search rows, with its carried weights.
+fn bouc_wen_on(rows: &SearchRows, columns: &Columns, shape: BoucWen<f64>) -> Result<Solved, FitError> {
+    let equations = rows.equations(|| {
+        let mut z = BoucWenMemory::new(BoucWenTerm { stiffness: 1.0, shape })?;
+        Ok(move |at: Projected| Ok(step_offline(&mut z, at)?.torque / columns.scale))
+    })?;
+    columns.solve(&equations)
+}
+
 /// The Bouc–Wen model (θ0 = 0) of a solve.
 fn bouc_wen_model(columns: &Columns, solved: &Solved, shape: BoucWen<f64>) -> Result<GearModel<f64>, FitError> {
     solved_model(columns, solved, |k| Hysteresis::BoucWen(BoucWenTerm { stiffness: k / columns.scale, shape }))
@@ -941,10 +1069,8 @@ pub fn fit_bouc_wen(motion: &Motion, options: &FitOptions) -> Result<MotionFit, 
     let spring = motion.spring_basis();
     let columns = Columns { spring: &spring, own: vec![true], extra: &[], scale: motion.scale() };
     let parameters = spring.len() + 4;
-    let objective = |sub: &Subsample, x: &[f64]| {
-        bouc_wen_shape(x)
-            .and_then(|shape| bouc_wen_at(Source::Stored(sub), Weighting::Carried, &columns, shape).ok())
-            .map_or(f64::INFINITY, |fit| fit.rss)
+    let objective = |rows: &SearchRows, x: &[f64]| {
+        bouc_wen_shape(x).and_then(|shape| bouc_wen_on(rows, &columns, shape).ok()).map_or(f64::INFINITY, |fit| fit.rss)
     };
     let start = options.start.as_ref().and_then(|model| match model.hysteresis {
         Hysteresis::BoucWen(term) => {
@@ -964,7 +1090,7 @@ pub fn fit_bouc_wen(motion: &Motion, options: &FitOptions) -> Result<MotionFit, 
     let (mut x, mut evaluations) = match start {
         Some(x) => (x, 0),
         None => {
-            let coarse = motion.subsample(SWARM_SAMPLES);
+            let coarse = SearchRows::new(&motion.subsample(SWARM_SAMPLES), &columns)?;
             let swarm = pso(
                 |x| objective(&coarse, x),
                 &bounds,
@@ -986,6 +1112,7 @@ pub fn fit_bouc_wen(motion: &Motion, options: &FitOptions) -> Result<MotionFit, 
     for _ in 0..rounds {
         let previous = fitted.map(|(model, _)| model);
         polish.reweigh(motion.weighting(previous.as_ref()))?;
+        let rows = SearchRows::new(&polish, &columns)?;
         for _ in 0..BOUC_WEN_PASSES {
             for (axis, &(lo, hi)) in bounds.iter().enumerate() {
                 let half_width = 0.1 * (hi - lo);
@@ -996,7 +1123,7 @@ pub fn fit_bouc_wen(motion: &Motion, options: &FitOptions) -> Result<MotionFit, 
                         if let Some(slot) = trial.get_mut(axis) {
                             *slot = value;
                         }
-                        objective(&polish, &trial)
+                        objective(&rows, &trial)
                     },
                     (centre - half_width).max(lo),
                     (centre + half_width).min(hi),
@@ -1009,7 +1136,7 @@ pub fn fit_bouc_wen(motion: &Motion, options: &FitOptions) -> Result<MotionFit, 
             }
         }
         let shape = bouc_wen_shape(&x).ok_or(FitError::Degenerate)?;
-        let solved = bouc_wen_at(Source::Stored(&polish), Weighting::Carried, &columns, shape)?;
+        let solved = bouc_wen_on(&rows, &columns, shape)?;
         fitted = Some((bouc_wen_model(&columns, &solved, shape)?, solved.rss));
         weighed_by = previous;
     }
