@@ -343,11 +343,13 @@ impl Normal {
     #[inline]
     fn add(&mut self, x: &[f64], torque: f64, w: f64) {
         let n = self.n;
-        for a in 0..n {
+        // Row a of the upper triangle as slices, so that the products are summed in vector
+        // registers (the same sums, element by element).
+        for (a, (rhs, row)) in self.rhs.iter_mut().zip(self.gram.chunks_exact_mut(n)).enumerate() {
             let wa = w * x[a];
-            self.rhs[a] += wa * torque;
-            for b in a..n {
-                self.gram[a * n + b] += wa * x[b];
+            *rhs += wa * torque;
+            for (g, &xb) in row[a..].iter_mut().zip(&x[a..n]) {
+                *g += wa * xb;
             }
         }
         self.tt += w * torque * torque;
