@@ -1620,9 +1620,38 @@ impl Cells {
     /// The grid over the fitted x's larger side and the groups whose column moves on a fitted
     /// sample of `motion`.
     fn moving(motion: &Motion) -> Result<Cells, FitError> {
+        let covering = Cells::covering(motion)?;
+        let grid = PreisachCells::new(covering.reach)?;
+        let per_run = Source::Full(motion).map_runs(|_, samples| -> Result<[bool; preisach::CELLS], FitError> {
+            let mut cells = CellMemory::<f64, TURNING_POINTS>::new(grid, 0.0);
+            let mut moved = [false; preisach::CELLS];
+            for sample in samples {
+                let columns = cells.columns(sample.at.theta_m)?;
+                if sample.role == Role::Fitted {
+                    for (m, value) in moved.iter_mut().zip(&columns.value) {
+                        *m |= *value != 0.0;
+                    }
+                }
+            }
+            Ok(moved)
+        });
+        let mut moved = [false; preisach::CELLS];
+        for run in per_run {
+            moved.iter_mut().zip(run?).for_each(|(m, r)| *m |= r);
+        }
+        Ok(covering.moved(&moved))
+    }
+
+    /// These groups less those whose cells never moved (`moved`, by cell).
+    fn moved(mut self, moved: &[bool; preisach::CELLS]) -> Cells {
+        self.groups.retain(|group| group.iter().any(|&c| moved[c]));
+        self
+    }
+
+    /// The grid over the fitted x's larger side and every group of its cells.
+    fn covering(motion: &Motion) -> Result<Cells, FitError> {
         let [lo, hi] = motion.fitted_range();
         let reach = hi.max(-lo);
-        let grid = PreisachCells::new(reach)?;
         let n = preisach::INTERVALS;
         let h = 2.0 * reach / n as f64;
         // A cell is covered when the data span both its threshold intervals (to rounding).
@@ -1666,24 +1695,6 @@ impl Cells {
                 }
             }
         }
-        let per_run = Source::Full(motion).map_runs(|_, samples| -> Result<[bool; preisach::CELLS], FitError> {
-            let mut cells = CellMemory::<f64, TURNING_POINTS>::new(grid, 0.0);
-            let mut moved = [false; preisach::CELLS];
-            for sample in samples {
-                let columns = cells.columns(sample.at.theta_m)?;
-                if sample.role == Role::Fitted {
-                    for (m, value) in moved.iter_mut().zip(&columns.value) {
-                        *m |= *value != 0.0;
-                    }
-                }
-            }
-            Ok(moved)
-        });
-        let mut moved = [false; preisach::CELLS];
-        for run in per_run {
-            moved.iter_mut().zip(run?).for_each(|(m, r)| *m |= r);
-        }
-        groups.retain(|group| group.iter().any(|&c| moved[c]));
         Ok(Cells { reach, groups })
     }
 
@@ -1709,11 +1720,35 @@ fn preisach_solve(
     columns: &Columns,
     cells: &Cells,
 ) -> Result<Solved, FitError> {
+    let (mut equations, _) = preisach_equations(source, weighting, columns, cells)?;
+    smooth_density(&mut equations, columns, cells);
+    columns.solve(&equations)
+}
+
+/// The normal equations of [`preisach_solve`] without the smoothness, and which cells moved on a
+/// fitted sample.
+fn preisach_equations(
+    source: Source<'_>,
+    weighting: Weighting<'_>,
+    columns: &Columns,
+    cells: &Cells,
+) -> Result<(Equations, [bool; preisach::CELLS]), FitError> {
     let grid = PreisachCells::new(cells.reach)?;
+    let moved: [std::sync::atomic::AtomicBool; preisach::CELLS] = std::array::from_fn(|_| Default::default());
     let equations = normal_equations(source, columns.len(), weighting, |_| {
         let mut memory = CellMemory::<f64, TURNING_POINTS>::new(grid, 0.0);
+        let mut seen = [false; preisach::CELLS];
+        let moved = &moved;
         Ok(move |sample: &Sample, x: &mut [f64]| {
             let all = memory.columns(sample.at.theta_m)?;
+            if sample.role == Role::Fitted {
+                for ((seen, moved), value) in seen.iter_mut().zip(moved).zip(&all.value) {
+                    if !*seen && *value != 0.0 {
+                        *seen = true;
+                        moved.store(true, std::sync::atomic::Ordering::Relaxed);
+                    }
+                }
+            }
             columns.row(
                 sample,
                 |own| {
@@ -1726,9 +1761,7 @@ fn preisach_solve(
             Ok(())
         })
     })?;
-    let mut equations = equations;
-    smooth_density(&mut equations, columns, cells);
-    columns.solve(&equations)
+    Ok((equations, moved.map(|m| m.into_inner())))
 }
 
 /// The smoothness asked of the Preisach density, relative to its columns' mean Gram diagonal:
@@ -1796,19 +1829,41 @@ fn preisach_model(columns: &Columns, cells: &Cells, solved: &Solved) -> Result<G
 pub fn fit_preisach(motion: &Motion, options: &FitOptions) -> Result<MotionFit, FitError> {
     motion.check()?;
     let spring = motion.spring_basis();
-    let cells = Cells::moving(motion)?;
-    let columns = Columns { spring: &spring, own: vec![true; cells.groups.len()], extra: &[], scale: motion.scale() };
+    let scale = motion.scale();
     // The knots' stiffnesses and the weights a solve left above 0.
     let parameters = |model: &GearModel<f64>| match &model.hysteresis {
         Hysteresis::Preisach(density) => spring.len() + density.weights.iter().filter(|w| **w > 0.0).count(),
         _ => spring.len(),
     };
     if let (Some(start), true) = (&options.start, options.hold_start) {
+        // One pass: the equations of every group of cells, and which cells moved; those of the
+        // groups that never moved are then left out (their sums are the ones a pass without
+        // them makes).
         let weighed_by = GearModel { zero: 0.0, ..*start };
-        let solved = preisach_solve(Source::Full(motion), motion.held_weighting(&weighed_by), &columns, &cells)?;
+        let covering = Cells::covering(motion)?;
+        let all = Columns { spring: &spring, own: vec![true; covering.groups.len()], extra: &[], scale };
+        let (equations, moved) =
+            preisach_equations(Source::Full(motion), motion.held_weighting(&weighed_by), &all, &covering)?;
+        let keep: Vec<usize> = (0..spring.len())
+            .chain(
+                covering
+                    .groups
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, g)| g.iter().any(|&c| moved[c]))
+                    .map(|(k, _)| spring.len() + k),
+            )
+            .collect();
+        let cells = covering.moved(&moved);
+        let columns = Columns { spring: &spring, own: vec![true; cells.groups.len()], extra: &[], scale };
+        let mut equations = equations.selected(&keep);
+        smooth_density(&mut equations, &columns, &cells);
+        let solved = columns.solve(&equations)?;
         let model = preisach_model(&columns, &cells, &solved)?;
         return motion.score(model, parameters(&model), 1, solved.rss);
     }
+    let cells = Cells::moving(motion)?;
+    let columns = Columns { spring: &spring, own: vec![true; cells.groups.len()], extra: &[], scale };
     let rounds = if motion.noise.is_some() { 1 + REWEIGHTINGS } else { 1 };
     let mut sub = motion.subsample(POLISH_SAMPLES);
     let mut fitted: Option<(GearModel<f64>, f64)> = None;
@@ -1961,6 +2016,13 @@ fn placed_knots(motion: &Motion, sub: &Subsample, rule: SpringBasis) -> Result<S
 }
 
 impl Equations {
+    /// These equations on the columns `keep` (indices, increasing) alone.
+    fn selected(&self, keep: &[usize]) -> Equations {
+        let n = self.rhs.len();
+        let gram = keep.iter().flat_map(|&a| keep.iter().map(move |&b| self.gram[a * n + b])).collect();
+        Equations { gram, rhs: keep.iter().map(|&a| self.rhs[a]).collect(), tt: self.tt }
+    }
+
     /// These equations, on columns whose first `fine.len()` are a spring's on the knots `fine`,
     /// mapped onto the spring on `knots` (each a point of `fine`): column c of the new spring is
     /// Σ_f h_c(fine_f)·column f; the columns after the spring's (of `n` in all) are kept.
