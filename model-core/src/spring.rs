@@ -372,6 +372,24 @@ pub fn basis<F: Real>(knots: &[F], x: F, torque: &mut [F], stiffness: &mut [F]) 
     }
 }
 
+/// Each knot's ∫ from knot 0 to x = 0 of h_j into `at_zero` (its first `knots.len()` entries):
+/// what [`basis_from`] subtracts, the same at every x.
+pub fn basis_origin<F: Real>(knots: &[F], at_zero: &mut [F]) {
+    for (j, origin) in at_zero.iter_mut().enumerate().take(knots.len()) {
+        *origin = hat_integral(knots, j, F::zero());
+    }
+}
+
+/// [`basis`] with the integrals to x = 0 of [`basis_origin`] given: the same columns, for a fit
+/// that evaluates them at every sample.
+pub fn basis_from<F: Real>(knots: &[F], at_zero: &[F], x: F, torque: &mut [F], stiffness: &mut [F]) {
+    let columns = torque.iter_mut().zip(stiffness.iter_mut()).zip(at_zero);
+    for (j, ((t, k), &origin)) in columns.enumerate().take(knots.len()) {
+        *t = hat_integral(knots, j, x) - origin;
+        *k = hat(knots, j, x);
+    }
+}
+
 /// h_j(x).
 fn hat<F: Real>(knots: &[F], j: usize, x: F) -> F {
     let here = knots.get(j).copied().unwrap_or_else(F::zero);

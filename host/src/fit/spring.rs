@@ -104,6 +104,8 @@ struct Mirrored {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpringBasis {
     knots: Vec<f64>,
+    /// Each knot's column integral to x = 0 ([`model_core::spring::basis_origin`]).
+    at_zero: Vec<f64>,
     range: [f64; 2],
     mirrored: Option<Mirrored>,
 }
@@ -128,12 +130,18 @@ impl SpringBasis {
             Some(_) => [KNOTS_PER_SIDE - 1, KNOTS_PER_SIDE],
             None => [KNOTS_PER_SIDE; 2],
         };
-        SpringBasis { knots: knots_within(lo, hi, noise, most), range: [lo, hi], mirrored }
+        SpringBasis::of(knots_within(lo, hi, noise, most), [lo, hi], mirrored)
+    }
+
+    fn of(knots: Vec<f64>, range: [f64; 2], mirrored: Option<Mirrored>) -> Self {
+        let mut at_zero = vec![0.0; knots.len()];
+        model_core::spring::basis_origin(&knots, &mut at_zero);
+        SpringBasis { knots, at_zero, range, mirrored }
     }
 
     /// The same range with other knots (increasing, holding x = 0 and the range's edges).
     pub fn with_knots(&self, knots: Vec<f64>) -> Self {
-        SpringBasis { knots, ..self.clone() }
+        SpringBasis::of(knots, self.range, self.mirrored)
     }
 
     /// The fitted range, [lo, hi] of x: the samples' (the spring's own may reach further, see
@@ -170,14 +178,14 @@ impl SpringBasis {
         if self.knots.len() > MAX_KNOTS {
             // The fine grid knots are placed on (`fit::motion::placed_knots`), not a model's.
             let (mut torque, mut stiffness) = (vec![0.0; self.knots.len()], vec![0.0; self.knots.len()]);
-            model_core::spring::basis(&self.knots, at.theta_m, &mut torque, &mut stiffness);
+            model_core::spring::basis_from(&self.knots, &self.at_zero, at.theta_m, &mut torque, &mut stiffness);
             for ((value, b), h) in out.iter_mut().zip(torque).zip(stiffness) {
                 *value = (b + h * at.offset) / scale;
             }
             return;
         }
         let (mut torque, mut stiffness) = ([0.0; MAX_KNOTS], [0.0; MAX_KNOTS]);
-        model_core::spring::basis(&self.knots, at.theta_m, &mut torque, &mut stiffness);
+        model_core::spring::basis_from(&self.knots, &self.at_zero, at.theta_m, &mut torque, &mut stiffness);
         for ((value, b), h) in out.iter_mut().zip(torque).zip(stiffness) {
             *value = (b + h * at.offset) / scale;
         }

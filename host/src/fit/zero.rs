@@ -16,7 +16,7 @@
 //!   significantly better. The uncertainty spans the θ0s whose misfit is within 10 % of the
 //!   best: on a one-cycle run fitted after its extremes (one branch) the profile is flat over
 //!   milliradians of θ0 on one side, and the report says so.
-use super::motion::{fit_kind, Motion, MotionFit};
+use super::motion::{fit_kind, Motion, MotionFit, BOUC_WEN_TRAVEL};
 use super::{FitError, FitOptions};
 pub use crate::prepare::{OriginSource, RunOrigin};
 use model_core::{GearModel, Kind};
@@ -86,7 +86,12 @@ pub fn fit_with_zero(
         let fit = fit_kind(kind, &placed(motion, origins, 0.0), options)?;
         return Ok((fit, resolved(0.0, None)));
     }
-    let strided = motion.strided(SEARCH_SAMPLES);
+    let strided = match kind {
+        // Its candidates' cost is the path they step along, not the samples: windows of a long
+        // motion (`motion::BOUC_WEN_TRAVEL`).
+        Kind::BoucWen => motion.windowed(SEARCH_SAMPLES, BOUC_WEN_TRAVEL).or_else(|| motion.strided(SEARCH_SAMPLES)),
+        _ => motion.strided(SEARCH_SAMPLES),
+    };
     let search = strided.as_ref().map(|strided| strided.motion(motion));
     let search = search.as_ref().unwrap_or(motion);
     let [lo, hi] = deflection_range(motion, origins);
