@@ -16,6 +16,7 @@
 # Exits non-zero on the first failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source scripts/cargo-retry.sh
 
 source scripts/thumb-toolchain.sh
 thumb_firmware_setup
@@ -28,20 +29,12 @@ echo "== firmware library (firmware/joint) on the host"
 
 # One board per cargo invocation, for clippy as for the builds below: each board's build sees
 # its own features only (see firmware/Cargo.toml).
-# Clippy in a target directory of its own: a clippy run replaces the compiler queries cargo keeps
-# in target/.rustc_info.json (keyed by the compiler and its wrapper), and a fresh query after it
-# read garbage on its stdin on our sandboxed test machines (3 of 3 clean runs, 2026-11-28:
-# "failed to run `rustc` to learn about target-specific information"), a failure cargo then
-# caches. Kept apart, the builds below reuse the queries of the library's tests above.
 if [ "$THUMB_ROUTE" = rustup ]; then
     echo "== clippy over the firmware workspace (-D warnings)"
     cargo clippy --version >/dev/null 2>&1 || rustup component add clippy
-    clippy_dir=target/clippy
-    (cd firmware && CARGO_TARGET_DIR=$clippy_dir cargo clippy --locked -p swg-joint --all-targets \
-        --target "$host_triple" -- -D warnings)
+    (cd firmware && cargo clippy --locked -p swg-joint --all-targets --target "$host_triple" -- -D warnings)
     for board in swg-firmware-qemu swg-firmware-stm32f405; do
-        (cd firmware && CARGO_TARGET_DIR=$clippy_dir cargo clippy --locked -p "$board" --all-targets \
-            --target "$THUMB_TARGET" -- -D warnings)
+        (cd firmware && cargo clippy --locked -p "$board" --all-targets --target "$THUMB_TARGET" -- -D warnings)
     done
 else
     # The fallback of scripts/thumb-toolchain.sh: Debian's Rust, set up without clippy.
