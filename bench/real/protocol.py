@@ -289,6 +289,28 @@ def section_zero(paths, data, tmp, single):
     return table(head, rows) + "\n\n" + note, missed
 
 
+def section_folds(paths, tmp):
+    """5. Each fitted run held out in turn: the other two fitted, the held-out one predicted."""
+    jobs = [(kind, held) for kind in KINDS for held in FITTED]
+
+    def held_out_rms(job):
+        kind, held = job
+        out = os.path.join(tmp, f"fold-{kind}-{held}.json")
+        try:
+            fit([paths[r] for r in FITTED if r != held], kind, out)
+        except subprocess.TimeoutExpired:
+            return None
+        return predict(out, paths[held])["rms"]
+
+    rms = dict(zip(jobs, pool_map(held_out_rms, jobs)))
+    rows = []
+    for kind in KINDS:
+        figures = [rms[(kind, held)] for held in FITTED]
+        pooled = None if None in figures else math.sqrt(sum(x * x for x in figures) / len(figures))
+        rows.append([kind, *(f3(x) for x in figures), f3(pooled)])
+    return table(["kind", *(f"{r} held out" for r in FITTED), "root mean square of the three"], rows)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--write-readme", action="store_true")
@@ -317,6 +339,7 @@ def main():
         repeat = section_repeat(paths, single, joint_results)
         blowup, worse, cases = section_blowup(paths, data, single)
         zero, zero_missed = section_zero(paths, data, tmp, single)
+        folds = section_folds(paths, tmp)
     seconds = time.monotonic() - started
     report = "\n\n".join([
         "**1. One fit on " + ", ".join(FITTED) + " together, every other run predicted** (RMS N·m; "
@@ -332,6 +355,10 @@ def main():
         "`swg-host` finds no rest window; against the mean deflection of the first 4 s; goal ≤ 2 % of the "
         "run's deflection range)",
         zero,
+        "**5. Which held-out run ranks the kinds** (" + ", ".join(FITTED) + ": each held out in turn, the "
+        "other two fitted with the kind named, RMS N·m on the held-out run; `auto` holds out the middle "
+        "amplitude, " + FITTED[1] + ", alone)",
+        folds,
         "**Goals missed**: "
         + (f"1. {len(joint_missed)} of {len(GOAL)} runs: " + "; ".join(joint_missed) if joint_missed else "1. none")
         + (f". 3. {len(worse)} of {cases * len(KINDS)}: " + "; ".join(worse) if worse else ". 3. none")

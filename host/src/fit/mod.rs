@@ -180,7 +180,8 @@ pub struct RunOutcome {
 /// prototype's figure on 5 and 8 of the 12 other runs, micro-slip on none: one held-out run
 /// does not rank them as the other runs do (the Preisach grid, 8 intervals over the 5 A range,
 /// is coarse at 1–2 A, and its relays end at the fitted range, which the later 5 A runs leave
-/// by their remanence).
+/// by their remanence). Each of the three runs held out in turn (`bench/real.sh`, table 5)
+/// ranks them as the other runs do: micro-slip 0.91, Bouc–Wen 1.26, Preisach 3.38 N·m.
 pub const AUTO_KINDS: [Kind; 2] = [Kind::Genetic, Kind::MicroSlip];
 
 /// What the fit of recordings found: the chosen model and every candidate tried.
