@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Benchmark (figures, not a test): prediction of motions a model was not fitted on, for gears
-# of four truth physics (genetic, micro-slip, Bouc–Wen, catalogue), against the floor of the truth physics on the same measured angles.
+# of five truth physics (genetic, micro-slip, Bouc–Wen, catalogue, Preisach), against the floor of
+# the truth physics on the same measured angles.
 # Prints the table, keeps it in bench/out/prediction.md, and redraws docs/prediction-*.svg.
 set -euo pipefail
 cd "$(dirname "$0")/.."
