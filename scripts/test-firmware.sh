@@ -16,7 +16,6 @@
 # Exits non-zero on the first failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-source scripts/cargo-retry.sh
 
 source scripts/thumb-toolchain.sh
 thumb_firmware_setup

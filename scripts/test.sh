@@ -10,7 +10,6 @@ if ! command -v cargo >/dev/null; then
     echo "cargo not found: install Rust (https://rustup.rs) first" >&2
     exit 1
 fi
-source scripts/cargo-retry.sh
 
 echo "== host workspace: cargo test"
 cargo test --workspace --locked --release
