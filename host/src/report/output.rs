@@ -1,7 +1,9 @@
 //! Writing result files: every output of a command at the end, or none. [`Outputs`] stages each
 //! file as a temporary beside its destination and renames them all only when the command has
 //! rendered and checked everything; on any failure (or when dropped uncommitted) the temporaries
-//! are removed and no destination is touched. An output that names an input is refused.
+//! are removed and no destination is touched. An output that names an input is refused. A
+//! destination that is not a regular file (`/dev/null`, `/dev/stdout`, a named pipe) is written
+//! into at the commit instead: a rename would put a file in the device's place.
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -17,6 +19,8 @@ pub enum OutputError {
     Write { path: PathBuf, source: std::io::Error },
     #[error("writing {path}: the directory {dir} does not exist", path = .path.display(), dir = .dir.display())]
     NoDirectory { path: PathBuf, dir: PathBuf },
+    #[error("{path}: that is a directory; name a file in it", path = .path.display())]
+    IsDirectory { path: PathBuf },
 }
 
 impl OutputError {
@@ -57,10 +61,20 @@ fn directory_of(path: &Path) -> &Path {
     path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."))
 }
 
-/// A staged output: its destination and the temporary file holding its contents.
-struct Staged {
-    path: PathBuf,
-    tmp: tempfile::NamedTempFile,
+/// A staged output.
+enum Staged {
+    /// A regular file, or one not there yet: the temporary beside it holding its contents.
+    File { path: PathBuf, tmp: tempfile::NamedTempFile },
+    /// A device or a pipe: the contents, written into it at the commit.
+    Stream { path: PathBuf, contents: Vec<u8> },
+}
+
+impl Staged {
+    fn path(&self) -> &Path {
+        match self {
+            Staged::File { path, .. } | Staged::Stream { path, .. } => path,
+        }
+    }
 }
 
 /// The outputs of one command, written all at the end or not at all.
@@ -110,7 +124,7 @@ impl Outputs {
         if self.inputs.iter().any(|input| same_file(input, output)) {
             return Err(OutputError::IsInput { path: output.to_owned() });
         }
-        if self.staged.iter().any(|staged| same_file(&staged.path, output)) {
+        if self.staged.iter().any(|staged| same_file(staged.path(), output)) {
             return Err(OutputError::Twice { path: output.to_owned() });
         }
         Ok(())
@@ -135,6 +149,15 @@ impl Outputs {
     /// itself is replaced only by [`Outputs::commit`].
     pub fn stage(&mut self, path: &Path, contents: &[u8]) -> Result<(), OutputError> {
         self.check(path)?;
+        if let Ok(metadata) = std::fs::metadata(path) {
+            if metadata.is_dir() {
+                return Err(OutputError::IsDirectory { path: path.to_owned() });
+            }
+            if !metadata.is_file() {
+                self.staged.push(Staged::Stream { path: path.to_owned(), contents: contents.to_vec() });
+                return Ok(());
+            }
+        }
         let dir = directory_of(path);
         if !dir.is_dir() {
             return Err(OutputError::NoDirectory { path: path.to_owned(), dir: dir.to_owned() });
@@ -153,16 +176,25 @@ impl Outputs {
         let mut tmp = tmp.map_err(|e| OutputError::write(path, e))?;
         tmp.write_all(contents).map_err(|e| OutputError::write(path, e))?;
         tmp.as_file().sync_all().map_err(|e| OutputError::write(path, e))?;
-        self.staged.push(Staged { path: path.to_owned(), tmp });
+        self.staged.push(Staged::File { path: path.to_owned(), tmp });
         Ok(())
     }
 
-    /// Renames every staged file over its destination, in the order staged. A rename within
-    /// one directory does not fail once the temporary is written; should one fail anyway,
-    /// the temporaries not yet renamed are removed.
+    /// Renames every staged file over its destination, and writes into every device or pipe,
+    /// in the order staged. A rename within one directory does not fail once the temporary is
+    /// written; should one fail anyway, the temporaries not yet renamed are removed.
     pub fn commit(mut self) -> Result<(), OutputError> {
-        for Staged { path, tmp } in std::mem::take(&mut self.staged) {
-            tmp.persist(&path).map_err(|e| OutputError::write(&path, e.error))?;
+        for staged in std::mem::take(&mut self.staged) {
+            match staged {
+                Staged::File { path, tmp } => {
+                    tmp.persist(&path).map_err(|e| OutputError::write(&path, e.error))?;
+                }
+                Staged::Stream { path, contents } => std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(&path)
+                    .and_then(|mut stream| stream.write_all(&contents))
+                    .map_err(|e| OutputError::write(&path, e))?,
+            }
         }
         self.committed = true;
         Ok(())
@@ -231,6 +263,40 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&a).unwrap(), "new");
         assert_eq!(std::fs::read_to_string(&b).unwrap(), "<svg/>");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    /// A rename over `/dev/null` as root puts a file in its place, which every later
+    /// `> /dev/null` then fills; a named pipe stands in for the device here.
+    #[cfg(unix)]
+    #[test]
+    fn a_device_or_pipe_is_written_into_not_replaced() {
+        use std::io::Read;
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let pipe = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&pipe).status().unwrap();
+        assert!(made.success(), "mkfifo");
+        let reader = {
+            let pipe = pipe.clone();
+            std::thread::spawn(move || {
+                let mut read = String::new();
+                std::fs::File::open(pipe).unwrap().read_to_string(&mut read).unwrap();
+                read
+            })
+        };
+        let mut outputs = Outputs::new([]);
+        outputs.stage(&pipe, b"through the pipe").unwrap();
+        outputs.commit().unwrap();
+        assert!(std::fs::metadata(&pipe).unwrap().file_type().is_fifo(), "still a pipe");
+        assert_eq!(reader.join().unwrap(), "through the pipe");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "no temporary file left behind");
+    }
+
+    #[test]
+    fn a_directory_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut outputs = Outputs::new([]);
+        assert!(matches!(outputs.stage(dir.path(), b"x"), Err(OutputError::IsDirectory { .. })));
     }
 
     #[test]
