@@ -136,6 +136,21 @@ fn index<F: Real>(k: usize) -> F {
     F::from(k).unwrap_or(F::zero())
 }
 
+/// x in node coordinates, u = (x + R)/h with 1/h = `inv_h`, clamped to [0, INTERVALS], and
+/// du/dx there (0 beyond the grid, where no relay is left to switch).
+#[inline(always)]
+fn coordinate<F: Real>(x: F, reach: F, inv_h: F) -> (F, F) {
+    let u = (x + reach) * inv_h;
+    let top = index::<F>(INTERVALS);
+    if u >= top {
+        (top, F::zero())
+    } else if u <= F::zero() {
+        (F::zero(), F::zero())
+    } else {
+        (u, inv_h)
+    }
+}
+
 /// Whether node coordinate `t` lies in interval k, [k, k + 1): where a cell's share moves.
 fn within<F: Real>(t: F, k: usize) -> bool {
     let low = index::<F>(k);
@@ -303,19 +318,9 @@ impl<F: Real> PreparedPreisach<F> {
         self.at(INTERVALS, 0)
     }
 
-    /// x in node coordinates, u = (x + R)/h, clamped to [0, INTERVALS], and du/dx there (0
-    /// beyond the grid, where no relay is left to switch).
     #[inline(always)]
     fn coordinate(&self, x: F) -> (F, F) {
-        let u = (x + self.reach) * self.inv_h;
-        let top = index::<F>(INTERVALS);
-        if u >= top {
-            (top, F::zero())
-        } else if u <= F::zero() {
-            (F::zero(), F::zero())
-        } else {
-            (u, self.inv_h)
-        }
+        coordinate(x, self.reach, self.inv_h)
     }
 
     /// The interval of node coordinate t ∈ [0, INTERVALS] (the last for t = INTERVALS) and t's
@@ -523,17 +528,8 @@ impl<F: Real> PreisachCells<F> {
         Ok(PreisachCells { reach, inv_h: index::<F>(INTERVALS) / (reach + reach) })
     }
 
-    /// As [`PreparedPreisach::coordinate`].
     fn coordinate(&self, x: F) -> (F, F) {
-        let u = (x + self.reach) * self.inv_h;
-        let top = index::<F>(INTERVALS);
-        if u >= top {
-            (top, F::zero())
-        } else if u <= F::zero() {
-            (F::zero(), F::zero())
-        } else {
-            (u, self.inv_h)
-        }
+        coordinate(x, self.reach, self.inv_h)
     }
 }
 

@@ -743,11 +743,7 @@ impl<'a> Motion<'a> {
                     if role == Role::Unscored {
                         continue;
                     }
-                    let held_out = role == Role::HeldOut;
-                    match strided.spans.last_mut() {
-                        Some(span) if span.range.end == at && span.held_out == held_out => span.range.end = at + 1,
-                        _ => strided.spans.push(Span { range: at..at + 1, held_out }),
-                    }
+                    strided.score(at, role == Role::HeldOut);
                 }
                 strided
             })
@@ -888,11 +884,7 @@ impl<'a> Motion<'a> {
                         if role == Role::Unscored {
                             continue;
                         }
-                        let held_out = role == Role::HeldOut;
-                        match copy.spans.last_mut() {
-                            Some(span) if span.range.end == at && span.held_out == held_out => span.range.end = at + 1,
-                            _ => copy.spans.push(Span { range: at..at + 1, held_out }),
-                        }
+                        copy.score(at, role == Role::HeldOut);
                     }
                 }
                 copy
@@ -960,6 +952,17 @@ struct StridedRun {
     torque: Vec<f64>,
     reversals: Reversals,
     spans: Vec<Span>,
+}
+
+impl StridedRun {
+    /// Scores sample `at`, the next one of the copy: it joins the last span when that ends
+    /// there and is held out alike.
+    fn score(&mut self, at: usize, held_out: bool) {
+        match self.spans.last_mut() {
+            Some(span) if span.range.end == at && span.held_out == held_out => span.range.end = at + 1,
+            _ => self.spans.push(Span { range: at..at + 1, held_out }),
+        }
+    }
 }
 
 impl StridedRuns {
