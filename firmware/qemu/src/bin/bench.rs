@@ -444,10 +444,11 @@ fn main() -> ! {
         }
     }
     hprintln!(
-        "budgets (firmware/joint/src/budget.rs): evaluator {} (genetic) / {} (micro-slip) / {} (bouc-wen), controller + evaluator {}: {} of {} instruction figures over",
+        "budgets (firmware/joint/src/budget.rs): evaluator {} (genetic) / {} (micro-slip) / {} (bouc-wen) / {} (preisach), controller + evaluator {}: {} of {} instruction figures over",
         genetic_budget,
         budget::evaluator_tick_instructions(&slip.model),
         budget::evaluator_tick_instructions(&bouc_wen(1.0).model),
+        budget::evaluator_tick_instructions(&preisach.model),
         CONTROL_TICK_INSTRUCTIONS,
         budgets.over,
         budgets.checked
