@@ -737,13 +737,7 @@ impl<'a> Motion<'a> {
                     if turning {
                         strided.reversals.indices.push(at);
                     }
-                    strided.theta.push(theta);
-                    strided.torque.push(torque);
-                    let role = if on_grid { role } else { Role::Unscored };
-                    if role == Role::Unscored {
-                        continue;
-                    }
-                    strided.score(at, role == Role::HeldOut);
+                    strided.push(theta, torque, if on_grid { role } else { Role::Unscored });
                 }
                 strided
             })
@@ -877,14 +871,9 @@ impl<'a> Motion<'a> {
                         } else if turning || index == start {
                             copy.reversals.indices.push(at);
                         }
-                        copy.theta.push(run.theta[index]);
-                        copy.torque.push(run.torque[index]);
                         let role = roles.get(index).copied().unwrap_or(Role::Unscored);
                         let role = if on_grid && index >= scored_from { role } else { Role::Unscored };
-                        if role == Role::Unscored {
-                            continue;
-                        }
-                        copy.score(at, role == Role::HeldOut);
+                        copy.push(run.theta[index], run.torque[index], role);
                     }
                 }
                 copy
@@ -955,9 +944,16 @@ struct StridedRun {
 }
 
 impl StridedRun {
-    /// Scores sample `at`, the next one of the copy: it joins the last span when that ends
-    /// there and is held out alike.
-    fn score(&mut self, at: usize, held_out: bool) {
+    /// Appends a sample in `role`: a scored one joins the last span when that ends there and is
+    /// held out alike.
+    fn push(&mut self, theta: f64, torque: f64, role: Role) {
+        let at = self.theta.len();
+        self.theta.push(theta);
+        self.torque.push(torque);
+        if role == Role::Unscored {
+            return;
+        }
+        let held_out = role == Role::HeldOut;
         match self.spans.last_mut() {
             Some(span) if span.range.end == at && span.held_out == held_out => span.range.end = at + 1,
             _ => self.spans.push(Span { range: at..at + 1, held_out }),
