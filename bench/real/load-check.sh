@@ -8,7 +8,7 @@ host=./target/release/swg-host
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 
-echo '| run | rows | samples fitted | chosen | held-out RMS (N·m): genetic / micro-slip | fit s |'
+echo '| run | rows | samples fitted | chosen | held-out RMS (N·m): genetic / micro-slip / bouc-wen / preisach | fit s |'
 echo '|---|---|---|---|---|---|'
 for csv in data/real/sea-spring-2/*.csv; do
     name=$(basename "$csv" .csv)
@@ -24,7 +24,8 @@ import json, sys
 path, name, rows, seconds = sys.argv[1:]
 d = json.load(open(path))
 held = {c['model']: c['held_out_rms'] for c in d['candidates']}
-print(f"| {name} | {rows} | {d['n']} | {d['model']} | {held.get('genetic-hysteresis', float('nan')):.3f} / "
-      f"{held.get('micro-slip', float('nan')):.3f} | {float(seconds):.2f} |")
+kinds = ('genetic-hysteresis', 'micro-slip', 'bouc-wen', 'preisach')
+figures = ' / '.join(f"{held.get(k, float('nan')):.3f}" for k in kinds)
+print(f"| {name} | {rows} | {d['n']} | {d['model']} | {figures} | {float(seconds):.2f} |")
 EOF
 done

@@ -356,8 +356,8 @@ def main():
         "run's deflection range)",
         zero,
         "**5. Which held-out run ranks the kinds** (" + ", ".join(FITTED) + ": each held out in turn, the "
-        "other two fitted with the kind named, RMS N·m on the held-out run; `auto` holds out the middle "
-        "amplitude, " + FITTED[1] + ", alone)",
+        "other two fitted with the kind named, RMS N·m on the held-out run; `auto` holds out "
+        + FITTED[0] + " and " + FITTED[1] + " whole and the middle leg of " + FITTED[2] + ", the largest)",
         folds,
         "**Goals missed**: "
         + (f"1. {len(joint_missed)} of {len(GOAL)} runs: " + "; ".join(joint_missed) if joint_missed else "1. none")

@@ -116,8 +116,8 @@ fn held_out_cycles_are_spread_over_a_drifting_recording() {
 }
 
 /// Several runs of one gear, at several amplitudes, each from rest: one parameter set, each run
-/// evaluated from its own start; the run held out is neither the largest nor the smallest, and
-/// the written parameters are refitted on every run.
+/// evaluated from its own start; each run is held out once (the largest by its cycles), and the
+/// written parameters are refitted on every run.
 #[test]
 fn several_runs_share_one_parameter_set_each_from_its_own_start() {
     let amplitudes = [0.4e-3, 1.2e-3, 0.8e-3, 0.6e-3];
@@ -138,13 +138,20 @@ fn several_runs_share_one_parameter_set_each_from_its_own_start() {
         .collect();
     assert!(recordings.iter().all(Recording::starts_at_rest));
     let outcome = fit_input(FitInput::Recordings(&recordings), ModelChoice::Auto, &[], 1, |_| {}).unwrap();
-    let held: Vec<bool> = outcome.runs.iter().map(|run| run.held_out).collect();
-    // Four runs hold out one, at an interior amplitude: 0.6 or 0.8 mrad.
-    assert_eq!(held.iter().filter(|&&h| h).count(), 1, "{held:?}");
-    assert!(!held[0] && !held[1], "{held:?}");
+    // Four runs, three folds: each run but the largest (1.2 mrad) held out whole in one of them;
+    // the largest holds out its cycles in a fourth.
+    let held: Vec<Option<usize>> = outcome.runs.iter().map(|run| run.held_out_fold).collect();
+    assert_eq!(held[1], None, "{held:?}");
+    assert!(outcome.runs[1].held_out_samples > 0 && outcome.runs[1].held_out_samples < recordings[1].deflection.len());
+    let mut folds: Vec<usize> = held.iter().flatten().copied().collect();
+    folds.sort_unstable();
+    assert_eq!(folds, [0, 1, 2], "{held:?}");
     assert!(outcome.runs.iter().all(|run| run.offline.scored_from == 0));
     let Identified::Motion(motion) = &outcome.identified else { panic!("a recording's fit") };
-    assert_eq!(motion.chosen.model.kind(), model_core::Kind::MicroSlip);
+    // The micro-slip kind, or the Preisach kind that holds it as a special case (a density
+    // on the diagonal): held out, the two are within 0.5 % of each other on these runs.
+    let kind = motion.chosen.model.kind();
+    assert!(matches!(kind, model_core::Kind::MicroSlip | model_core::Kind::Preisach), "{kind}");
     // Refitted on every run: more samples than the candidate judged without the held-out run.
     let total: usize = recordings.iter().map(|r| r.deflection.len()).sum();
     assert_eq!(motion.chosen.n, total);

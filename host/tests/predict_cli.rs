@@ -39,17 +39,26 @@ fn simulate_with(dir: &std::path::Path, name: &str, physics: &str, motion: &str,
     path
 }
 
+/// A micro-slip gear: `auto` picks micro-slip, or Preisach, which holds it as a special case
+/// (on this recording the two hold out 0.0349 N·m each, the genetic kind 0.068 and Bouc–Wen
+/// 0.052), and the pick predicts other motions.
 #[test]
-fn auto_picks_micro_slip_for_a_micro_slip_gear_and_predicts_other_motions() {
+fn auto_picks_a_kind_of_the_micro_slip_gear_and_predicts_other_motions() {
     let dir = tempfile::tempdir().unwrap();
     let train = simulate(dir.path(), "train.csv", "micro-slip", "random");
     let params = dir.path().join("params.json");
     let report = json(&swg_host(&["fit", train.to_str().unwrap(), "--json", "--out", params.to_str().unwrap()]));
-    assert_eq!(report["model"], "micro-slip", "{report:#}");
     let candidates = report["candidates"].as_array().unwrap();
-    assert_eq!(candidates.len(), 2);
+    let names: Vec<&str> = candidates.iter().map(|c| c["model"].as_str().unwrap()).collect();
+    assert_eq!(names, ["genetic-hysteresis", "micro-slip", "bouc-wen", "preisach"]);
     assert!(report["held_out"]["samples"].as_u64().unwrap() > 0);
-    assert!(!report["params"]["elements"].as_array().unwrap().is_empty());
+    match report["model"].as_str().unwrap() {
+        "micro-slip" => assert!(!report["params"]["elements"].as_array().unwrap().is_empty()),
+        "preisach" => {
+            assert!(report["params"]["weights"].as_array().unwrap().iter().any(|w| w.as_f64().unwrap() > 0.0))
+        }
+        other => panic!("auto picked {other}: {report:#}"),
+    }
 
     // 1.3 mrad: beyond the random motion's 1.168 mrad on both sides.
     let other = simulate_with(dir.path(), "nested.csv", "micro-slip", "nested", &["--amplitude", "1.3e-3"]);
@@ -141,11 +150,13 @@ fn several_recordings_are_fitted_together_and_listed() {
     for (run, path) in listed.iter().zip(&runs) {
         assert_eq!(run["path"], path.to_str().unwrap());
         assert!(run["samples"].as_u64().unwrap() > 1000);
-        assert!(["training", "held out"].contains(&run["role"].as_str().unwrap()), "{run}");
+        assert!(run["held_out_samples"].as_u64().unwrap() > 0, "{run}");
     }
-    // Three runs: the one of middle amplitude is held out whole, then refitted with the others.
-    assert_eq!(listed.iter().filter(|r| r["role"] == "held out").count(), 1);
-    assert!(report["held_out"]["rule"].as_str().unwrap().starts_with("whole runs"));
+    // Three runs, each held out once: two whole, in a fold each; the largest by its cycles.
+    let mut folds: Vec<u64> = listed.iter().filter_map(|r| r["held_out_fold"].as_u64()).collect();
+    folds.sort_unstable();
+    assert_eq!(folds, [1, 2]);
+    assert!(report["held_out"]["rule"].as_str().unwrap().starts_with("every run once"));
     let samples: u64 = listed.iter().map(|r| r["samples"].as_u64().unwrap()).sum();
     assert_eq!(report["n"].as_u64().unwrap(), samples);
     let table = swg_host(&["fit", runs[0].to_str().unwrap(), &repo("data/seed/lht-20-50.csv")]);

@@ -540,6 +540,9 @@ pub struct MotionFit {
     pub held_out_samples: usize,
     /// RMS over the held-out samples, N·m.
     pub held_out_rms: Option<f64>,
+    /// RSS of each held-out span (a run's contiguous held-out samples: a cycle, a leg or a
+    /// whole run), (N·m)², runs in order: the pieces `auto` compares kinds on, pairwise.
+    pub held_out_pieces: Vec<f64>,
     /// Evaluations of the model along the motion or a subsample of it (swarm and polish).
     pub evaluations: usize,
 }
@@ -891,22 +894,32 @@ impl<'a> Motion<'a> {
         evaluations: usize,
         misfit: f64,
     ) -> Result<MotionFit, FitError> {
-        let per_run = Source::Full(self).map_runs(|_, samples| -> Result<(f64, f64), FitError> {
+        let per_run = Source::Full(self).map_runs(|_, samples| -> Result<(f64, Vec<f64>), FitError> {
             let mut evaluator = model.evaluator(0.0)?;
-            let (mut rss, mut held) = (0.0, 0.0);
+            let (mut rss, mut held) = (0.0, Vec::new());
+            let mut in_held_span = false;
             for sample in samples {
                 let predicted = step_offline(&mut evaluator, sample.at)?.torque;
                 let square = (sample.torque - predicted).powi(2);
                 match sample.role {
                     Role::Fitted => rss += square,
-                    Role::HeldOut => held += square,
+                    Role::HeldOut => match held.last_mut() {
+                        Some(piece) if in_held_span => *piece += square,
+                        _ => held.push(square),
+                    },
                     Role::Unscored => {}
                 }
+                in_held_span = sample.role == Role::HeldOut;
             }
             Ok((rss, held))
         });
-        let (rss, held) =
-            per_run.into_iter().try_fold((0.0, 0.0), |(a, b), run| run.map(|(rss, held)| (a + rss, b + held)))?;
+        let (mut rss, mut held_out_pieces) = (0.0, Vec::new());
+        for run in per_run {
+            let (run_rss, run_held) = run?;
+            rss += run_rss;
+            held_out_pieces.extend(run_held);
+        }
+        let held: f64 = held_out_pieces.iter().sum();
         let (n, held_out_samples) = (self.fitted(), self.held_out());
         Ok(MotionFit {
             model,
@@ -917,6 +930,7 @@ impl<'a> Motion<'a> {
             rms: (rss / n.max(1) as f64).sqrt(),
             held_out_samples,
             held_out_rms: (held_out_samples > 0).then(|| (held / held_out_samples as f64).sqrt()),
+            held_out_pieces,
             evaluations,
         })
     }

@@ -55,7 +55,8 @@ pub struct HeldOutReport {
     /// The rule, in words.
     pub rule: String,
     pub samples: usize,
-    /// RMS residual on them of the chosen kind fitted without them, N·m.
+    /// RMS residual on them of the chosen kind fitted without them (pooled over the folds),
+    /// N·m.
     pub rms: f64,
 }
 
@@ -64,9 +65,10 @@ pub struct CandidateReport {
     pub model: &'static str,
     /// Parameters the kind's fit identifies.
     pub parameters: usize,
-    /// The samples it was fitted to.
+    /// The samples it was fitted to (with `auto`: the mean over its fits, one per fold).
     pub n: usize,
-    /// Unweighted RSS and RMS on the samples it was fitted to.
+    /// Unweighted RSS and RMS on the samples it was fitted to (with `auto`: the RSS the mean
+    /// over the folds, the RMS pooled over them).
     pub rss: f64,
     pub rms: f64,
     /// RMS on the held-out samples, N·m.
@@ -94,9 +96,12 @@ pub struct RunReport {
     /// Samples before the motion had visited both its extremes in a recording that does not say
     /// it starts at rest: run through from rest, neither fitted nor scored.
     pub start_state_samples: usize,
-    /// `training`, or `held out` (a run `auto` held out whole of the fits that chose the kind).
-    pub role: &'static str,
-    /// Its samples held out of those fits (a run's interleaved cycles, or all of a run held out).
+    /// The fold (1-based) of `auto`'s fits that held this run out whole (it is fitted in the
+    /// others), when whole runs were held out.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out_fold: Option<usize>,
+    /// Its samples held out of `auto`'s fits (a run's interleaved cycles, or all of a run held
+    /// out).
     pub held_out_samples: usize,
     /// Its θ0 and torque offset, and how they were found.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -111,7 +116,7 @@ impl RunReport {
             samples: run.samples,
             turning_points: run.offline.reversals.indices.len(),
             start_state_samples: run.offline.unscored(),
-            role: if run.held_out { "held out" } else { "training" },
+            held_out_fold: run.held_out_fold.map(|fold| fold + 1),
             held_out_samples: run.held_out_samples,
             origin: None,
         }
@@ -297,10 +302,10 @@ impl FitReport {
         if !self.runs.is_empty() {
             let _ = writeln!(s, "runs ({} sharing one parameter set)", self.runs.len());
             for run in &self.runs {
-                let held = match (run.role, run.held_out_samples) {
-                    ("held out", _) => "held out".to_string(),
-                    (_, 0) => "training".to_string(),
-                    (_, held) => format!("training, {held} samples of cycles held out"),
+                let held = match (run.held_out_fold, run.held_out_samples) {
+                    (Some(fold), _) => format!("held out whole in fold {fold}, fitted in the others"),
+                    (None, 0) => "fitted".to_string(),
+                    (None, held) => format!("fitted, {held} samples of cycles held out"),
                 };
                 let _ = writeln!(
                     s,
