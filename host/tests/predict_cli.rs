@@ -202,3 +202,29 @@ fn predict_refuses_bad_input_and_writes_nothing() {
     let band = swg_host(&["predict", &params, recording.to_str().unwrap(), "--band=-1"]);
     assert!(String::from_utf8_lossy(&band.stderr).contains("reversal band"));
 }
+
+/// A run from rest up to 1 mrad and back: `auto` holds out its return, and the rise alone does
+/// not determine the genetic kind. That kind is listed as not judged, with why, and the others
+/// are judged and one is chosen.
+#[test]
+fn a_kind_that_cannot_be_fitted_without_the_held_out_samples_is_not_judged() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion = dir.path().join("up-and-back.csv");
+    let rows: String = (0..=2000)
+        .map(|i| {
+            let t = i as f64 * 1e-3;
+            format!("{t},{}\n", 1e-3 * (std::f64::consts::PI * t / 2.0).sin())
+        })
+        .collect();
+    std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
+    let recording = simulate(dir.path(), "rec.csv", "micro-slip", motion.to_str().unwrap());
+    let report = json(&swg_host(&["fit", recording.to_str().unwrap(), "--json"]));
+    let not_judged = report["not_judged"].as_array().expect("a kind not judged");
+    assert_eq!(not_judged.len(), 1, "{report:#}");
+    assert_eq!(not_judged[0]["model"], "genetic-hysteresis");
+    assert!(not_judged[0]["why"].as_str().unwrap().contains("collinear"), "{report:#}");
+    let candidates = report["candidates"].as_array().unwrap();
+    assert_eq!(candidates.len(), 3);
+    assert!(candidates.iter().all(|c| c["model"] != "genetic-hysteresis" && c["held_out_rms"].as_f64().is_some()));
+    assert!(candidates.iter().any(|c| c["chosen"] == true));
+}

@@ -187,6 +187,9 @@ pub struct MotionOutcome {
     /// Every kind fitted, in [`AUTO_KINDS`] order: with `auto` once per fold without its
     /// held-out samples and judged on them, pooled over the folds; else the one kind named.
     pub candidates: Vec<MotionFit>,
+    /// The kinds `auto` could not fit without the held-out samples of some fold, with why:
+    /// not judged, not chosen.
+    pub not_judged: Vec<(Kind, FitError)>,
     /// How `auto` chose the held-out samples (none for a named kind).
     pub held_out_rule: Option<HeldOutRule>,
     /// The noise the residuals were weighted by.
@@ -267,6 +270,12 @@ pub enum FitDatasetError {
          (--model micro-slip or genetic)"
     )]
     TooFewToHoldOut { fitted: usize, held_out: usize, rule: String },
+    #[error(
+        "no model kind could be fitted without the samples --model auto holds out ({rule}): {}; record more \
+         cycles or runs, or name a model (--model micro-slip, bouc-wen, preisach or genetic)",
+        errors.join("; ")
+    )]
+    NoKindJudged { rule: String, errors: Vec<String> },
     #[error("parameter set {index} to compare cannot be evaluated on this data: {source}")]
     Compared {
         index: usize,
@@ -383,15 +392,17 @@ fn fit_recordings(
         fit.model.zero = origins.first().map_or(0.0, |o| o.zero_rad);
         (fit, origins)
     };
-    let motion_outcome = |chosen, candidates, held_out_rule, origins| MotionOutcome {
+    let motion_outcome = |chosen, candidates, held_out_rule, origins, not_judged| MotionOutcome {
         chosen,
         candidates,
+        not_judged,
         held_out_rule,
         noise: Some(noise),
         reference_amplitude: reference_amplitude(&all_fitted),
         origins,
     };
     let mut held_out_spans = None;
+    let mut not_judged = Vec::new();
     let (prepared, identified) = match choice {
         ModelChoice::Loop => {
             let prepared = concatenated_loop_data(recordings)?;
@@ -402,7 +413,10 @@ fn fit_recordings(
             progress(Stage::Kind { kind, index: 1, of: 1 });
             let (chosen, origins) =
                 with_zero(fit_with_zero(kind, &all_fitted, &at_rest, &options, FinalSolve::EverySample)?);
-            (None, Identified::Motion(Box::new(motion_outcome(chosen.clone(), vec![chosen], None, origins))))
+            (
+                None,
+                Identified::Motion(Box::new(motion_outcome(chosen.clone(), vec![chosen], None, origins, Vec::new()))),
+            )
         }
         ModelChoice::Auto => {
             let shapes: Vec<RunShape> = recordings
@@ -430,16 +444,30 @@ fn fit_recordings(
             // Every kind once per fold, side by side, each judged on the samples held out of it.
             let jobs: Vec<(Kind, &Motion)> =
                 AUTO_KINDS.iter().flat_map(|&kind| trainings.iter().map(move |training| (kind, training))).collect();
-            let fold_fits = jobs
+            let fold_fits: Vec<Result<(MotionFit, Vec<RunOrigin>), FitError>> = jobs
                 .par_iter()
                 .enumerate()
                 .map(|(k, &(kind, training))| {
                     progress(Stage::Kind { kind, index: k + 1, of: jobs.len() });
                     fit_with_zero(kind, training, &at_rest, &options, FinalSolve::Strided).map(with_zero)
                 })
-                .collect::<Result<Vec<_>, _>>()?;
-            let candidates: Vec<(MotionFit, Vec<RunOrigin>)> =
-                fold_fits.chunks(trainings.len()).map(pooled_over_folds).collect();
+                .collect();
+            // A kind that cannot be fitted without some held-out samples is not judged (a run
+            // from rest up and back holds out its return: its rise alone does not determine the
+            // genetic kind); the others still are.
+            let mut candidates: Vec<(MotionFit, Vec<RunOrigin>)> = Vec::new();
+            for (&kind, fits) in AUTO_KINDS.iter().zip(fold_fits.chunks(trainings.len())) {
+                match fits.iter().cloned().collect::<Result<Vec<_>, _>>() {
+                    Ok(fits) => candidates.push(pooled_over_folds(&fits)),
+                    Err(error) => not_judged.push((kind, error)),
+                }
+            }
+            if candidates.is_empty() {
+                return Err(FitDatasetError::NoKindJudged {
+                    rule: rule.describe(),
+                    errors: not_judged.iter().map(|(kind, e)| format!("{}: {e}", kind.name())).collect(),
+                });
+            }
             let fits: Vec<MotionFit> = candidates.iter().map(|(fit, _)| fit.clone()).collect();
             let (best, best_origins) = pick(&fits).and_then(|k| candidates.get(k)).ok_or(FitError::Degenerate)?;
             // The written parameters use every sample; θ0 is the one the chosen kind's fit found
@@ -454,7 +482,16 @@ fn fit_recordings(
                 with_zero(fit_with_zero(kind, &all_fitted, &known, &refit, FinalSolve::EverySample)?);
             let candidates = candidates.into_iter().map(|(fit, _)| fit).collect();
             held_out_spans = Some(folds);
-            (None, Identified::Motion(Box::new(motion_outcome(chosen, candidates, Some(rule), origins))))
+            (
+                None,
+                Identified::Motion(Box::new(motion_outcome(
+                    chosen,
+                    candidates,
+                    Some(rule),
+                    origins,
+                    std::mem::take(&mut not_judged),
+                ))),
+            )
         }
     };
     let (lines, three_segment) = match &prepared {

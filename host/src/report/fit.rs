@@ -46,8 +46,19 @@ pub struct FitReport {
     /// judged on them (the held-out table); the chosen kind is then refitted on every sample.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub candidates: Vec<CandidateReport>,
+    /// Kinds `auto` could not fit without the held-out samples, with why: not judged.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_judged: Vec<NotJudgedReport>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub search: Option<SearchSummary>,
+}
+
+/// A kind `auto` did not judge.
+#[derive(Clone, Debug, Serialize)]
+pub struct NotJudgedReport {
+    pub model: &'static str,
+    /// Why its fit without the held-out samples failed.
+    pub why: String,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -221,6 +232,11 @@ impl FitReport {
                     reversals: Some("offline"),
                     held_out,
                     candidates: outcome.candidates.iter().map(candidate).collect(),
+                    not_judged: outcome
+                        .not_judged
+                        .iter()
+                        .map(|(kind, why)| NotJudgedReport { model: kind.name(), why: why.to_string() })
+                        .collect(),
                     search: None,
                 }
             }
@@ -249,6 +265,7 @@ impl FitReport {
             reversals: None,
             held_out: None,
             candidates: Vec::new(),
+            not_judged: Vec::new(),
             search: Some(fit.search.clone()),
         }
     }
@@ -342,8 +359,8 @@ impl FitReport {
         if let Some(held) = &self.held_out {
             let _ = writeln!(
                 s,
-                "model kinds tried, fitted without {} held-out samples and judged on them ({}); the chosen kind is then \
-                 refitted on every sample",
+                "model kinds tried, each fitted without the held-out samples and judged on them ({} in all; {}; samples \
+                 fitted: the mean over the folds); the chosen kind is then refitted on every sample",
                 held.samples, held.rule
             );
         } else if !self.candidates.is_empty() {
@@ -363,6 +380,10 @@ impl FitReport {
                     "  {:<20} {:>10} {:>12} {:>14.4} {:>14}{mark}",
                     c.model, c.parameters, c.n, c.rms, held_out
                 );
+            }
+            for n in &self.not_judged {
+                let _ =
+                    writeln!(s, "  {:<20} not judged: its fit without the held-out samples failed: {}", n.model, n.why);
             }
         }
         let _ = writeln!(s, "fit quality (unweighted torque residuals)");
