@@ -166,7 +166,7 @@ pub fn diagnose_dataset(
     // From the recording's own columns, before the observations take what they keep of it.
     let passivity = match (&dataset, &prepared.segmentation, &prepared.noise) {
         (Dataset::Recording(recording), Some(segmentation), Some(noise)) => {
-            passivity::of_recording(recording, &segmentation.turning_points, noise)
+            Some(passivity::of_recording(recording, &segmentation.turning_points, noise))
         }
         (Dataset::LoopTable(table), _, _) => passivity::of_loop_table(table),
         _ => None,

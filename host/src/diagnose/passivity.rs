@@ -18,10 +18,10 @@ pub const ACTIVE_SIGMAS: f64 = 3.0;
 pub struct Passivity {
     /// ∮T dθ of each closed loop, J (N·m·rad), in order.
     pub energy_per_cycle_j: Vec<f64>,
-    /// Their mean, J.
-    pub mean_energy_j: f64,
+    /// Their mean, J; none without a closed loop.
+    pub mean_energy_j: Option<f64>,
     /// The mean's standard error from the noise (recordings), or the table's tolerance, J.
-    pub uncertainty_j: f64,
+    pub uncertainty_j: Option<f64>,
     /// The loop gives energy back beyond the noise.
     pub active: bool,
     /// The delay of the torque channel relative to the angles that would make the loops
@@ -30,12 +30,31 @@ pub struct Passivity {
     pub words: String,
 }
 
-/// The closed loops of a recording: from each maximum of the deflection to the next.
-pub fn of_recording(recording: &Recording, turning_points: &[TurningPoint], noise: &NoiseModel) -> Option<Passivity> {
+/// The closed loops of a recording: from each maximum of the deflection to the next, or from
+/// each minimum to the next where that closes more loops. A path that does not return to the
+/// same extreme is not integrated: its ∫T dθ is the energy stored, not dissipated (a bench's
+/// ramp cycle from rest, run to the end of the file, read "active" on a passive spring). With no
+/// closed loop it says so, and gives no verdict.
+pub fn of_recording(recording: &Recording, turning_points: &[TurningPoint], noise: &NoiseModel) -> Passivity {
     let (t, theta, torque) = (&recording.time, &recording.deflection, &recording.torque);
-    let maxima: Vec<usize> = turning_points.iter().filter(|tp| tp.is_maximum).map(|tp| tp.index).collect();
+    let at = |maximum: bool| -> Vec<usize> {
+        turning_points.iter().filter(|tp| tp.is_maximum == maximum).map(|tp| tp.index).collect()
+    };
+    let (maxima, minima) = (at(true), at(false));
+    let maxima = if minima.len() > maxima.len() { minima } else { maxima };
     if maxima.len() < 2 {
-        return None;
+        return Passivity {
+            energy_per_cycle_j: Vec::new(),
+            mean_energy_j: None,
+            uncertainty_j: None,
+            active: false,
+            passive_delay_s: None,
+            words: format!(
+                "no closed cycle (from a turning point to the next at the same extreme; this recording has {} \
+                 turning points): no verdict on passivity",
+                turning_points.len()
+            ),
+        };
     }
     let mut energies = Vec::new();
     let mut rates = Vec::new();
@@ -85,14 +104,14 @@ pub fn of_recording(recording: &Recording, turning_points: &[TurningPoint], nois
             energies.len()
         )
     };
-    Some(Passivity {
+    Passivity {
         energy_per_cycle_j: energies,
-        mean_energy_j: mean,
-        uncertainty_j: uncertainty,
+        mean_energy_j: Some(mean),
+        uncertainty_j: Some(uncertainty),
         active,
         passive_delay_s,
         words,
-    })
+    }
 }
 
 /// The loop of a table: in each quadrant, the area between the branch that raises θ and the
@@ -155,8 +174,8 @@ pub fn of_loop_table(table: &LoopTable) -> Option<Passivity> {
     };
     Some(Passivity {
         energy_per_cycle_j: energies,
-        mean_energy_j: total,
-        uncertainty_j: uncertainty,
+        mean_energy_j: Some(total),
+        uncertainty_j: Some(uncertainty),
         active,
         passive_delay_s: None,
         words,
@@ -191,6 +210,56 @@ mod tests {
         }
     }
 
+    /// A passive spring with a loop of `opening` N·m: the torque higher while θ rises, over
+    /// `cycles` periods of θ = A·sin(φ + φ0).
+    fn recording(cycles: f64, phase: f64) -> Recording {
+        let n = (1000.0 * cycles) as usize;
+        let time: Vec<f64> = (0..=n).map(|i| i as f64 * 1e-3).collect();
+        let phi = |t: f64| std::f64::consts::TAU * t + phase;
+        let deflection: Vec<f64> = time.iter().map(|&t| 1e-3 * phi(t).sin()).collect();
+        let torque: Vec<f64> = time.iter().map(|&t| 10.0 * phi(t).sin() + 0.5 * phi(t).cos()).collect();
+        Recording { ratio: 1.0, metadata: Vec::new(), time, angles: None, deflection, torque, temperature: None }
+    }
+
+    fn turning_points(recording: &Recording) -> Vec<TurningPoint> {
+        crate::prepare::reversals(&recording.deflection)
+            .indices
+            .iter()
+            .map(|&index| TurningPoint {
+                index,
+                deflection: recording.deflection[index],
+                is_maximum: recording.deflection[index] > 0.0,
+            })
+            .collect()
+    }
+
+    const NOISE: NoiseModel = NoiseModel { torque_nm: 0.01, deflection_rad: 1e-6 };
+
+    #[test]
+    fn only_closed_cycles_are_integrated_and_without_one_there_is_no_verdict() {
+        // Up, down and back: one maximum and one minimum, no path returns to its extreme (from
+        // the maximum to the end, ∫T dθ is energy stored and given back, not a loop's).
+        let ramp = recording(1.0, 0.0);
+        let open = of_recording(&ramp, &turning_points(&ramp), &NOISE);
+        assert!(!open.active && open.mean_energy_j.is_none() && open.energy_per_cycle_j.is_empty(), "{open:?}");
+        assert!(open.words.starts_with("no closed cycle"), "{}", open.words);
+        // Two and a half periods: three maxima, two minima; the two cycles between maxima, each
+        // the loop's area π·A·opening.
+        let loops = recording(2.5, 0.0);
+        let closed = of_recording(&loops, &turning_points(&loops), &NOISE);
+        assert_eq!(closed.energy_per_cycle_j.len(), 2, "{closed:?}");
+        let area = std::f64::consts::PI * 1e-3 * 0.5;
+        assert!(closed.energy_per_cycle_j.iter().all(|e| (e - area).abs() < 1e-3 * area), "{closed:?}");
+        assert!(!closed.active && closed.words.starts_with("passive"));
+        // From a maximum: two minima, one maximum after the first: the cycle between the minima.
+        let from_top = recording(1.6, std::f64::consts::FRAC_PI_2);
+        let tps = turning_points(&from_top);
+        assert_eq!(tps.iter().filter(|tp| !tp.is_maximum).count(), 2, "{tps:?}");
+        let between_minima = of_recording(&from_top, &tps, &NOISE);
+        assert_eq!(between_minima.energy_per_cycle_j.len(), 1, "{between_minima:?}");
+        assert!((between_minima.energy_per_cycle_j[0] - area).abs() < 1e-3 * area, "{between_minima:?}");
+    }
+
     #[test]
     fn a_loop_whose_unloading_branch_carries_more_torque_is_active() {
         use Branch::*;
@@ -201,7 +270,7 @@ mod tests {
             (ForwardUnloading, -1.0, 0.0),
         ]);
         let p = of_loop_table(&passive).unwrap();
-        assert!(!p.active && p.mean_energy_j > 0.0, "{p:?}");
+        assert!(!p.active && p.mean_energy_j.is_some_and(|e| e > 0.0), "{p:?}");
         // The same points with the branch labels swapped.
         let swapped = table(&[
             (ForwardUnloading, 0.0, 0.0),
