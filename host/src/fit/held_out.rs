@@ -18,8 +18,9 @@
 //! - **One or two runs**: one fold of interleaved cycles. Each run's cycles run from one maximum
 //!   (turning point) to the next; every fourth cycle, the 2nd, 6th, 10th, …, is held out, so the
 //!   held-out samples are spread over the whole run, except a cycle inside which the run reaches
-//!   its largest or smallest deflection (the fit must span the range it is judged on). A run of fewer than two whole cycles holds out its
-//!   legs (turning point to turning point) by the same rule; a run of one cycle (two turning
+//!   its largest or smallest deflection beyond the rest of it (the fit must span the range it is
+//!   judged on). A run of fewer than two whole cycles holds out its legs (turning point to
+//!   turning point) by the same rule; a run of one cycle (two turning
 //!   points: up, down, back, as a bench's ramp cycle from rest) counts its first rise and its
 //!   return as legs too, and holds out its middle leg.
 use super::motion::Span;
@@ -152,7 +153,8 @@ fn held_out_cycles(run: &RunShape<'_>) -> Vec<Span> {
 fn every_fourth(run: &RunShape<'_>, bounds: &[usize]) -> Vec<Span> {
     let n = run.theta.len();
     let extremes = extreme_indices(run);
-    let spans_an_extreme = |start: usize, end: usize| extremes.iter().any(|&i| start < i && i < end);
+    let spans_an_extreme =
+        |start: usize, end: usize| extremes.iter().any(|&(i, reach)| start < i && i < end && reach(run, start, end));
     let mut spans = Vec::new();
     let mut push = |range: std::ops::Range<usize>, held_out: bool| {
         let range = range.start.max(run.scored_from)..range.end;
@@ -174,8 +176,17 @@ fn every_fourth(run: &RunShape<'_>, bounds: &[usize]) -> Vec<Span> {
     spans
 }
 
-/// The indices of a run's smallest and largest scored deflection (none when nothing is scored).
-fn extreme_indices(run: &RunShape<'_>) -> Vec<usize> {
+/// Whether a piece reaches beyond the rest of the run's scored deflection by more than this
+/// share of its range: noise at a rest end is no extreme to protect.
+const EXTREME_MARGIN: f64 = 0.01;
+
+/// Whether held out, the piece `start..end` (holding the extreme) would leave the rest of the
+/// run short of it by more than [`EXTREME_MARGIN`] of the range.
+type Reach = fn(&RunShape<'_>, usize, usize) -> bool;
+
+/// The indices of a run's smallest and largest scored deflection (none when nothing is scored),
+/// each with the test of whether a piece holding it reaches beyond the rest.
+fn extreme_indices(run: &RunShape<'_>) -> Vec<(usize, Reach)> {
     let scored = run.theta.get(run.scored_from..).unwrap_or(&[]);
     let arg = |better: fn(f64, f64) -> bool| {
         scored.iter().enumerate().fold(None, |best: Option<(usize, f64)>, (i, &t)| match best {
@@ -183,7 +194,30 @@ fn extreme_indices(run: &RunShape<'_>) -> Vec<usize> {
             _ => Some((i, t)),
         })
     };
-    [arg(|t, b| t < b), arg(|t, b| t > b)].into_iter().flatten().map(|(i, _)| run.scored_from + i).collect()
+    // The extreme of the scored samples outside `start..end`, by `pick` (min or max).
+    fn outside(run: &RunShape<'_>, start: usize, end: usize, pick: fn(f64, f64) -> f64) -> Option<f64> {
+        let (before, after) =
+            (run.theta.get(run.scored_from..start).unwrap_or(&[]), run.theta.get(end..).unwrap_or(&[]));
+        before.iter().chain(after).copied().reduce(pick)
+    }
+    fn range(run: &RunShape<'_>) -> f64 {
+        2.0 * amplitude(run)
+    }
+    let below: Reach = |run, start, end| {
+        let inside = run.theta[start..end].iter().copied().fold(f64::INFINITY, f64::min);
+        outside(run, start, end, f64::min).is_none_or(|rest| inside < rest - EXTREME_MARGIN * range(run))
+    };
+    let above: Reach = |run, start, end| {
+        let inside = run.theta[start..end].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        outside(run, start, end, f64::max).is_none_or(|rest| inside > rest + EXTREME_MARGIN * range(run))
+    };
+    [
+        arg(|t, b| t < b).map(|(i, _)| (run.scored_from + i, below)),
+        arg(|t, b| t > b).map(|(i, _)| (run.scored_from + i, above)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
 }
 
 #[cfg(test)]
@@ -230,6 +264,19 @@ mod tests {
         assert!(held.iter().all(|s| !s.range.contains(&1750)), "{spans:?}");
         // Cycles 5 and 9 still held out.
         assert_eq!(held.iter().map(|s| s.range.clone()).collect::<Vec<_>>(), [5250..6250, 9250..10250]);
+    }
+
+    #[test]
+    fn a_return_to_rest_whose_noise_dips_below_the_start_is_still_held_out() {
+        // Up to 1 mrad and back to rest, the last sample 10⁻⁹ rad below the first: the return
+        // leg holds the run's smallest deflection, by noise, not by reaching beyond the rest.
+        let mut theta: Vec<f64> = (0..=2000).map(|i| 1e-3 * (std::f64::consts::PI * i as f64 / 2000.0).sin()).collect();
+        *theta.last_mut().unwrap() = -1e-9;
+        let reversals = crate::prepare::reversals(&theta);
+        let spans = held_out_cycles(&shape(&theta, &reversals));
+        let held: Vec<&Span> = spans.iter().filter(|s| s.held_out).collect();
+        assert_eq!(held.len(), 1, "{spans:?}");
+        assert_eq!(held[0].range.end, theta.len());
     }
 
     #[test]
