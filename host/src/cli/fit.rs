@@ -37,10 +37,12 @@ pub struct FitArgs {
     /// Also evaluate this parameter file on the same data (repeatable).
     #[arg(long, value_name = "PARAMS.json")]
     compare: Vec<PathBuf>,
-    /// The model to identify. `auto` fits every kind without the held-out samples (whole runs
-    /// of three or more, else every fourth cycle of each run), keeps the one with the lowest
-    /// error on them and refits it on every sample. Default: `auto` on recordings, `genetic` on
-    /// a loop table (one loop: nothing to spare).
+    /// The model to identify. `auto` fits every kind once per fold without its held-out samples
+    /// (three or more runs: each run held out once, whole but the largest, which holds out its
+    /// cycles; else every fourth cycle of each run), keeps the one with the lowest error on them
+    /// pooled, or one of fewer parameters within a standard error of it, and refits it on every
+    /// sample. Default: `auto` on recordings, `genetic` on a loop table (one loop: nothing to
+    /// spare).
     #[arg(long, value_enum)]
     model: Option<ModelArg>,
     #[command(flatten)]
@@ -64,7 +66,7 @@ impl ValueEnum for ModelArg {
         Some(match self.0 {
             ModelChoice::Kind(kind) => PossibleValue::new(kind.label()).help(kind.description()),
             ModelChoice::Auto => PossibleValue::new("auto")
-                .help("Every kind; the lowest error on held-out runs or cycles wins, refitted on every sample"),
+                .help("Every kind; the lowest error on held-out runs or cycles wins (fewer parameters on a tie), refitted on every sample"),
             ModelChoice::Loop => PossibleValue::new("genetic-loop").help(
                 "The paper's symmetric-loop rule on each leg of a recording (the fit before the stateful models; for \
                  comparison only, it assumes symmetric loops)",
