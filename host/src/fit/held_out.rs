@@ -136,25 +136,24 @@ fn held_out_cycles(run: &RunShape<'_>) -> Vec<Span> {
     let turns = &run.reversals.indices;
     let ends: Vec<usize> =
         std::iter::once(0).chain(turns.iter().copied()).chain(std::iter::once(run.theta.len())).collect();
+    let extremes = Extremes::of(run);
     let spans = [maxima.as_slice(), turns, &ends]
         .into_iter()
-        .map(|bounds| every_fourth(run, bounds))
+        .map(|bounds| every_fourth(run, bounds, extremes.as_ref()))
         .find(|spans| spans.iter().any(|s| s.held_out))
-        .unwrap_or_else(|| every_fourth(run, &maxima));
+        .unwrap_or_else(|| every_fourth(run, &maxima, extremes.as_ref()));
     spans
 }
 
 /// A run's scored samples split at `bounds` (increasing), every [`CYCLE_PERIOD`]th piece
-/// between two of them held out, unless the run's largest or smallest scored deflection lies
-/// inside it: the fit must span the range it is judged on. (A random motion's widest cycle,
+/// between two of them held out, unless it holds one of the run's `extremes` beyond the rest of
+/// the run ([`Extremes::held_by`]): the fit must span the range it is judged on. (A random motion's widest cycle,
 /// held out, judges the kinds on their extrapolation: with `diagnose`'s form check held out
 /// this way, micro-slip's held-out error on a micro-slip gear came out worse than the genetic
 /// form's, 0.65 against 0.45 N·m, corpus seed 1000, case 1039.)
-fn every_fourth(run: &RunShape<'_>, bounds: &[usize]) -> Vec<Span> {
+fn every_fourth(run: &RunShape<'_>, bounds: &[usize], extremes: Option<&Extremes>) -> Vec<Span> {
     let n = run.theta.len();
-    let extremes = extreme_indices(run);
-    let spans_an_extreme =
-        |start: usize, end: usize| extremes.iter().any(|&(i, reach)| start < i && i < end && reach(run, start, end));
+    let spans_an_extreme = |start: usize, end: usize| extremes.is_some_and(|e| e.held_by(run, start, end));
     let mut spans = Vec::new();
     let mut push = |range: std::ops::Range<usize>, held_out: bool| {
         let range = range.start.max(run.scored_from)..range.end;
@@ -180,44 +179,40 @@ fn every_fourth(run: &RunShape<'_>, bounds: &[usize]) -> Vec<Span> {
 /// share of its range: noise at a rest end is no extreme to protect.
 const EXTREME_MARGIN: f64 = 0.01;
 
-/// Whether held out, the piece `start..end` (holding the extreme) would leave the rest of the
-/// run short of it by more than [`EXTREME_MARGIN`] of the range.
-type Reach = fn(&RunShape<'_>, usize, usize) -> bool;
+/// A run's smallest and largest scored deflection, (index, rad) each, and its range, rad.
+struct Extremes {
+    lowest: (usize, f64),
+    highest: (usize, f64),
+    range: f64,
+}
 
-/// The indices of a run's smallest and largest scored deflection (none when nothing is scored),
-/// each with the test of whether a piece holding it reaches beyond the rest.
-fn extreme_indices(run: &RunShape<'_>) -> Vec<(usize, Reach)> {
-    let scored = run.theta.get(run.scored_from..).unwrap_or(&[]);
-    let arg = |better: fn(f64, f64) -> bool| {
-        scored.iter().enumerate().fold(None, |best: Option<(usize, f64)>, (i, &t)| match best {
-            Some((_, b)) if !better(t, b) => best,
-            _ => Some((i, t)),
-        })
-    };
-    // The extreme of the scored samples outside `start..end`, by `pick` (min or max).
-    fn outside(run: &RunShape<'_>, start: usize, end: usize, pick: fn(f64, f64) -> f64) -> Option<f64> {
-        let (before, after) =
-            (run.theta.get(run.scored_from..start).unwrap_or(&[]), run.theta.get(end..).unwrap_or(&[]));
-        before.iter().chain(after).copied().reduce(pick)
+impl Extremes {
+    /// None when nothing is scored.
+    fn of(run: &RunShape<'_>) -> Option<Extremes> {
+        let scored = run.theta.get(run.scored_from..).unwrap_or(&[]);
+        let arg = |better: fn(f64, f64) -> bool| {
+            scored.iter().enumerate().fold(None, |best: Option<(usize, f64)>, (i, &t)| match best {
+                Some((_, b)) if !better(t, b) => best,
+                _ => Some((run.scored_from + i, t)),
+            })
+        };
+        let (lowest, highest) = (arg(|t, b| t < b)?, arg(|t, b| t > b)?);
+        Some(Extremes { lowest, highest, range: highest.1 - lowest.1 })
     }
-    fn range(run: &RunShape<'_>) -> f64 {
-        2.0 * amplitude(run)
+
+    /// Whether the piece `start..end` holds an extreme strictly inside (not at a turning point
+    /// that bounds it) that the rest of the run falls short of by more than [`EXTREME_MARGIN`]
+    /// of the range.
+    fn held_by(&self, run: &RunShape<'_>, start: usize, end: usize) -> bool {
+        let rest = |pick: fn(f64, f64) -> f64| {
+            let before = run.theta.get(run.scored_from..start).unwrap_or(&[]);
+            before.iter().chain(run.theta.get(end..).unwrap_or(&[])).copied().reduce(pick)
+        };
+        let margin = EXTREME_MARGIN * self.range;
+        let inside = |(i, _): (usize, f64)| start < i && i < end;
+        (inside(self.lowest) && rest(f64::min).is_none_or(|r| self.lowest.1 < r - margin))
+            || (inside(self.highest) && rest(f64::max).is_none_or(|r| self.highest.1 > r + margin))
     }
-    let below: Reach = |run, start, end| {
-        let inside = run.theta[start..end].iter().copied().fold(f64::INFINITY, f64::min);
-        outside(run, start, end, f64::min).is_none_or(|rest| inside < rest - EXTREME_MARGIN * range(run))
-    };
-    let above: Reach = |run, start, end| {
-        let inside = run.theta[start..end].iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        outside(run, start, end, f64::max).is_none_or(|rest| inside > rest + EXTREME_MARGIN * range(run))
-    };
-    [
-        arg(|t, b| t < b).map(|(i, _)| (run.scored_from + i, below)),
-        arg(|t, b| t > b).map(|(i, _)| (run.scored_from + i, above)),
-    ]
-    .into_iter()
-    .flatten()
-    .collect()
 }
 
 #[cfg(test)]

@@ -402,7 +402,6 @@ fn fit_recordings(
         origins,
     };
     let mut held_out_spans = None;
-    let mut not_judged = Vec::new();
     let (prepared, identified) = match choice {
         ModelChoice::Loop => {
             let prepared = concatenated_loop_data(recordings)?;
@@ -455,7 +454,7 @@ fn fit_recordings(
             // A kind that cannot be fitted without some held-out samples is not judged (a run
             // from rest up and back holds out its return: its rise alone does not determine the
             // genetic kind); the others still are.
-            let mut candidates: Vec<(MotionFit, Vec<RunOrigin>)> = Vec::new();
+            let (mut candidates, mut not_judged) = (Vec::new(), Vec::new());
             for (&kind, fits) in AUTO_KINDS.iter().zip(fold_fits.chunks(trainings.len())) {
                 match fits.iter().cloned().collect::<Result<Vec<_>, _>>() {
                     Ok(fits) => candidates.push(pooled_over_folds(&fits)),
@@ -468,7 +467,7 @@ fn fit_recordings(
                     errors: not_judged.iter().map(|(kind, e)| format!("{}: {e}", kind.name())).collect(),
                 });
             }
-            let fits: Vec<MotionFit> = candidates.iter().map(|(fit, _)| fit.clone()).collect();
+            let fits: Vec<&MotionFit> = candidates.iter().map(|(fit, _)| fit).collect();
             let (best, best_origins) = pick(&fits).and_then(|k| candidates.get(k)).ok_or(FitError::Degenerate)?;
             // The written parameters use every sample; θ0 is the one the chosen kind's fit found
             // on the training samples (its search is the costly part of a fit without rest).
@@ -482,16 +481,7 @@ fn fit_recordings(
                 with_zero(fit_with_zero(kind, &all_fitted, &known, &refit, FinalSolve::EverySample)?);
             let candidates = candidates.into_iter().map(|(fit, _)| fit).collect();
             held_out_spans = Some(folds);
-            (
-                None,
-                Identified::Motion(Box::new(motion_outcome(
-                    chosen,
-                    candidates,
-                    Some(rule),
-                    origins,
-                    std::mem::take(&mut not_judged),
-                ))),
-            )
+            (None, Identified::Motion(Box::new(motion_outcome(chosen, candidates, Some(rule), origins, not_judged))))
         }
     };
     let (lines, three_segment) = match &prepared {
@@ -556,7 +546,7 @@ fn fit_recordings(
 /// by the fourth decimal, predicted a wider motion with 0.131 N·m RMS within the fitted range,
 /// where micro-slip stays under 0.1 (`host/tests/predict_cli.rs`): its relays end at the
 /// fitted range.)
-fn pick(candidates: &[MotionFit]) -> Option<usize> {
+fn pick(candidates: &[&MotionFit]) -> Option<usize> {
     let held = |k: usize| candidates[k].held_out_rms.unwrap_or(candidates[k].rms);
     let best = (0..candidates.len()).min_by(|&a, &b| held(a).total_cmp(&held(b)))?;
     (0..candidates.len())
@@ -587,10 +577,10 @@ fn pooled_over_folds(fits: &[(MotionFit, Vec<RunOrigin>)]) -> (MotionFit, Vec<Ru
     let (first, origins) = fits[0].clone();
     let fitted: usize = fits.iter().map(|(fit, _)| fit.n).sum();
     let held: usize = fits.iter().map(|(fit, _)| fit.held_out_samples).sum();
-    let held_rss: f64 =
-        fits.iter().map(|(fit, _)| fit.held_out_rms.map_or(0.0, |rms| rms * rms * fit.held_out_samples as f64)).sum();
+    let held_out_pieces: Vec<f64> = fits.iter().flat_map(|(fit, _)| fit.held_out_pieces.iter().copied()).collect();
+    let held_rss: f64 = held_out_pieces.iter().sum();
     let pooled = MotionFit {
-        held_out_pieces: fits.iter().flat_map(|(fit, _)| fit.held_out_pieces.iter().copied()).collect(),
+        held_out_pieces,
         n: fitted / fits.len(),
         rss: fits.iter().map(|(fit, _)| fit.rss).sum::<f64>() / fits.len() as f64,
         misfit: fits.iter().map(|(fit, _)| fit.misfit).sum::<f64>() / fits.len() as f64,
@@ -887,11 +877,11 @@ mod tests {
         let rich = candidate(50, &[1.00, 1.03, 0.97, 1.01]);
         let lean = candidate(20, &[1.01, 1.01, 1.00, 1.00]);
         assert!(rich.held_out_rms < lean.held_out_rms);
-        assert_eq!(pick(&[rich.clone(), lean]), Some(1));
+        assert_eq!(pick(&[&rich, &lean]), Some(1));
         // Higher on every span, by 5 % on average: the held-out samples tell them apart.
         let worse = candidate(20, &[1.05, 1.08, 1.02, 1.06]);
-        assert_eq!(pick(&[rich, worse]), Some(0));
+        assert_eq!(pick(&[&rich, &worse]), Some(0));
         // One span gives no standard error: the lowest error wins.
-        assert_eq!(pick(&[candidate(50, &[1.00]), candidate(20, &[1.001])]), Some(0));
+        assert_eq!(pick(&[&candidate(50, &[1.00]), &candidate(20, &[1.001])]), Some(0));
     }
 }
