@@ -136,8 +136,11 @@ impl Observed {
                 "rate-dependent and rate-independent hysteresis cannot be told apart from this data: the \
                  motion passes each place on the loop at one rate (its frequencies spread {spread:.2}×, \
                  {MIN_RATE_SPREAD}× needed), so friction, damping, a channel delay and hysteresis open the loop \
-                 alike; record the same loop at a second rate (e.g. half and twice the frequency) to tell them \
-                 apart. The loop's opening is taken for hysteresis shape"
+                 alike; record the same loop at a second rate (e.g. half and twice the frequency) to tell damping \
+                 and a delay (an opening that grows with the rate) from friction and hysteresis, and at a \
+                 second amplitude to tell Coulomb friction (the same opening at every amplitude) from \
+                 hysteresis (an opening that grows with the amplitude). The loop's opening is taken for \
+                 hysteresis shape"
             );
             // Friction's torque follows the rate's sign: at one rate, damping or a delay that the
             // hysteresis' shape leaves over would be named as friction (seen on the corpus).
