@@ -184,13 +184,25 @@ pub(super) fn direction_sign(direction: Direction) -> f64 {
 
 pub(super) fn kinematic_at(state: &EffectState, observed: &Observed, i: usize) -> f64 {
     match &observed.input_angle {
-        Some(angle) => {
-            let [a, b, c, d] = state.kinematic;
-            let psi = angle[i];
-            a * (2.0 * psi).cos() + b * (2.0 * psi).sin() + c * (4.0 * psi).cos() + d * (4.0 * psi).sin()
-        }
+        Some(angle) => kinematic_of(state, harmonics(angle[i])),
         None => 0.0,
     }
+}
+
+/// The kinematic error at an input angle of `harmonics` ([`harmonics`]).
+pub(super) fn kinematic_of(state: &EffectState, harmonics: [f64; 4]) -> f64 {
+    let [a, b, c, d] = state.kinematic;
+    let [cos2, sin2, cos4, sin4] = harmonics;
+    a * cos2 + b * sin2 + c * cos4 + d * sin4
+}
+
+/// cos 2ψ, sin 2ψ, cos 4ψ and sin 4ψ of the input angle ψ, the 4th from the 2nd by the double
+/// angle: the kinematic error's columns and value are formed for every sample of every
+/// Gauss–Newton step and check, and its sines and cosines were a quarter of `diagnose`'s time
+/// (perf, 60 k samples of bench/diagnose.sh).
+pub(super) fn harmonics(psi: f64) -> [f64; 4] {
+    let (sin2, cos2) = (2.0 * psi).sin_cos();
+    [cos2, sin2, (cos2 - sin2) * (cos2 + sin2), 2.0 * sin2 * cos2]
 }
 
 /// Fits the model with the `active` effects on `subset` by Gauss–Newton on the nonlinear
@@ -234,7 +246,9 @@ pub fn fit_extended(
         let mut normal = NormalEquations::new(scale, r, width);
         let mut row = vec![0.0; width];
         for &i in subset {
-            let x = d.theta[i] + kinematic_at(&state, observed, i);
+            // Formed once a sample: the kinematic error's value and its columns use them both.
+            let input_harmonics = observed.input_angle.as_ref().map(|angle| harmonics(angle[i]));
+            let x = d.theta[i] + input_harmonics.map_or(0.0, |h| kinematic_of(&state, h));
             let elastic = backlash(x, state.backlash);
             let amplitude = observed.elastic_amplitude(&state, i);
             let (spring, hysteresis) = model
@@ -259,8 +273,7 @@ pub fn fit_extended(
                         push(shift - by_amplitude / 2.0);
                     }
                     Effect::KinematicError => {
-                        let psi = observed.input_angle.as_ref().map_or(0.0, |angle| angle[i]);
-                        for value in [(2.0 * psi).cos(), (2.0 * psi).sin(), (4.0 * psi).cos(), (4.0 * psi).sin()] {
+                        for value in input_harmonics.unwrap_or_else(|| harmonics(0.0)) {
                             push(stiffness * value);
                         }
                     }

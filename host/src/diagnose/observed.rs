@@ -1,7 +1,7 @@
 //! What a recording offers the diagnosis, sample by sample: rate, input angle, warming, the
 //! parts for the consistency check and the held-out samples, and what it cannot reveal.
 use super::effects::Effect;
-use super::extended::{kinematic_at, EffectState};
+use super::extended::{harmonics, kinematic_of, EffectState};
 use crate::input::{Dataset, Recording};
 use crate::prepare::{FitData, NoiseModel, Prepared};
 use model_core::Direction;
@@ -37,7 +37,19 @@ pub struct Observed {
     /// turning point, the last sample. Leg k (from end k to end k + 1) holds the samples after
     /// turning point k − 1 up to turning point k. The kinematic error moves the elastic turning
     /// points, and with them the amplitude.
-    leg_ends: Option<Vec<(f64, usize)>>,
+    leg_ends: Option<Vec<LegEnd>>,
+}
+
+/// One end of a leg ([`Observed::leg_ends`]).
+#[derive(Clone, Copy, Debug)]
+struct LegEnd {
+    /// The measured deflection there, rad.
+    deflection: f64,
+    /// The kinematic error's harmonics of the input angle there, formed once: the amplitude of
+    /// every sample looks up its leg's two ends on every pass.
+    harmonics: [f64; 4],
+    /// Its sample.
+    index: usize,
 }
 
 /// Which samples a model is fitted on and which it is judged on.
@@ -151,14 +163,6 @@ impl Observed {
             self.rate_parts = Some(rate_parts);
         }
         self.rate = Some(rate);
-        if let Some(segmentation) = &prepared.segmentation {
-            let theta = &recording.deflection;
-            let mut ends = Vec::with_capacity(segmentation.turning_points.len() + 2);
-            ends.push((theta[0], 0));
-            ends.extend(segmentation.turning_points.iter().map(|tp| (tp.deflection, tp.index)));
-            ends.push((theta[n - 1], n - 1));
-            self.leg_ends = Some(ends);
-        }
         match recording.angles {
             Some(angles) => {
                 let (lo, hi) = min_max(&angles.input);
@@ -172,6 +176,19 @@ impl Observed {
                 }
             }
             None => self.cannot_reveal.push((Effect::KinematicError, "the recording has no input angle".into())),
+        }
+        if let Some(segmentation) = &prepared.segmentation {
+            let theta = &recording.deflection;
+            let end = |deflection: f64, index: usize| LegEnd {
+                deflection,
+                harmonics: self.input_angle.as_ref().map_or([0.0; 4], |angle| harmonics(angle[index])),
+                index,
+            };
+            let mut ends = Vec::with_capacity(segmentation.turning_points.len() + 2);
+            ends.push(end(theta[0], 0));
+            ends.extend(segmentation.turning_points.iter().map(|tp| end(tp.deflection, tp.index)));
+            ends.push(end(theta[n - 1], n - 1));
+            self.leg_ends = Some(ends);
         }
         match &recording.temperature {
             Some(temps) => {
@@ -216,10 +233,10 @@ impl Observed {
             Some(ends) if state.kinematic != [0.0; 4] => {
                 // The leg of sample i ends at the first turning point at or after it.
                 let turning = &ends[1..ends.len() - 1];
-                let leg = turning.partition_point(|&(_, j)| j < i);
+                let leg = turning.partition_point(|end| end.index < i);
                 ends[leg..leg + 2]
                     .iter()
-                    .map(|&(theta, j)| (theta + kinematic_at(state, self, j)).abs())
+                    .map(|end| (end.deflection + kinematic_of(state, end.harmonics)).abs())
                     .fold(0.0, f64::max)
             }
             _ => self.data.amplitude[i],
