@@ -1279,7 +1279,8 @@ pub fn fit_bouc_wen(motion: &Motion, options: &FitOptions) -> Result<MotionFit, 
         return motion.score(bouc_wen_model(&columns, &solved, shape)?, parameters, 0, solved.rss);
     }
     let (slip_min, half_range) = slip_range(motion);
-    let z_max_max = BOUC_WEN_Z_MAX_IN_HALF_RANGE * half_range;
+    // Never below the smallest: a motion within a few σθ of noise keeps a search range.
+    let z_max_max = (BOUC_WEN_Z_MAX_IN_HALF_RANGE * half_range).max(slip_min);
     let bounds = [(slip_min.ln(), z_max_max.ln()), (-BOUC_WEN_RHO, BOUC_WEN_RHO), (1.0, BOUC_WEN_N_MAX)];
     // A long motion is searched on windows of it ([`BOUC_WEN_TRAVEL`]), the linear parameters
     // then solved on every sample.
