@@ -5,7 +5,7 @@ use crate::diagnose::{
     DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, Undecided, MAX_HALF_SPREAD, MIN_BIC_DROP,
     MIN_EXPLAINED, MIN_HALF_Z,
 };
-use crate::prepare::NoiseModel;
+use crate::prepare::{NoiseModel, RunOrigin};
 use model_core::Params;
 use serde::Serialize;
 use std::fmt::Write;
@@ -17,6 +17,10 @@ pub struct DiagnoseReport {
     pub baseline: ModelSummary,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseModel>,
+    /// The deflection's zero θ0 read in the recording's rest window, which the deflection was
+    /// measured from, and the torque read there; absent without a rest window.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub origin: Option<RunOrigin>,
     pub locate: Vec<Observation>,
     pub revealable: Vec<Effect>,
     pub not_revealable: Vec<NotRevealable>,
@@ -89,12 +93,13 @@ impl ModelSummary {
 impl DiagnoseReport {
     /// The report for `outcome` of the file `input`.
     pub fn new(input: String, kind: &'static str, outcome: &DiagnoseOutcome) -> DiagnoseReport {
-        let DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity } = outcome;
+        let DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin } = outcome;
         DiagnoseReport {
             input,
             kind,
             baseline: ModelSummary::new(&diagnosis.baseline, before),
             noise: observed.noise,
+            origin: *origin,
             locate: locate.clone(),
             revealable: observed.revealable(),
             not_revealable: observed
@@ -158,6 +163,9 @@ impl DiagnoseReport {
                 "measurement noise: torque {:.3e} N·m, deflection {:.3e} rad",
                 noise.torque_nm, noise.deflection_rad
             );
+        }
+        if report.kind == "recording" {
+            let _ = writeln!(s, "{}", origin_words(report.origin.as_ref()));
         }
         let _ = writeln!(s, "baseline model: RSS {:.5} (N·m)², RMS {:.4} N·m", b.rss, b.rms);
         let _ = writeln!(s, "\nwhere the residual concentrates");
@@ -252,5 +260,19 @@ impl DiagnoseReport {
             }
         }
         s
+    }
+}
+
+/// The recording's deflection zero, in words.
+fn origin_words(origin: Option<&RunOrigin>) -> String {
+    match origin {
+        Some(origin) => format!(
+            "deflection zero θ0: {:.4} ± {:.4} mrad, read at rest before the motion; the deflection is measured from it \
+             (the torque there, {:.4} N·m, is left to the torque_offset test)",
+            1e3 * origin.zero_rad,
+            1e3 * origin.zero_se_rad.unwrap_or(0.0),
+            origin.torque_offset_nm
+        ),
+        None => "deflection zero: no rest at the start to read it, so the encoders' zero is taken for the gear's".into(),
     }
 }
