@@ -465,7 +465,21 @@ fn write_parameters(s: &mut String, model: &GearModel<f64>) {
         value
     });
     for (name, value) in lines {
-        let _ = writeln!(s, "  {:<9} = {value:>12.5e} {}", name.as_str(), name.unit());
+        // The file's name `stiffness` is the hysteresis' k_h, beside the spring's stiffnesses.
+        let meaning = match name {
+            ParamName::HysteresisStiffness => " (k_h)",
+            _ => "",
+        };
+        let _ = writeln!(s, "  {:<9} = {value:>12.5e} {}{meaning}", name.as_str(), name.unit());
+    }
+    if let Hysteresis::BoucWen(term) = &model.hysteresis {
+        if term.stiffness == 0.0 {
+            let _ = writeln!(
+                s,
+                "  k_h fitted to 0: this recording shows no Bouc–Wen hysteresis, the model is its spring alone \
+                 (A, β, γ and n have no effect)"
+            );
+        }
     }
 }
 

@@ -84,7 +84,11 @@ pub fn parse_model(path: &Path, text: &str) -> Result<GearModel<f64>, ParamsFile
     };
     let invalid = |source| ParamsFileError::Invalid { path: path.to_owned(), source };
     let header: Header = serde_json::from_str(text).map_err(syntax)?;
-    let version_1 = header.model_version.is_none_or(|version| version == 1);
+    // A file without model_version is of version 1, unless it names a kind version 1 did not
+    // have: then it can only be of this one (and its errors are this version's).
+    let kind_of_version_1 =
+        header.model.as_deref().is_none_or(|name| [Kind::Genetic, Kind::MicroSlip].iter().any(|k| k.name() == name));
+    let version_1 = header.model_version.map_or(kind_of_version_1, |version| version == 1);
     let model = match header.model.as_deref() {
         None => GearModel::paper(serde_json::from_str::<UnnamedFile>(text).map_err(syntax)?.params),
         Some(name) if !Kind::ALL.iter().any(|kind| kind.name() == name) => {
@@ -93,7 +97,7 @@ pub fn parse_model(path: &Path, text: &str) -> Result<GearModel<f64>, ParamsFile
         Some(_) if version_1 => {
             serde_json::from_str::<GearModelV1<f64>>(text).map_err(syntax)?.upgrade().map_err(invalid)?
         }
-        Some(_) if header.model_version == Some(MODEL_VERSION) => {
+        Some(_) if header.model_version.unwrap_or(MODEL_VERSION) == MODEL_VERSION => {
             serde_json::from_str::<GearModel<f64>>(text).map_err(syntax)?
         }
         Some(_) => {
@@ -110,6 +114,14 @@ pub fn parse_model(path: &Path, text: &str) -> Result<GearModel<f64>, ParamsFile
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A kind that model version 1 did not have, in a file without model_version, is read as
+    /// this version: a missing `params` is said so (it was "unknown variant `bouc-wen`").
+    #[test]
+    fn a_file_without_version_naming_a_newer_kind_is_read_as_this_version() {
+        let err = parse_model(Path::new("p.json"), r#"{"model": "bouc-wen"}"#).unwrap_err().to_string();
+        assert!(err.contains("missing field `params`"), "{err}");
+    }
 
     #[test]
     fn reads_params_and_points_at_errors() {
