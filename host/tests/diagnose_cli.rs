@@ -94,11 +94,16 @@ fn diagnosed(params: Option<&str>, frequencies: &str, effect: &str) -> serde_jso
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("gear.json");
     std::fs::write(&file, params.unwrap_or(GEAR)).unwrap();
-    let recording = dir.path().join("rec.csv");
-    let (file, out) = (file.to_str().unwrap(), recording.to_str().unwrap());
     let noise = ["--output-bits", "20", "--input-bits", "20", "--torque-noise", "0.03"];
-    let motion = ["--params", file, "--out", out, "--cycles", "3", "--frequency", frequencies, "--effect", effect];
-    ok(swg_host(&[&["simulate"][..], &motion, &noise].concat()));
+    let motion = ["--params", file.to_str().unwrap(), "--cycles", "3", "--frequency", frequencies, "--effect", effect];
+    simulated_and_diagnosed(dir.path(), "rec.csv", &[&motion[..], &noise].concat())
+}
+
+/// `swg-host simulate` with `args` into `dir/name`, then the JSON of `swg-host diagnose` on it.
+fn simulated_and_diagnosed(dir: &std::path::Path, name: &str, args: &[&str]) -> serde_json::Value {
+    let recording = dir.join(name);
+    let out = recording.to_str().unwrap();
+    ok(swg_host(&[&["simulate", "--out", out][..], args].concat()));
     serde_json::from_str(&ok(swg_host(&["diagnose", out, "--json"]))).unwrap()
 }
 
@@ -145,11 +150,8 @@ fn on_a_stiffening_gear_damping_and_a_channel_delay_are_told_apart() {
 fn a_damping_too_small_to_see_at_the_slow_rate_is_named_from_every_rate_pooled() {
     // simulate's own gear and noise (exact angles, 0.05 N·m): the slow estimate reads 20.7 ± 7.1.
     let dir = tempfile::tempdir().unwrap();
-    let recording = dir.path().join("rec.csv");
-    let out = recording.to_str().unwrap();
     let motion = ["--cycles", "3", "--frequency", "0.05,0.2,0.8", "--effect", "viscous_damping=25"];
-    ok(swg_host(&[&["simulate", "--out", out][..], &motion].concat()));
-    let json: serde_json::Value = serde_json::from_str(&ok(swg_host(&["diagnose", out, "--json"]))).unwrap();
+    let json = simulated_and_diagnosed(dir.path(), "rec.csv", &motion);
     let found = named(&json);
     assert_eq!(found.len(), 1, "{json:#}");
     assert_eq!(found[0].0, "viscous_damping", "{json:#}");
@@ -211,13 +213,10 @@ fn the_deflection_is_measured_from_the_zero_read_at_rest() {
         })
         .collect();
     std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
-    let diagnosed_with_zero = |zero: &str| -> serde_json::Value {
-        let recording = dir.path().join(format!("rec-{zero}.csv"));
-        let out = recording.to_str().unwrap();
+    let diagnosed_with_zero = |zero: &str| {
         let (gear, motion) = (gear.to_str().unwrap(), motion.to_str().unwrap());
-        let args = ["simulate", "--params", gear, "--motion", motion, "--deflection-zero", zero, "--out", out];
-        ok(swg_host(&[&args[..], &["--torque-noise", "0.03"]].concat()));
-        serde_json::from_str(&ok(swg_host(&["diagnose", out, "--json"]))).unwrap()
+        let args = ["--params", gear, "--motion", motion, "--deflection-zero", zero, "--torque-noise", "0.03"];
+        simulated_and_diagnosed(dir.path(), &format!("rec-{zero}.csv"), &args)
     };
     let (right, off) = (diagnosed_with_zero("0"), diagnosed_with_zero("5e-4"));
     let zero = off["origin"]["zero_rad"].as_f64().unwrap();

@@ -41,8 +41,8 @@ pub fn of_recording(recording: &Recording, turning_points: &[TurningPoint], nois
         turning_points.iter().filter(|tp| tp.is_maximum == maximum).map(|tp| tp.index).collect()
     };
     let (maxima, minima) = (at(true), at(false));
-    let maxima = if minima.len() > maxima.len() { minima } else { maxima };
-    if maxima.len() < 2 {
+    let cycle_ends = if minima.len() > maxima.len() { minima } else { maxima };
+    if cycle_ends.len() < 2 {
         return Passivity {
             energy_per_cycle_j: Vec::new(),
             mean_energy_j: None,
@@ -59,7 +59,7 @@ pub fn of_recording(recording: &Recording, turning_points: &[TurningPoint], nois
     let mut energies = Vec::new();
     let mut rates = Vec::new();
     let mut variance = 0.0;
-    for pair in maxima.windows(2) {
+    for pair in cycle_ends.windows(2) {
         let (a, b) = (pair[0], pair[1]);
         let (mut energy, mut rate_work, mut var) = (0.0, 0.0, 0.0);
         for i in a..b {

@@ -267,7 +267,7 @@ pub enum FitDatasetError {
         "{fitted} samples fitted and {held_out} held out: too few to judge the kinds for --model auto (it holds out \
          {rule}); record at least one whole cycle (to one extreme, the other and back) after the scored start (from \
          rest, or after the motion has visited both its extremes), or three or more runs; or name a model \
-         (--model micro-slip or genetic)"
+         (--model micro-slip, bouc-wen, preisach or genetic)"
     )]
     TooFewToHoldOut { fitted: usize, held_out: usize, rule: String },
     #[error(
