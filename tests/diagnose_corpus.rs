@@ -199,6 +199,8 @@ struct Outcome {
     other_physics: bool,
     /// The diagnosis named the model's form.
     form: bool,
+    /// The diagnosis named an asymmetric spring (no gear of the corpus has one).
+    asymmetry: bool,
     /// The passivity check flagged the loop active exactly when it is.
     passivity_right: bool,
     known_limit: Option<&'static str>,
@@ -374,6 +376,7 @@ fn run(case: &Case) -> Outcome {
     if flagged_active != active && !ambiguous {
         println!("    passivity of {}: {:?}", case.name, outcome.passivity.as_ref().map(|p| &p.words));
     }
+    let asymmetry = outcome.asymmetry.named().is_some();
     let diagnosis = outcome.diagnosis;
     let named = diagnosis.findings.iter().map(|f| (f.effect, f.magnitude)).collect();
     let undecided = diagnosis.undecided.iter().flat_map(|u| u.effects.into_iter().zip(u.magnitudes)).collect();
@@ -388,6 +391,7 @@ fn run(case: &Case) -> Outcome {
         rejected,
         other_physics,
         form: diagnosis.model_form.is_some(),
+        asymmetry,
         passivity_right: flagged_active == active || ambiguous,
         known_limit: case.known_limit,
     }
@@ -438,6 +442,10 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
                 false_alarms += 1;
             }
         }
+        if o.asymmetry {
+            wrong_physics += 1;
+            println!("    an asymmetric spring named on {}, whose spring is symmetric", o.name);
+        }
         forms += usize::from(o.other_physics && o.form);
         misses += o.truth.iter().filter(|t| o.found(t.effect).is_none()).count();
         undecided += o
@@ -478,7 +486,11 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
         100.0 * max_error,
         outcomes.iter().filter(|o| o.other_physics).count()
     );
-    assert_eq!(wrong_physics, 0, "an effect was named on a gear of other physics, or a rate effect for its rival");
+    assert_eq!(
+        wrong_physics, 0,
+        "an effect was named on a gear of other physics, a rate effect for its rival, or an asymmetric spring on a \
+         symmetric gear"
+    );
     assert_eq!(passivity_wrong, 0, "the passivity check missed an active loop or flagged a passive one");
     assert!(failures.is_empty(), "wrong set or magnitude off by > 25 % on a genetic gear: {failures:?}");
 }

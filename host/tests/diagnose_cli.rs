@@ -227,3 +227,84 @@ fn the_deflection_is_measured_from_the_zero_read_at_rest() {
     assert_eq!(off["findings"], right["findings"]);
 }
 
+/// A micro-slip gear whose spring's + side is `plus` times and − side `minus` times a spring
+/// that stiffens from 12000 N·m/rad (three slip elements; model version 2).
+fn sided_gear(plus: f64, minus: f64) -> String {
+    let knot = |x: f64, k: f64| format!(r#"{{"x": {x:e}, "stiffness": {k}}}"#);
+    let knots = [
+        knot(-2e-3, minus * 40_000.0),
+        knot(-1e-3, minus * 22_000.0),
+        knot(0.0, 12_000.0),
+        knot(1e-3, plus * 22_000.0),
+        knot(2e-3, plus * 40_000.0),
+    ];
+    format!(
+        r#"{{"model": "micro-slip", "model_version": 2, "params": {{"zero": 0.0, "spring": {{"c1": 0.0, "c2": 0.0, "c3": 0.0,
+        "knots": [{}], "range": [-2e-3, 2e-3]}}, "elements": [{{"slip": 5e-5, "stiffness": 1500.0}},
+        {{"slip": 2e-4, "stiffness": 1500.0}}, {{"slip": 5e-4, "stiffness": 1500.0}}]}}}}"#,
+        knots.join(", ")
+    )
+}
+
+/// The spring's two sides: a gear whose + side is 15 % softer and − side 15 % stiffer than a
+/// symmetric one is named asymmetric, with the tips' secant stiffnesses of the truth (its loop
+/// from rest to +A, −A, +A, run here on the truth params); the symmetric gear is not. Without a
+/// rest window to read the zero at, it is not tested.
+#[test]
+fn an_asymmetric_spring_is_named_with_its_tips_secants_and_a_symmetric_one_is_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let amplitude = 1.168e-3;
+    // 2 s at rest, then three cycles of a 0.25 Hz sine.
+    let motion = dir.path().join("motion.csv");
+    let rows: String = (0..=14_000)
+        .map(|k| {
+            let t = k as f64 / 1000.0;
+            let x = if t < 2.0 { 0.0 } else { amplitude * (std::f64::consts::TAU * 0.25 * (t - 2.0)).sin() };
+            format!("{t:.3},{x:.9e}\n")
+        })
+        .collect();
+    std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
+    let diagnosed = |name: &str, gear: &str| {
+        let path = dir.path().join(format!("{name}.json"));
+        std::fs::write(&path, gear).unwrap();
+        let args = ["--params", path.to_str().unwrap(), "--motion", motion.to_str().unwrap(), "--torque-noise", "0.03"];
+        simulated_and_diagnosed(dir.path(), &format!("{name}.csv"), &args)
+    };
+    let asymmetric = diagnosed("asymmetric", &sided_gear(0.85, 1.15));
+    let found = &asymmetric["asymmetry"];
+    assert_eq!(found["tested"], "yes", "{found:#}");
+    assert!(found["rejected"].is_null(), "{found:#}");
+    // The truth's tips, along the same loop.
+    let truth: model_core::GearModel<f64> =
+        swg_host::report::params::parse_model("truth".as_ref(), &sided_gear(0.85, 1.15)).unwrap();
+    let a = found["extent_rad"].as_f64().unwrap();
+    assert!((a - amplitude).abs() < 1e-5 * amplitude, "extent {a}");
+    let steps = 200;
+    let leg = |from: f64, to: f64| (1..=steps).map(move |k| from + (to - from) * f64::from(k) / f64::from(steps));
+    let path: Vec<f64> = std::iter::once(0.0).chain(leg(0.0, a)).chain(leg(a, -a)).chain(leg(-a, a)).collect();
+    let torque = swg_host::gear::run_offline(&truth, &path, &swg_host::prepare::reversals(&path)).unwrap();
+    let (plus, minus) = (torque.last().unwrap().torque / a, torque[2 * steps as usize].torque / -a);
+    let expected = 2.0 * (plus - minus) / (plus + minus);
+    let magnitude = found["magnitude"].as_f64().unwrap();
+    println!("asymmetry {magnitude:.4} against the truth's {expected:.4}");
+    assert!(expected < -0.1 && (magnitude - expected).abs() < 0.02, "{magnitude} against {expected}");
+    for (side, truth) in [("plus_nm_per_rad", plus), ("minus_nm_per_rad", minus)] {
+        let fitted = found[side].as_f64().unwrap();
+        assert!((fitted - truth).abs() < 0.02 * truth, "{side}: {fitted} against {truth}");
+    }
+    let symmetric = diagnosed("symmetric", &sided_gear(1.0, 1.0));
+    assert_eq!(symmetric["asymmetry"]["tested"], "yes");
+    assert!(symmetric["asymmetry"]["rejected"].is_string(), "{:#}", symmetric["asymmetry"]);
+    // The same recording from mid-rise, without its rest (nor its `# start: rest` line): the
+    // zero is not known.
+    let recorded = std::fs::read_to_string(dir.path().join("asymmetric.csv")).unwrap();
+    let (comments, rows): (Vec<&str>, Vec<&str>) = recorded.lines().partition(|line| line.starts_with('#'));
+    let mut cut: Vec<&str> = comments.into_iter().filter(|line| !line.contains("start:")).collect();
+    cut.push(rows[0]);
+    cut.extend(&rows[2500..]);
+    let moving = dir.path().join("moving.csv");
+    std::fs::write(&moving, cut.join("\n")).unwrap();
+    let unzeroed: serde_json::Value =
+        serde_json::from_str(&ok(swg_host(&["diagnose", moving.to_str().unwrap(), "--json"]))).unwrap();
+    assert_eq!(unzeroed["asymmetry"]["tested"], "no", "{:#}", unzeroed["asymmetry"]);
+}

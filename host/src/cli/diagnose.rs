@@ -3,6 +3,7 @@ use super::InputOptions;
 use anyhow::{Context, Result};
 use clap::Args;
 use std::path::PathBuf;
+use swg_host::diagnose::asymmetry::AsymmetryCheck;
 use swg_host::diagnose::diagnose_dataset;
 use swg_host::input::{Dataset, Recording};
 use swg_host::report::diagnose::DiagnoseReport;
@@ -52,7 +53,8 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
 
     if let (Some(dir), Some([residuals_path, loop_path])) = (&args.plot, &pictures) {
         let residual_svg = residuals_svg(&outcome.observed, &outcome.before, &outcome.after)?;
-        let loop_svg = diagnosis_loop_svg(&outcome.observed, &outcome.diagnosis)?;
+        let mirrored = matches!(outcome.asymmetry, AsymmetryCheck::Yes(_));
+        let loop_svg = diagnosis_loop_svg(&outcome.observed, &outcome.diagnosis, mirrored)?;
         outputs.create_dir(dir)?;
         outputs.stage(residuals_path, residual_svg.as_bytes())?;
         outputs.stage(loop_path, loop_svg.as_bytes())?;

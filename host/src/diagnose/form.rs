@@ -10,7 +10,7 @@ use super::effects::Effect;
 use super::extended::{direction_sign, ExtendedFit};
 use super::observed::Observed;
 use super::{MIN_BIC_DROP, MIN_EXPLAINED};
-use crate::fit::motion::{fit_micro_slip, micro_slip_with_columns, Motion};
+use crate::fit::motion::{fit_micro_slip, micro_slip_with_columns, Motion, SpringShape};
 use crate::fit::FitOptions;
 use crate::prepare::reversals;
 use serde::Serialize;
@@ -60,7 +60,7 @@ pub enum Structure {
 }
 
 /// The torque column of an effect that adds torque (`None` for the deflection effects).
-fn torque_column(observed: &Observed, effect: Effect) -> Option<Vec<f64>> {
+pub(super) fn torque_column(observed: &Observed, effect: Effect) -> Option<Vec<f64>> {
     let d = &observed.data;
     let n = d.theta.len();
     match effect {
@@ -99,7 +99,9 @@ pub fn judge(
         final_fit.active.iter().filter_map(|&e| torque_column(observed, e).map(|c| (e, c))).collect();
     let with = |skip: Option<Effect>| {
         let extra: Vec<&[f64]> = columns.iter().filter(|(e, _)| Some(*e) != skip).map(|(_, c)| c.as_slice()).collect();
-        micro_slip_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &extra).ok()
+        micro_slip_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &extra, SpringShape::Free)
+            .ok()
+            .map(|fit| (fit.predicted, fit.chi2))
     };
     let Some(with_all) = with(None) else { return Structure::Noise };
     let form_chi2 = with_all.1;
@@ -122,8 +124,16 @@ pub fn judge(
     let (form_torque, form_chi2) = if kept_columns.len() == columns.len() {
         with_all
     } else {
-        match micro_slip_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &kept_columns) {
-            Ok(form) => form,
+        match micro_slip_with_columns(
+            &data.theta,
+            &data.torque,
+            &reversals,
+            Some(noise),
+            weights,
+            &kept_columns,
+            SpringShape::Free,
+        ) {
+            Ok(form) => (form.predicted, form.chi2),
             Err(_) => return Structure::Noise,
         }
     };

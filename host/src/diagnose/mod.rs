@@ -13,6 +13,7 @@
 //! 20 %: smaller gains are what model mismatch and noise structure produce), and the two
 //! independent halves of the recording, fitted alone, must each show it clearly (|z| > 3)
 //! with magnitudes within ±25 % of their mean.
+pub mod asymmetry;
 pub mod effects;
 mod extended;
 pub mod form;
@@ -147,6 +148,8 @@ pub struct DiagnoseOutcome {
     /// The deflection's zero θ0 (and the torque) read in the recording's rest window, which the
     /// deflection was measured from; `None` without one.
     pub origin: Option<RunOrigin>,
+    /// Whether the spring's two sides differ, about that zero.
+    pub asymmetry: asymmetry::AsymmetryCheck,
 }
 
 /// `dataset` with its deflection measured from its zero θ0 where it is a recording that starts
@@ -206,5 +209,6 @@ pub fn diagnose_dataset(
             source: source.into(),
         })?;
     let locate = locate(&observed, &before);
-    Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin })
+    let asymmetry = asymmetry::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active, origin.is_some());
+    Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin, asymmetry })
 }

@@ -363,10 +363,7 @@ fn rate_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit, effect: E
     let (pooled, pooled_error) = (fit.magnitude(effect), fit.magnitude_error(effect));
     let apart = (ms - mf).abs() / es.hypot(ef);
     if !(pooled.abs() >= MIN_HALF_Z * pooled_error) {
-        Some(format!(
-            "not clear over every rate pooled ({pooled:.3e} ± {pooled_error:.1e} {})",
-            effect.unit()
-        ))
+        Some(format!("not clear over every rate pooled ({pooled:.3e} ± {pooled_error:.1e} {})", effect.unit()))
     } else if apart > MIN_HALF_Z
         && (ms.signum() != mf.signum() || (ms - mf).abs() > MAX_HALF_SPREAD * (ms + mf).abs() / 2.0)
     {

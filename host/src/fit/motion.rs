@@ -657,8 +657,12 @@ impl<'a> Motion<'a> {
 
     /// The spring's columns of a fit to this motion: knots by the knot rule over the fitted range.
     pub fn spring_basis(&self) -> SpringBasis {
-        let noise = self.noise.map_or(0.0, |n| n.deflection_rad);
-        SpringBasis::new(self.fitted_range(), noise.max(self.rest_jitter))
+        SpringBasis::new(self.fitted_range(), self.knot_noise())
+    }
+
+    /// The σθ the knot rule spaces knots by: the deflection noise or the spread at rest.
+    fn knot_noise(&self) -> f64 {
+        self.noise.map_or(0.0, |n| n.deflection_rad).max(self.rest_jitter)
     }
 
     fn check(&self) -> Result<(), FitError> {
@@ -1585,10 +1589,35 @@ fn slip_columns<'a>(
     Ok((columns(&elements), elements))
 }
 
+/// The spring a [`micro_slip_with_columns`] solve may take.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpringShape {
+    /// The knot rule's spring, its two sides free ([`Motion::spring_basis`]).
+    Free,
+    /// Knots mirrored about x = 0 over the larger side's extent, each side free
+    /// ([`SpringBasis::mirrored_knots`]).
+    Mirrored,
+    /// The same knots, forced point-symmetric: S(−x) = −S(x).
+    Symmetric,
+}
+
+/// What [`micro_slip_with_columns`] found.
+#[derive(Clone, Debug)]
+pub struct ColumnsFit {
+    /// The torque at each sample, N·m.
+    pub predicted: Vec<f64>,
+    /// The weighted residual sum of squares.
+    pub chi2: f64,
+    /// The fitted micro-slip model (without the extra columns).
+    pub model: GearModel<f64>,
+    /// Columns solved for: the spring's, the slip elements' and the extras.
+    pub parameters: usize,
+}
+
 /// The micro-slip form with further free columns beside it (the diagnosis' torque effects), in
 /// one least-squares solve with the given weights on every sample of one recording, following
-/// its `reversals`: its torque at each sample and the weighted residual sum of squares.
-/// `weights` and the `extra` columns have a value per sample.
+/// its `reversals`, on a spring of the given `shape`. `weights` and the `extra` columns have a
+/// value per sample; a sample of weight 0 is followed, not fitted.
 pub fn micro_slip_with_columns(
     theta: &[f64],
     torque: &[f64],
@@ -1596,10 +1625,15 @@ pub fn micro_slip_with_columns(
     noise: Option<NoiseModel>,
     weights: &[f64],
     extra: &[&[f64]],
-) -> Result<(Vec<f64>, f64), FitError> {
+    shape: SpringShape,
+) -> Result<ColumnsFit, FitError> {
     let motion = Motion::training_prefix(theta, torque, reversals, theta.len(), noise);
     motion.check()?;
-    let spring = motion.spring_basis();
+    let spring = match shape {
+        SpringShape::Free => motion.spring_basis(),
+        SpringShape::Mirrored => SpringBasis::mirrored_knots(motion.fitted_range(), motion.knot_noise(), false),
+        SpringShape::Symmetric => SpringBasis::mirrored_knots(motion.fitted_range(), motion.knot_noise(), true),
+    };
     let weighting = Weighting::Given(weights);
     let (columns, elements) = slip_columns(&motion, &spring, extra, Source::Full(&motion), weighting)?;
     let solved = slip_solve(Source::Full(&motion), weighting, &columns, &elements)?;
@@ -1616,7 +1650,7 @@ pub fn micro_slip_with_columns(
             predicted.push(p);
         }
     }
-    Ok((predicted, chi2))
+    Ok(ColumnsFit { predicted, chi2, model, parameters: columns.len() })
 }
 
 /// The Preisach fit's cells: the grid's reach and the groups of cells that share one weight.

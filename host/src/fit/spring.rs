@@ -108,6 +108,8 @@ pub struct SpringBasis {
     at_zero: Vec<f64>,
     range: [f64; 2],
     mirrored: Option<Mirrored>,
+    /// Each knot at −x shares the stiffness of its mirror at +x: one column per pair.
+    paired: bool,
 }
 
 impl SpringBasis {
@@ -136,7 +138,30 @@ impl SpringBasis {
     fn of(knots: Vec<f64>, range: [f64; 2], mirrored: Option<Mirrored>) -> Self {
         let mut at_zero = vec![0.0; knots.len()];
         model_core::spring::basis_origin(&knots, &mut at_zero);
-        SpringBasis { knots, at_zero, range, mirrored }
+        SpringBasis { knots, at_zero, range, mirrored, paired: false }
+    }
+
+    /// The knot rule's knots over the larger side's extent on both sides, mirrored about x = 0;
+    /// with `shared`, each pair ±x shares one stiffness (one column per pair, the knot at 0
+    /// first): the spring forced point-symmetric, S(−x) = −S(x). `diagnose` tests a spring's
+    /// asymmetry by the two, which differ only in that constraint.
+    pub fn mirrored_knots(range: [f64; 2], noise: f64, shared: bool) -> Self {
+        let extent = (-range[0]).max(range[1]).max(0.0);
+        let basis = SpringBasis::of(knot_rule(-extent, extent, noise), [-extent, extent], None);
+        SpringBasis { paired: shared, ..basis }
+    }
+
+    /// The middle knot's index (x = 0) of a paired basis.
+    fn middle(&self) -> usize {
+        self.knots.len() / 2
+    }
+
+    /// Values per knot folded onto the pairs: the middle knot's, then each pair's sum.
+    fn fold(&self, per_knot: &[f64], out: &mut [f64]) {
+        let middle = self.middle();
+        for (j, value) in out.iter_mut().enumerate().take(self.len()) {
+            *value = if j == 0 { per_knot[middle] } else { per_knot[middle - j] + per_knot[middle + j] };
+        }
     }
 
     /// The same range with other knots (increasing, holding x = 0 and the range's edges).
@@ -150,9 +175,13 @@ impl SpringBasis {
         self.range
     }
 
-    /// Columns: one per knot.
+    /// Columns: one per knot, or per pair of mirrored knots.
     pub fn len(&self) -> usize {
-        self.knots.len()
+        if self.paired {
+            self.middle() + 1
+        } else {
+            self.knots.len()
+        }
     }
 
     /// Never empty: the knot at x = 0 is always there.
@@ -167,8 +196,13 @@ impl SpringBasis {
 
     /// The columns' torque B_j(x) into `torque` (its first [`len`](Self::len) entries).
     pub fn torque_row(&self, x: f64, torque: &mut [f64]) {
-        let mut stiffness = [0.0; MAX_KNOTS];
-        model_core::spring::basis(&self.knots, x, torque, &mut stiffness);
+        let (mut per_knot, mut stiffness) = ([0.0; MAX_KNOTS], [0.0; MAX_KNOTS]);
+        model_core::spring::basis(&self.knots, x, &mut per_knot, &mut stiffness);
+        if self.paired {
+            self.fold(&per_knot, torque);
+        } else {
+            torque[..self.knots.len()].copy_from_slice(&per_knot[..self.knots.len()]);
+        }
     }
 
     /// The columns as the offline model takes them (`crate::gear::step_offline`): at x_m,
@@ -186,6 +220,14 @@ impl SpringBasis {
         }
         let (mut torque, mut stiffness) = ([0.0; MAX_KNOTS], [0.0; MAX_KNOTS]);
         model_core::spring::basis_from(&self.knots, &self.at_zero, at.theta_m, &mut torque, &mut stiffness);
+        if self.paired {
+            let mut carried = [0.0; MAX_KNOTS];
+            for ((value, b), h) in carried.iter_mut().zip(torque).zip(stiffness) {
+                *value = (b + h * at.offset) / scale;
+            }
+            self.fold(&carried, out);
+            return;
+        }
         for ((value, b), h) in out.iter_mut().zip(torque).zip(stiffness) {
             *value = (b + h * at.offset) / scale;
         }
@@ -195,8 +237,14 @@ impl SpringBasis {
     /// range, or with the shorter side continued out to the longer side's extent. A weight that
     /// the solve left a hair below 0 is 0.
     pub fn spring(&self, weights: &[f64]) -> Result<Spring<f64>, model_core::Error> {
+        let per_knot: Vec<f64> = if self.paired {
+            let middle = self.middle();
+            (0..self.knots.len()).map(|j| weights.get(j.abs_diff(middle)).copied().unwrap_or(0.0)).collect()
+        } else {
+            weights.to_vec()
+        };
         let mut knots: Vec<Knot<f64>> =
-            self.knots.iter().zip(weights).map(|(&x, &k)| Knot { x, stiffness: k.max(0.0) }).collect();
+            self.knots.iter().zip(&per_knot).map(|(&x, &k)| Knot { x, stiffness: k.max(0.0) }).collect();
         let Some(Mirrored { short_edge, long_edge }) = self.mirrored else {
             return Spring::of_knots(&knots, self.range);
         };
@@ -293,5 +341,24 @@ mod tests {
             SpringBasis::new([-1.0e-3, 0.995e-3], 1.0e-6).spring(&[1.0; 17]).unwrap().range,
             [-1.0e-3, 0.995e-3]
         );
+    }
+
+    #[test]
+    fn a_symmetric_basis_gives_a_point_symmetric_spring_over_the_larger_side() {
+        let basis = SpringBasis::mirrored_knots([-2.0e-3, 1.0e-3], 1.0e-6, true);
+        // 17 knots over ±2 mrad, one column for x = 0 and one per pair.
+        assert_eq!((basis.knots().len(), basis.len()), (17, 9));
+        let weights: Vec<f64> = (0..basis.len()).map(|j| 1000.0 + 500.0 * j as f64).collect();
+        let spring = basis.spring(&weights).unwrap();
+        assert_eq!(spring.range, [-2.0e-3, 2.0e-3]);
+        let mut prepared = spring.prepare().unwrap();
+        let mut row = vec![0.0; basis.len()];
+        for x in [-1.9e-3, -4.0e-4, 0.0, 7.0e-4, 1.5e-3] {
+            let torque = prepared.evaluate(x).torque;
+            assert!((torque + prepared.evaluate(-x).torque).abs() <= 1e-12 * torque.abs().max(1.0), "{x}");
+            basis.torque_row(x, &mut row);
+            let sum: f64 = row.iter().zip(&weights).map(|(b, k)| b * k).sum();
+            assert!((torque - sum).abs() <= 1e-12 * sum.abs().max(1.0), "{x}: {torque} vs {sum}");
+        }
     }
 }

@@ -1,4 +1,5 @@
 //! What `diagnose` reports: the JSON document and the text for a person.
+use crate::diagnose::asymmetry::{Asymmetry, AsymmetryCheck};
 use crate::diagnose::form::{ModelForm, Unexplained};
 use crate::diagnose::passivity::Passivity;
 use crate::diagnose::{
@@ -34,6 +35,8 @@ pub struct DiagnoseReport {
     /// Structure left that nothing in the vocabulary explains.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unexplained: Option<Unexplained>,
+    /// Whether the spring's two sides differ (a finding of form), or why it was not tested.
+    pub asymmetry: AsymmetryCheck,
     /// ∮T dθ per closed loop; `active` flags a loop that gives energy back.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub passivity: Option<Passivity>,
@@ -93,7 +96,7 @@ impl ModelSummary {
 impl DiagnoseReport {
     /// The report for `outcome` of the file `input`.
     pub fn new(input: String, kind: &'static str, outcome: &DiagnoseOutcome) -> DiagnoseReport {
-        let DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin } = outcome;
+        let DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin, asymmetry } = outcome;
         DiagnoseReport {
             input,
             kind,
@@ -111,6 +114,7 @@ impl DiagnoseReport {
             undecided: diagnosis.undecided.clone(),
             model_form: diagnosis.model_form.clone(),
             unexplained: diagnosis.unexplained.clone(),
+            asymmetry: asymmetry.clone(),
             passivity: passivity.clone(),
             rejected: diagnosis.rejected.clone(),
             final_model: ModelSummary::new(&diagnosis.final_fit, after),
@@ -218,6 +222,17 @@ impl DiagnoseReport {
         if let Some(u) = &report.unexplained {
             let _ = writeln!(s, "\n{}", u.words);
         }
+        if let Some(a) = report.asymmetry.named() {
+            let _ = writeln!(s, "\nthe spring's two sides differ (asymmetry, a finding of form)");
+            let _ = writeln!(s, "  {}", asymmetry_words(a));
+            let _ = writeln!(
+                s,
+                "  ΔBIC {:.0}, explains {:.0} % of the symmetric spring's residual; the genetic baseline's spring is \
+                 symmetric, every kind of `fit` has the free-form spring that models it",
+                a.delta_bic,
+                100.0 * a.explained
+            );
+        }
         if let Some(p) = report.passivity.as_ref().filter(|p| !p.active) {
             let _ = writeln!(s, "\nenergy: {}", p.words);
         }
@@ -239,14 +254,28 @@ impl DiagnoseReport {
                 h.samples, h.rms_before, h.rms_after
             );
         }
-        if !report.rejected.is_empty() {
+        let asymmetry_rejected = match &report.asymmetry {
+            AsymmetryCheck::Yes(a) => a.rejected.as_ref().map(|why| (a, why)),
+            AsymmetryCheck::No { .. } => None,
+        };
+        if !report.rejected.is_empty() || asymmetry_rejected.is_some() {
             let _ = writeln!(s, "\nnot accepted");
             for r in &report.rejected {
                 let _ = writeln!(s, "  - {}: {}", r.effect, r.reason);
             }
+            if let Some((a, why)) = asymmetry_rejected {
+                let _ = writeln!(s, "  - asymmetry ({}): {why}", asymmetry_words(a));
+            }
         }
-        if !report.not_revealable.is_empty() {
+        let asymmetry_untested = match &report.asymmetry {
+            AsymmetryCheck::No { why } => Some(why),
+            AsymmetryCheck::Yes(_) => None,
+        };
+        if !report.not_revealable.is_empty() || asymmetry_untested.is_some() {
             let _ = writeln!(s, "\ncannot be told from this data");
+            if let Some(why) = asymmetry_untested {
+                let _ = writeln!(s, "  - asymmetry: {why}");
+            }
             // Effects refused for one reason share one line.
             let mut shown: Vec<&str> = Vec::new();
             for r in &report.not_revealable {
@@ -261,6 +290,23 @@ impl DiagnoseReport {
         }
         s
     }
+}
+
+/// The spring's two sides, in words.
+fn asymmetry_words(a: &Asymmetry) -> String {
+    let softer = if a.magnitude < 0.0 { "+" } else { "−" };
+    let parts = a.halves.map_or(String::new(), |[p, q]| {
+        format!("; each part of the recording alone: {:+.1} %, {:+.1} %", 100.0 * p, 100.0 * q)
+    });
+    format!(
+        "the {softer} side is the softer: secant stiffness {:.0} N·m/rad to the loop's tip at +{:.3} mrad against {:.0} \
+         at −{:.3} mrad, a difference of {:.1} % of their mean{parts}",
+        a.plus_nm_per_rad,
+        1e3 * a.extent_rad,
+        a.minus_nm_per_rad,
+        1e3 * a.extent_rad,
+        100.0 * a.magnitude.abs()
+    )
 }
 
 /// The recording's deflection zero, in words.

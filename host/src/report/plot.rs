@@ -259,7 +259,9 @@ fn draw_residuals(observed: &Observed, before: &[f64], after: &[f64], svg: &mut 
 }
 
 /// The loop with the baseline model's and the final model's torque at every sample.
-pub fn diagnosis_loop_svg(observed: &Observed, diagnosis: &Diagnosis) -> Result<String, PlotError> {
+/// With `mirrored`, the measured samples point-mirrored, (−θ, −T), are drawn beside them: a spring
+/// whose two sides differ shows as a mirror that leaves the loop.
+pub fn diagnosis_loop_svg(observed: &Observed, diagnosis: &Diagnosis, mirrored: bool) -> Result<String, PlotError> {
     const PICTURE: &str = "diagnosis loop picture";
     let d = &observed.data;
     let stride = d.theta.len().div_ceil(MAX_POINTS).max(1);
@@ -271,7 +273,7 @@ pub fn diagnosis_loop_svg(observed: &Observed, diagnosis: &Diagnosis) -> Result<
     };
     let (baseline, final_model) = (predicted(&diagnosis.baseline)?, predicted(&diagnosis.final_fit)?);
     let mut svg = String::new();
-    drawn(PICTURE, draw_diagnosis_loop(observed, diagnosis, &shown, baseline, final_model, &mut svg))?;
+    drawn(PICTURE, draw_diagnosis_loop(observed, diagnosis, &shown, [baseline, final_model], mirrored, &mut svg))?;
     Ok(svg)
 }
 
@@ -279,8 +281,8 @@ fn draw_diagnosis_loop(
     observed: &Observed,
     diagnosis: &Diagnosis,
     all: &[usize],
-    baseline: Vec<f64>,
-    final_model: Vec<f64>,
+    [baseline, final_model]: [Vec<f64>; 2],
+    mirrored: bool,
     svg: &mut String,
 ) -> DrawResult {
     let d = &observed.data;
@@ -294,8 +296,9 @@ fn draw_diagnosis_loop(
     let measured = detrend(all.iter().map(|&i| d.torque[i]).collect());
     let root = SVGBackend::with_string(svg, (960, 640)).into_drawing_area();
     root.fill(&WHITE)?;
-    let (x_lo, x_hi) = range(d.theta.iter().map(|t| t * MRAD));
-    let (y_lo, y_hi) = range(measured.iter().copied());
+    let sign = if mirrored { -1.0 } else { 1.0 };
+    let (x_lo, x_hi) = range(d.theta.iter().flat_map(|t| [t * MRAD, sign * t * MRAD]));
+    let (y_lo, y_hi) = range(measured.iter().flat_map(|&t| [t, sign * t]));
     let effects: Vec<&str> = diagnosis.final_fit.active.iter().map(|e| e.name()).collect();
     let title = if effects.is_empty() {
         "loop, mean stiffness removed: no missing physics found".to_string()
@@ -320,6 +323,17 @@ fn draw_diagnosis_loop(
         )?
         .label("measured")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, grey.filled()));
+    if mirrored {
+        let green = RGBColor(0, 150, 70);
+        chart
+            .draw_series(
+                all.iter()
+                    .zip(&measured)
+                    .map(|(&i, &t)| Circle::new((-d.theta[i] * MRAD, -t), 1, green.mix(0.6).filled())),
+            )?
+            .label("measured, point-mirrored (−θ, −T): off the loop where the spring's sides differ")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, green.filled()));
+    }
     chart
         .draw_series(all.iter().zip(&baseline).map(|(&i, &t)| Circle::new((d.theta[i] * MRAD, t), 1, orange.filled())))?
         .label("baseline model")
