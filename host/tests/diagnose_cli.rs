@@ -156,6 +156,14 @@ fn a_damping_too_small_to_see_at_the_slow_rate_is_named_from_every_rate_pooled()
     assert_eq!(found.len(), 1, "{json:#}");
     assert_eq!(found[0].0, "viscous_damping", "{json:#}");
     assert!((found[0].1 - 25.0).abs() < 0.1 * 25.0, "{}", found[0].1);
+    assert_eq!(json["findings"][0]["active"], false);
+    // The same damping of the other sign gives energy back: named, and flagged active.
+    let motion = ["--cycles", "3", "--frequency", "0.05,0.2,0.8", "--effect", "viscous_damping=-25"];
+    let json = simulated_and_diagnosed(dir.path(), "negative.csv", &motion);
+    let found = named(&json);
+    assert_eq!(found.len(), 1, "{json:#}");
+    assert!((found[0].1 + 25.0).abs() < 0.1 * 25.0, "{}", found[0].1);
+    assert_eq!(json["findings"][0]["active"], true, "{json:#}");
 }
 
 /// Where the loop's stiffness hardly changes as it moves, damping and a delay are one column:

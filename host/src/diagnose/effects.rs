@@ -76,6 +76,12 @@ impl Effect {
         }
     }
 
+    /// Whether the effect at `magnitude` gives energy back over a cycle, which no passive gear
+    /// does: a damping or a friction below 0 (the simulator draws either sign).
+    pub fn gives_energy_back(self, magnitude: f64) -> bool {
+        matches!(self, Effect::ViscousDamping | Effect::CoulombFriction) && magnitude < 0.0
+    }
+
     /// What the magnitude is, in words.
     pub fn magnitude_meaning(self) -> &'static str {
         match self {

@@ -69,6 +69,9 @@ pub struct Finding {
     pub rss_before: f64,
     pub rss_after: f64,
     pub evidence: Evidence,
+    /// It gives energy back over a cycle ([`Effect::gives_energy_back`]): the measurement, not
+    /// the gear.
+    pub active: bool,
 }
 
 #[derive(Clone, Debug, Serialize)]

@@ -139,6 +139,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 rss_before,
                 rss_after,
                 evidence,
+                active: false,
             });
         }
         current = fit;
@@ -147,6 +148,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
         .map_err(|source| refit_error(&current.active, source))?;
     for finding in &mut findings {
         finding.magnitude = final_fit.magnitude(finding.effect);
+        finding.active = finding.effect.gives_energy_back(finding.magnitude);
     }
     // Both candidates of an undecided torque, in the final model: effects accepted after it
     // (friction, say) take what it had stood in for when it was kept.

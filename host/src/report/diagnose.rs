@@ -198,6 +198,14 @@ impl DiagnoseReport {
             for (k, f) in report.findings.iter().enumerate() {
                 let _ = writeln!(s, "  {}. {}: {:.4e} {} ({})", k + 1, f.effect, f.magnitude, f.unit, f.meaning);
                 let _ = writeln!(s, "     where: {}", f.location);
+                if f.active {
+                    let _ = writeln!(
+                        s,
+                        "     active: a negative {} gives energy back every cycle, which no passive gear does: the \
+                         measurement, not the gear (the torque channel ahead of the angles, or a sign flipped)",
+                        f.meaning
+                    );
+                }
                 let halves = f.evidence.halves.map_or(String::new(), |[a, b]| format!(", halves {a:.4e} / {b:.4e}"));
                 let _ = writeln!(
                     s,
