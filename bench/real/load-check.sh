@@ -32,7 +32,7 @@ EOF
 done
 
 echo
-echo '| run | θ0 read at rest, mrad | genetic baseline RMS, N·m | model form named (its RMS, N·m) | effects named | held-out RMS (last quarter), N·m | passivity |'
+echo '| run | θ0 read at rest, mrad | genetic baseline RMS, N·m | model form named (its RMS, N·m) | effects named | held-out RMS (interleaved cycles; one cycle: its middle leg), N·m | passivity |'
 echo '|---|---|---|---|---|---|---|'
 for csv in data/real/sea-spring-2/*.csv; do
     name=$(basename "$csv" .csv | cut -d- -f2,3)

@@ -5,7 +5,8 @@
 //! the shape is named instead of the effects that stood in for it. The form must pass what an
 //! effect must: the information criterion drops by more than [`MIN_BIC_DROP`] for its extra
 //! parameters, it explains at least [`MIN_EXPLAINED`] of the weighted residual, and it does
-//! better on the last quarter of the recording, held out of both fits.
+//! better on the held-out samples (interleaved cycles, [`Observed::held_out`]), held out of
+//! both fits.
 use super::effects::Effect;
 use super::extended::{direction_sign, ExtendedFit};
 use super::observed::Observed;
@@ -31,7 +32,7 @@ pub struct ModelForm {
     pub rms_before: f64,
     pub rms_after: f64,
     pub noise_rms: f64,
-    /// RMS on the last quarter of the recording of each, fitted without it, N·m.
+    /// RMS on the held-out samples of each, fitted without them, N·m.
     pub held_out_before: Option<f64>,
     pub held_out_after: Option<f64>,
 }
@@ -141,8 +142,8 @@ pub fn judge(
     let form_rms = (form_rss / n as f64).sqrt();
     let held_out = (!observed.held_out().is_empty())
         .then(|| {
-            let training = observed.training().len();
-            let motion = Motion::training_prefix(&data.theta, &data.torque, &reversals, training, Some(noise));
+            let spans = observed.held_out_spans().to_vec();
+            let motion = Motion::with_spans(&data.theta, &data.torque, &reversals, spans, Some(noise));
             fit_micro_slip(&motion, &FitOptions::default()).ok().and_then(|f| f.held_out_rms)
         })
         .flatten();

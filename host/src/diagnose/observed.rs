@@ -2,6 +2,8 @@
 //! parts for the consistency check and the held-out samples, and what it cannot reveal.
 use super::effects::Effect;
 use super::extended::{harmonics, kinematic_of, EffectState};
+use crate::fit::held_out::{hold_out, RunShape};
+use crate::fit::motion::Span;
 use crate::input::{Dataset, Recording};
 use crate::prepare::{FitData, NoiseModel, Prepared};
 use model_core::Direction;
@@ -52,14 +54,27 @@ struct LegEnd {
     index: usize,
 }
 
-/// Which samples a model is fitted on and which it is judged on.
-#[derive(Clone, Debug)]
-enum HeldOut {
-    /// A recording's last quarter, from this sample on: both are slices of the list of every
-    /// sample, so that no further list of indices is kept (8 bytes a sample at 10 M samples).
-    Tail(usize),
-    /// A table's alternate points of each branch.
-    Apart { training: Vec<usize>, held_out: Vec<usize> },
+/// Which samples a model is fitted on and which it is judged on: a recording's interleaved
+/// cycles (`fit`'s rule for one run, [`crate::fit::held_out`]), a table's alternate points of
+/// each branch. Never the last quarter in time: a gear warms and a sensor drifts over a
+/// recording, so the last quarter would judge a real effect beside a drift on how the model
+/// extrapolates the drift (a kinematic error beside a thermal drift was dropped that way).
+#[derive(Clone, Debug, Default)]
+struct HeldOut {
+    training: Vec<usize>,
+    held_out: Vec<usize>,
+    /// A recording's spans, in order, each fitted or held out.
+    spans: Vec<Span>,
+}
+
+impl HeldOut {
+    fn of_spans(spans: Vec<Span>) -> HeldOut {
+        let (mut training, mut held_out) = (Vec::new(), Vec::new());
+        for span in &spans {
+            if span.held_out { &mut held_out } else { &mut training }.extend(span.range.clone());
+        }
+        HeldOut { training, held_out, spans }
+    }
 }
 
 impl Observed {
@@ -70,18 +85,17 @@ impl Observed {
 
     /// The samples the held-out check fits on.
     pub fn training(&self) -> &[usize] {
-        match &self.split {
-            HeldOut::Tail(split) => &self.samples[..*split],
-            HeldOut::Apart { training, .. } => training,
-        }
+        &self.split.training
     }
 
     /// The samples the held-out check judges on.
     pub fn held_out(&self) -> &[usize] {
-        match &self.split {
-            HeldOut::Tail(split) => &self.samples[*split..],
-            HeldOut::Apart { held_out, .. } => held_out,
-        }
+        &self.split.held_out
+    }
+
+    /// A recording's samples in order as spans, each fitted or held out (empty for a table).
+    pub fn held_out_spans(&self) -> &[Span] {
+        &self.split.spans
     }
 
     /// What `dataset` offers the diagnosis, with `data`, its prepared samples (moved out of
@@ -99,7 +113,7 @@ impl Observed {
             rate_parts: None,
             rate_spread: None,
             samples: (0..n).collect(),
-            split: HeldOut::Tail(n),
+            split: HeldOut::default(),
             cannot_reveal: Vec::new(),
             leg_ends: None,
             data,
@@ -120,7 +134,7 @@ impl Observed {
                     }
                     *k += 1;
                 }
-                observed.split = HeldOut::Apart { training, held_out };
+                observed.split = HeldOut { training, held_out, spans: Vec::new() };
                 for (effect, why) in [
                     (Effect::ViscousDamping, "a loop table has no time, so no deflection rate"),
                     (Effect::ChannelDelay, "a loop table has no time, so no deflection rate"),
@@ -138,7 +152,14 @@ impl Observed {
     fn add_recording(&mut self, recording: Recording, prepared: &Prepared) {
         let n = recording.time.len();
         self.parts = interleaved_cycles(n, prepared.segmentation.as_ref().map_or(&[][..], |s| &s.turning_points));
-        self.split = HeldOut::Tail(n * 3 / 4);
+        if let Some(segmentation) = &prepared.segmentation {
+            let reversals = segmentation.reversals();
+            let run = RunShape { theta: &self.data.theta, reversals: &reversals, scored_from: 0 };
+            let (folds, _) = hold_out(&[run]);
+            if let Some(spans) = folds.into_iter().next().and_then(|fold| fold.into_iter().next()) {
+                self.split = HeldOut::of_spans(spans);
+            }
+        }
         let legs = prepared.segmentation.as_ref().map_or(n, |s| n / (s.turning_points.len() + 1).max(1));
         let rate = local_slope(&recording.time, &recording.deflection, (legs / 50).max(2));
         let (spread, rate_parts) = rate_spread(&self.data, &rate);
@@ -336,4 +357,55 @@ pub fn local_slope(time: &[f64], x: &[f64], half: usize) -> Vec<f64> {
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::prepare::prepare;
+    use crate::simulate::{simulate, Simulation};
+
+    /// A recording's held-out samples are whole cycles spread over it, not its last quarter:
+    /// a gear warms and a sensor drifts over a recording, and the last quarter would judge an
+    /// effect on how the model extrapolates the drift.
+    #[test]
+    fn a_recordings_held_out_samples_are_interleaved_cycles_over_the_whole_recording() {
+        let params =
+            crate::report::params::parse_model("seed".as_ref(), include_str!("../../../data/seed/lht-20-50-fit.json"))
+                .unwrap();
+        let simulation = Simulation {
+            params,
+            amplitude_rad: 1.168e-3,
+            frequencies_hz: vec![0.5],
+            cycles: 12,
+            sample_rate_hz: 1000.0,
+            ratio: 50.0,
+            input_speed_rad_s: 0.0,
+            input_bits: Some(20),
+            output_bits: Some(20),
+            torque_noise_nm: 0.05,
+            temperature: None,
+            effects: Vec::new(),
+            seed: 1,
+        };
+        let dataset = Dataset::Recording(simulate(&simulation).unwrap());
+        let mut prepared = prepare(&dataset).unwrap();
+        let data = std::mem::take(&mut prepared.data);
+        let n = data.theta.len();
+        let observed = Observed::with_data(dataset, &prepared, data);
+        let held = observed.held_out();
+        // About one cycle in four, from the first quarter of the recording to the last.
+        assert!(held.len() > n / 6 && held.len() < n / 3, "{} of {n}", held.len());
+        assert!(held.first().is_some_and(|&i| i < n / 4) && held.last().is_some_and(|&i| i >= 3 * n / 4), "{held:?}");
+        // Every sample once, fitted or held out.
+        let mut all: Vec<usize> = observed.training().iter().chain(held).copied().collect();
+        all.sort_unstable();
+        assert_eq!(all, (0..n).collect::<Vec<_>>());
+        // Each held-out span is a whole cycle, between two maxima of the deflection.
+        for span in observed.held_out_spans().iter().filter(|s| s.held_out) {
+            let at = |i: usize| observed.data.theta[i];
+            let peak = observed.data.theta.iter().fold(0.0f64, |m, t| m.max(*t));
+            assert!(at(span.range.start) > 0.99 * peak && at(span.range.end) > 0.99 * peak, "{span:?}");
+        }
+    }
 }

@@ -548,8 +548,7 @@ pub struct MotionFit {
 }
 
 impl<'a> Motion<'a> {
-    /// One run whose first `training` samples (from `scored_from` on) are fitted and the rest
-    /// held out.
+    /// One run whose first `training` samples are fitted and the rest held out.
     pub fn training_prefix(
         theta: &'a [f64],
         torque: &'a [f64],
@@ -562,6 +561,18 @@ impl<'a> Motion<'a> {
         if training < theta.len() {
             spans.push(Span { range: training..theta.len(), held_out: true });
         }
+        Motion::with_spans(theta, torque, reversals, spans, noise)
+    }
+
+    /// One run whose samples are fitted or held out as `spans` say (`diagnose`'s interleaved
+    /// cycles, [`super::held_out`]).
+    pub fn with_spans(
+        theta: &'a [f64],
+        torque: &'a [f64],
+        reversals: &'a Reversals,
+        spans: Vec<Span>,
+        noise: Option<NoiseModel>,
+    ) -> Self {
         Motion {
             runs: vec![Run {
                 theta,
