@@ -140,7 +140,7 @@ pub fn judge(
     };
     let form_rss: f64 = form_torque.iter().zip(&data.torque).map(|(p, t)| (t - p).powi(2)).sum();
     let form_rms = (form_rss / n as f64).sqrt();
-    let held_out = (!observed.held_out().is_empty())
+    let held_out = (observed.held_out_count() > 0)
         .then(|| {
             let spans = observed.held_out_spans().to_vec();
             let motion = Motion::with_spans(&data.theta, &data.torque, &reversals, spans, Some(noise));

@@ -664,15 +664,15 @@ fn held_out(
     baseline: &ExtendedFit,
     final_fit: &ExtendedFit,
 ) -> Result<Option<(f64, f64)>, DiagnoseError> {
-    if observed.held_out().is_empty() || observed.training().len() < 10 {
+    let (training, held_out) = (observed.training(), observed.held_out());
+    if held_out.is_empty() || training.len() < 10 {
         return Ok(None);
     }
     let rms = |fit: &ExtendedFit| -> Result<f64, DiagnoseError> {
-        let trained = fit_extended(observed, observed.training(), weights, &fit.active, fit)
+        let trained = fit_extended(observed, &training, weights, &fit.active, fit)
             .map_err(|source| refit_error(&fit.active, source))?;
-        let residuals = trained
-            .residuals(observed, observed.held_out())
-            .map_err(|source| refit_error(&fit.active, source.into()))?;
+        let residuals =
+            trained.residuals(observed, &held_out).map_err(|source| refit_error(&fit.active, source.into()))?;
         Ok((residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64).sqrt())
     };
     Ok(Some((rms(baseline)?, rms(final_fit)?)))

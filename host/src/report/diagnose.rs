@@ -121,7 +121,7 @@ impl DiagnoseReport {
             held_out: diagnosis.held_out_rms.map(|(rms_before, rms_after)| HeldOut {
                 rms_before,
                 rms_after,
-                samples: observed.held_out().len(),
+                samples: observed.held_out_count(),
             }),
             criteria: Criteria {
                 min_bic_drop: MIN_BIC_DROP,
