@@ -161,6 +161,10 @@ impl Truth {
     }
 }
 
+/// A motion whose first deflection is within this of 0 begins at the truth's rest (a motion file's
+/// rounding; far below any encoder's step, 2π/2²⁴ = 0.37 µrad).
+const AT_ZERO_RAD: f64 = 1e-9;
+
 fn truth(sim: &Simulation, motion: &Motion, physics: &Physics, width: f64) -> Result<Truth, SimulateError> {
     if let Some(gear) = physics.gear()? {
         return Ok(Truth::Path(gear));
@@ -258,7 +262,11 @@ fn run(experiment: &Experiment) -> Result<Recording, SimulateError> {
     if !matches!(physics, Physics::Model) {
         metadata.push(("physics".into(), physics.name().into()));
     }
-    if truth.starts_at_rest() {
+    // The truth starts unstressed at θ = 0; the recording begins at rest only where the motion
+    // does too. (A motion file that begins at 0.83 mrad was written `# start: rest`, and
+    // `diagnose` read its first deflection as the gear's zero.)
+    let begins_at_zero = n > 0 && played.sample(0).x.abs() <= AT_ZERO_RAD;
+    if truth.starts_at_rest() && begins_at_zero {
         metadata.push(("start".into(), "rest".into()));
     }
     if *zero != 0.0 {
@@ -527,6 +535,19 @@ mod tests {
                     assert_eq!(meta(&rec, "start"), (!on_loop).then_some("rest"), "{what}");
                 }
             }
+        }
+        // A motion file that begins away from θ = 0 does not begin at rest.
+        for (first, at_rest) in [(0.0, true), (8.3e-4, false)] {
+            let time: Vec<f64> = (0..2000).map(|k| f64::from(k) / 1000.0).collect();
+            let deflection: Vec<f64> = time.iter().map(|t| first + 1e-4 * (TAU * t).sin()).collect();
+            let trajectory = motion::Trajectory::new("file", time, deflection).unwrap();
+            let experiment = Experiment {
+                simulation: base(),
+                motion: Motion::File(trajectory),
+                physics: Physics::Model,
+                deflection_zero_rad: 0.0,
+            };
+            assert_eq!(simulate_experiment(&experiment).unwrap().starts_at_rest(), at_rest, "from {first}");
         }
         // The genetic seed fit has its loop: the default recording is as it was.
         assert!(base().params.paper_params().is_some());
