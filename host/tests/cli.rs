@@ -174,6 +174,8 @@ fn bad_recordings_are_reported_by_file_line_and_column() {
             ":11: column 1 (time_s): time must increase strictly: 0.06 s follows 0.06 s",
         ),
         ("fields", with_row(8, "0.08,0,0"), ":12: expected 4 fields as in the header"),
+        // A row of empty fields is not a blank line: skipped, it would lose a sample unsaid.
+        ("empty fields", with_row(9, ",,,"), ":13: column 1 (time_s): expected a number, found \"\""),
     ];
     for (name, content, expected) in cases {
         let stderr = fit_error(&format!("{name}.csv"), &content, &[]);

@@ -296,8 +296,9 @@ impl<'a> Table<'a> {
             .from_reader(bytes)
     }
 
-    /// Calls `each` with every data row in order; blank rows are skipped, a row with another
-    /// number of fields than the header is an error.
+    /// Calls `each` with every data row in order; blank lines are skipped, a row with another
+    /// number of fields than the header is an error. A row of empty fields (`,,,`) is not blank:
+    /// its fields are read, and the first that must hold a number says so.
     pub fn for_each_row(&self, mut each: impl FnMut(&Row) -> Result<(), InputError>) -> Result<(), InputError> {
         let mut reader = Self::reader(Table::bytes(&self.path, &self.source)?);
         let mut row = Row { line: 0, fields: csv::StringRecord::new() };
@@ -313,7 +314,7 @@ impl<'a> Table<'a> {
                 continue;
             }
             row.line = row.fields.position().map_or(0, |p| p.line());
-            if row.fields.iter().all(|field| field.trim().is_empty()) {
+            if row.fields.len() == 1 && row.fields.iter().all(|field| field.trim().is_empty()) {
                 continue;
             }
             if row.fields.len() != self.header.len() {
