@@ -14,7 +14,8 @@ pub struct RestWindow {
     pub seconds: f64,
     /// The mean deflection, rad: θ0 for a gear at rest.
     pub deflection_rad: f64,
-    /// Its standard error, rad: the deflection noise over √samples.
+    /// Its standard error, rad: the deflection noise over √samples, or the reading's step over
+    /// √12 where the readings at rest vary by less than half a step (see [`rest_window`]).
     pub deflection_se_rad: f64,
     /// The deflection's standard deviation there, rad: how much the encoders jitter at rest
     /// (none in a window too short to tell).
@@ -64,16 +65,31 @@ pub fn rest_window(time: &[f64], deflection: &[f64], torque: &[f64], noise: f64,
     let torque_nm = mean(torque_still);
     let deflection_rad = mean(still);
     let variance = still.iter().map(|theta| (theta - deflection_rad).powi(2)).sum::<f64>() / (samples - 1) as f64;
+    // Readings that hardly leave one encoder step are not dithered: their mean is that step's
+    // value, off the true deflection by up to half a step whatever their number (a 20-bit
+    // recording at rest read θ0 "± 0.0000 mrad"). Its uncertainty is then the step's rounding,
+    // uniform: step/√12.
+    let averaged = noise / (samples as f64).sqrt();
+    let deflection_se_rad = match reading_step(deflection) {
+        Some(step) if variance.sqrt() < 0.5 * step => averaged.max(step / 12f64.sqrt()),
+        _ => averaged,
+    };
     let window = RestWindow {
         samples,
         seconds,
         deflection_rad,
-        deflection_se_rad: noise / (samples as f64).sqrt(),
+        deflection_se_rad,
         deflection_sd_rad: Some(variance.sqrt()),
         torque_nm: Some(torque_nm),
     };
     let (lo, hi) = torque.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
     (declared || torque_nm.abs() <= REST_TORQUE_FRACTION * (hi - lo)).then_some(window)
+}
+
+/// The smallest change between consecutive readings, rad: the deflection's step where its
+/// encoders quantise it; `None` where it never changes.
+fn reading_step(deflection: &[f64]) -> Option<f64> {
+    deflection.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|d| *d > 0.0).min_by(f64::total_cmp)
 }
 
 /// The first `samples` of `deflection` shortened (by a tenth at a time) until their two halves' means agree
@@ -187,6 +203,22 @@ mod tests {
         // keeps the ones before the ramp shows.
         assert!(window.deflection_rad.abs() < 0.5 * sigma, "{window:?}");
         assert!(window.samples >= 2 * MIN_REST, "{window:?}");
+    }
+
+    #[test]
+    fn a_rest_read_within_one_encoder_step_is_known_to_that_step() {
+        // Quantised to a step larger than the jitter: every reading at rest is one value.
+        let (sigma, step) = (1.0e-7, 6.0e-6);
+        let (time, exact, torque) = rest_then_ramp(4000, 2000, 5.3e-4, sigma);
+        let deflection: Vec<f64> = exact.iter().map(|x| (x / step).round() * step).collect();
+        let window = rest_window(&time, &deflection, &torque, sigma, true).unwrap();
+        assert_eq!(window.deflection_sd_rad, Some(0.0));
+        assert!((window.deflection_se_rad - step / 12f64.sqrt()).abs() < 1e-12, "{window:?}");
+        // Dithered by a jitter larger than the step, the mean averages below it.
+        let (time, exact, torque) = rest_then_ramp(4000, 2000, 5.3e-4, 10.0 * step);
+        let deflection: Vec<f64> = exact.iter().map(|x| (x / step).round() * step).collect();
+        let window = rest_window(&time, &deflection, &torque, 10.0 * step, true).unwrap();
+        assert!(window.deflection_se_rad < 0.2 * step, "{window:?}");
     }
 
     #[test]
