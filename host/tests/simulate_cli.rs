@@ -341,7 +341,7 @@ fn bad_options_are_named_and_nothing_is_written() {
     let json = dir.path().join("p.json");
     std::fs::write(&json, "{\n  \"k\": 9000,\n  \"kk\": 1\n}\n").unwrap();
     let params = repo("data/seed/lht-20-50-fit.json");
-    let cases: [(&[&str], &str); 11] = [
+    let cases: [(&[&str], &str); 14] = [
         (&["--motion", "sinus"], "invalid value 'sinus' for '--motion"),
         (&["--physics", "dahl"], "invalid value 'dahl' for '--physics"),
         (&["--bias", "1e-3"], "--bias is for --motion biased or hold, not --motion sine"),
@@ -359,6 +359,10 @@ fn bad_options_are_named_and_nothing_is_written() {
         (&["--deflection-zero", "2"], "deflection zero must be within ±1 rad, got 2"),
         (&["--motion", "biased", "--bias", "nan"], "bias must be a finite deflection"),
         (&["--physics", "bouc-wen", "--effect", "backlash=0.1", "--rate", "0"], "sample rate must be > 0 Hz"),
+        // A negative value is read as one, and its range named (not "unexpected argument '-1'").
+        (&["--amplitude", "-1"], "amplitude must be > 0 rad, got -1"),
+        (&["--frequency", "-2"], "frequency must be > 0 Hz, got -2"),
+        (&["--torque-noise", "-0.1"], "torque noise must be >= 0 N·m, got -0.1"),
     ];
     for (args, expected) in cases {
         let stderr = fails(&out, args);

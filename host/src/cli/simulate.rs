@@ -81,22 +81,28 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "FILE.json")]
     physics_params: Option<PathBuf>,
     /// Deflection amplitude A of the loops, rad.
-    #[arg(long, default_value_t = 1.168e-3, value_name = "RAD")]
+    #[arg(long, default_value_t = 1.168e-3, value_name = "RAD", allow_negative_numbers = true)]
     amplitude: f64,
     /// Excitation frequency, Hz; several (comma-separated or repeated) are played in turn.
-    #[arg(long = "frequency", value_delimiter = ',', default_value = "0.5", value_name = "HZ")]
+    #[arg(
+        long = "frequency",
+        value_delimiter = ',',
+        default_value = "0.5",
+        value_name = "HZ",
+        allow_negative_numbers = true
+    )]
     frequencies: Vec<f64>,
     /// Whole cycles at each frequency.
     #[arg(long, default_value_t = 4)]
     cycles: u32,
     /// Sample rate, Hz.
-    #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+    #[arg(long, default_value_t = 1000.0, value_name = "HZ", allow_negative_numbers = true)]
     rate: f64,
     /// Gear reduction ratio N.
-    #[arg(long, default_value_t = 50.0, value_name = "N")]
+    #[arg(long, default_value_t = 50.0, value_name = "N", allow_negative_numbers = true)]
     ratio: f64,
     /// Input (wave generator) speed, rad/s; 0 keeps the input locked.
-    #[arg(long, default_value_t = 0.0, value_name = "RAD_S")]
+    #[arg(long, default_value_t = 0.0, value_name = "RAD_S", allow_negative_numbers = true)]
     input_speed: f64,
     /// Input encoder resolution, bits per revolution (default: exact angles).
     #[arg(long, value_name = "BITS")]
@@ -105,13 +111,19 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "BITS")]
     output_bits: Option<u32>,
     /// Torque sensor noise, standard deviation, N·m.
-    #[arg(long, default_value_t = 0.05, value_name = "NM")]
+    #[arg(long, default_value_t = 0.05, value_name = "NM", allow_negative_numbers = true)]
     torque_noise: f64,
     /// Add a temperature column starting at this temperature, °C.
-    #[arg(long, value_name = "CELSIUS")]
+    #[arg(long, value_name = "CELSIUS", allow_negative_numbers = true)]
     temperature: Option<f64>,
     /// Temperature rise over time, K/s (with --temperature).
-    #[arg(long, default_value_t = 0.0, value_name = "K_PER_S", requires = "temperature")]
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "K_PER_S",
+        requires = "temperature",
+        allow_negative_numbers = true
+    )]
     temperature_rise: f64,
     /// Add a physical effect the model leaves out, NAME=VALUE in SI units (repeatable):
     /// backlash=WIDTH_RAD, coulomb_friction=NM, viscous_damping=NM_S_PER_RAD,
