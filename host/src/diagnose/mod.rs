@@ -212,6 +212,11 @@ pub fn diagnose_dataset(
             source: source.into(),
         })?;
     let locate = locate(&observed, &before);
-    let asymmetry = asymmetry::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active, origin.is_some());
+    let asymmetry = asymmetry::check(
+        &observed,
+        &diagnosis.weights,
+        &diagnosis.final_fit.active,
+        origin.map(|o| o.zero_se_rad.unwrap_or(0.0)),
+    );
     Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin, asymmetry })
 }

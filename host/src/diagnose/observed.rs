@@ -180,7 +180,8 @@ impl Observed {
         }
         let legs = prepared.segmentation.as_ref().map_or(n, |s| n / (s.turning_points.len() + 1).max(1));
         let rate = local_slope(&recording.time, &recording.deflection, (legs / 50).max(2));
-        let (spread, rate_parts) = rate_spread(&self.data, &rate);
+        let band = crate::prepare::rest::REST_BAND_IN_NOISE * prepared.noise.map_or(0.0, |n| n.deflection_rad);
+        let (spread, rate_parts) = rate_spread(&self.data, &rate, moving(&self.data.theta, band));
         self.rate_spread = Some(spread);
         if spread < MIN_RATE_SPREAD {
             let why = format!(
@@ -311,9 +312,26 @@ fn interleaved_cycles(n: usize, turning_points: &[crate::prepare::TurningPoint])
 /// A·ω·cos φ, so ω = |rate|/(A·|cos φ|) is the motion's instantaneous frequency: one value for
 /// a single-frequency excitation whatever the amplitude, many for several frequencies or a
 /// random motion. Samples with |θ/A| > 0.8 (rate near zero, ω ill-defined) are left out.
-fn rate_spread(data: &FitData, rate: &[f64]) -> (f64, [Vec<usize>; 2]) {
+/// The samples from the first that leaves the first sample's deflection by more than `band` to
+/// the last that differs from the last sample's by more: the motion without the rests at its
+/// ends.
+fn moving(theta: &[f64], band: f64) -> std::ops::Range<usize> {
+    let (Some(&first), Some(&last)) = (theta.first(), theta.last()) else { return 0..0 };
+    let start = theta.iter().position(|t| (t - first).abs() > band).unwrap_or(theta.len());
+    let end = theta.iter().rposition(|t| (t - last).abs() > band).map_or(start, |k| k + 1);
+    start..end.max(start)
+}
+
+/// The spread of the motion's instantaneous frequency over the `moving` samples, and those
+/// samples split at its median. A rest at either end is no rate of the loop: counted, a rest
+/// before a one-frequency sine made its "slow half" and let a channel delay of 38 ms be named
+/// on a gear that has none.
+fn rate_spread(data: &FitData, rate: &[f64], moving: std::ops::Range<usize>) -> (f64, [Vec<usize>; 2]) {
     // Formed twice, to sort and to split, rather than kept with its index (16 bytes a sample).
     let frequency = |i: usize| {
+        if !moving.contains(&i) {
+            return None;
+        }
         let x = data.theta[i] / data.amplitude[i];
         (x.abs() <= 0.8).then(|| rate[i].abs() / (data.amplitude[i] * (1.0 - x * x).sqrt())).filter(|w| w.is_finite())
     };

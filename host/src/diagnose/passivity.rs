@@ -97,6 +97,13 @@ pub fn of_recording(recording: &Recording, turning_points: &[TurningPoint], nois
             energies.len(),
             passive_delay_s.map_or(String::new(), |d| format!(" (a delay of {d:.3e} s would make it passive)"))
         )
+    } else if mean < 0.0 {
+        // Below 0 but within the uncertainty: no energy shown given back, none shown taken.
+        format!(
+            "passive within the uncertainty: ∮T dθ = {mean:.4e} J per cycle over {} cycles (±{uncertainty:.1e} J), \
+             within {ACTIVE_SIGMAS} standard errors of 0: a loop too thin to show the energy it takes",
+            energies.len()
+        )
     } else {
         format!(
             "passive: ∮T dθ = {mean:.4e} J per cycle over {} cycles (±{uncertainty:.1e} J), the energy the gear \
@@ -170,7 +177,9 @@ pub fn of_loop_table(table: &LoopTable) -> Option<Passivity> {
             100.0 * TABLE_TOLERANCE
         )
     } else {
-        format!("passive: ∮T dθ = {total:.4e} J over {} of overlapping branches", range.join(" and "))
+        let within =
+            if total < 0.0 { format!(" (below 0, within the {uncertainty:.1e} J tolerance)") } else { String::new() };
+        format!("passive: ∮T dθ = {total:.4e} J over {} of overlapping branches{within}", range.join(" and "))
     };
     Some(Passivity {
         energy_per_cycle_j: energies,

@@ -220,6 +220,9 @@ fn loop_table_from_table(table: &Table) -> Result<LoopTable, InputError> {
         out.deflection.push(check_deflection(table, row, deflection_col, deflection, "deflection")?);
         Ok(())
     })?;
+    if out.torque.is_empty() {
+        return Err(no_rows(table));
+    }
     Ok(out)
 }
 
@@ -357,6 +360,9 @@ fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Re
         }
         Ok(())
     })?;
+    if rec.time.is_empty() {
+        return Err(no_rows(table));
+    }
     // The columns grew by doubling: up to 1.7× the samples' room (16.8 M for 10 M samples).
     // Large blocks are remapped in place, so giving the rest back copies nothing.
     for column in [&mut rec.time, &mut rec.deflection, &mut rec.torque]
@@ -367,6 +373,12 @@ fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Re
         column.shrink_to_fit();
     }
     Ok(rec)
+}
+
+/// A table whose header no data row follows: every command would have nothing to work on
+/// (`predict` wrote an empty prediction with an RSS of −0).
+fn no_rows(table: &Table) -> InputError {
+    InputError::at_line(&table.path, table.header_line, "no data rows after the header")
 }
 
 fn check_ratio(ratio: f64) -> Result<f64, String> {
@@ -457,6 +469,16 @@ mod tests {
             Dataset::Recording(recording) => recording,
             Dataset::LoopTable(_) => panic!("a loop table"),
         }
+    }
+
+    #[test]
+    fn a_header_without_rows_is_an_error_at_the_header() {
+        let text = format!("# {RECORDING_MAGIC}\n# ratio: 50\ntime_s,deflection_rad,torque_nm\n\n");
+        let error = parse(Path::new("r.csv"), text.as_bytes(), None).unwrap_err().to_string();
+        assert!(error.contains("r.csv:3: no data rows after the header"), "{error}");
+        let table = "branch,torque_nm,deflection_rad\n";
+        let error = parse(Path::new("t.csv"), table.as_bytes(), None).unwrap_err().to_string();
+        assert!(error.contains("t.csv:1: no data rows after the header"), "{error}");
     }
 
     #[test]

@@ -28,7 +28,7 @@ pub struct RestWindow {
 /// Band around the first sample's deflection within which the gear counts as still, in σθ:
 /// wider than noise ever spans at these sample counts, and wider than one encoder step
 /// (σθ ≥ step/√12).
-const REST_BAND_IN_NOISE: f64 = 4.0;
+pub const REST_BAND_IN_NOISE: f64 = 4.0;
 /// Fewest samples of a rest window that reads the torque offset, and of one the recording does
 /// not declare (`# start: rest`). Fewer are the first steps of a motion that starts at once: their
 /// mean torque is the spring's over those steps, not the sensor's offset (a sine from rest in

@@ -1,5 +1,5 @@
 //! What `diagnose` reports: the JSON document and the text for a person.
-use crate::diagnose::asymmetry::{Asymmetry, AsymmetryCheck};
+use crate::diagnose::asymmetry::{Asymmetry, AsymmetryCheck, MIN_ASYMMETRY};
 use crate::diagnose::form::{ModelForm, Unexplained};
 use crate::diagnose::passivity::Passivity;
 use crate::diagnose::{
@@ -78,6 +78,8 @@ pub struct Criteria {
     pub min_explained: f64,
     pub min_half_z: f64,
     pub max_half_spread: f64,
+    /// The smallest asymmetry named, (k₊ − k₋) over their mean.
+    pub min_asymmetry: f64,
 }
 
 impl ModelSummary {
@@ -128,6 +130,7 @@ impl DiagnoseReport {
                 min_explained: MIN_EXPLAINED,
                 min_half_z: MIN_HALF_Z,
                 max_half_spread: MAX_HALF_SPREAD,
+                min_asymmetry: MIN_ASYMMETRY,
             },
         }
     }
@@ -231,7 +234,7 @@ impl DiagnoseReport {
             let _ = writeln!(s, "\n{}", u.words);
         }
         if let Some(a) = report.asymmetry.named() {
-            let _ = writeln!(s, "\nthe spring's two sides differ (asymmetry, a finding of form)");
+            let _ = writeln!(s, "\nthe + and − sides differ in stiffness (asymmetry, a finding of form)");
             let _ = writeln!(s, "  {}", asymmetry_words(a));
             let _ = writeln!(
                 s,
@@ -307,13 +310,13 @@ fn asymmetry_words(a: &Asymmetry) -> String {
         format!("; each part of the recording alone: {:+.1} %, {:+.1} %", 100.0 * p, 100.0 * q)
     });
     format!(
-        "the {softer} side is the softer: secant stiffness {:.0} N·m/rad to the loop's tip at +{:.3} mrad against {:.0} \
-         at −{:.3} mrad, a difference of {:.1} % of their mean{parts}",
+        "the {softer} side is the softer: secant stiffness k₊ = {:.0} N·m/rad to the loop's tip at +{:.3} mrad, k₋ = \
+         {:.0} at −{:.3} mrad; (k₊ − k₋) over their mean {:+.1} %{parts}",
         a.plus_nm_per_rad,
         1e3 * a.extent_rad,
         a.minus_nm_per_rad,
         1e3 * a.extent_rad,
-        100.0 * a.magnitude.abs()
+        100.0 * a.magnitude
     )
 }
 

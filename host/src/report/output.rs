@@ -21,6 +21,8 @@ pub enum OutputError {
     NoDirectory { path: PathBuf, dir: PathBuf },
     #[error("{path}: that is a directory; name a file in it", path = .path.display())]
     IsDirectory { path: PathBuf },
+    #[error("{path}: that is a file; name a directory for the pictures", path = .path.display())]
+    NotADirectory { path: PathBuf },
 }
 
 impl OutputError {
@@ -133,6 +135,9 @@ impl Outputs {
     /// Creates `dir` (and its parents) for outputs; removed again if the set is not committed
     /// and the directory is still empty.
     pub fn create_dir(&mut self, dir: &Path) -> Result<(), OutputError> {
+        if dir.exists() && !dir.is_dir() {
+            return Err(OutputError::NotADirectory { path: dir.to_owned() });
+        }
         let mut missing = Vec::new();
         let mut at = Some(dir);
         while let Some(path) = at.filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
@@ -329,5 +334,15 @@ mod tests {
         outputs.stage(&plots.join("a.svg"), b"x").unwrap();
         drop(outputs);
         assert!(!dir.path().join("plots").exists());
+    }
+
+    #[test]
+    fn a_file_is_not_taken_for_a_directory() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("plots");
+        std::fs::write(&file, "data").unwrap();
+        let error = Outputs::new([]).create_dir(&file).unwrap_err();
+        assert!(matches!(error, OutputError::NotADirectory { .. }), "{error}");
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "data");
     }
 }
