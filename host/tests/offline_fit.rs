@@ -1,10 +1,12 @@
 //! `fit` and `predict` offline: the turning points found over the whole recording, the unknown
 //! start state of a recording that does not start at rest, several runs in one fit, and the
-//! held-out selection of `--model auto`, on recordings of the simulator.
+//! held-out selection of `--model auto` (and `diagnose`'s), on recordings of the simulator.
 use model_core::GearModel;
+use swg_host::diagnose::Observed;
 use swg_host::fit::{fit_dataset, fit_input, FitInput, Identified, ModelChoice};
 use swg_host::input::{Dataset, Recording};
 use swg_host::predict::{predict, Zeroing};
+use swg_host::prepare::prepare;
 use swg_host::report::params::parse_model;
 use swg_host::simulate::{simulate, simulate_experiment, Experiment, Motion, Physics, Simulation};
 
@@ -278,4 +280,33 @@ fn the_deflection_zero_of_a_long_recording_is_searched_on_a_strided_copy() {
     assert!((shifted.origins[0].zero_rad - 0.5 * amplitude).abs() <= 1e-12, "θ0 {}", shifted.origins[0].zero_rad);
     let (before, after) = (centred.chosen.rms, shifted.chosen.rms);
     assert!((after - before).abs() <= 0.01 * before, "fit RMS {after} N·m against {before} N·m");
+}
+
+/// `diagnose` holds out `fit`'s interleaved cycles: whole cycles spread over the recording, not
+/// its last quarter (a gear warms and a sensor drifts over a recording, and the last quarter
+/// would judge an effect on how the model extrapolates the drift).
+#[test]
+fn diagnoses_held_out_samples_are_interleaved_cycles_over_the_whole_recording() {
+    let simulation = Simulation { cycles: 12, ..default_simulation(seed_gear(), Some(20)) };
+    let dataset = Dataset::Recording(simulate(&simulation).unwrap());
+    let mut prepared = prepare(&dataset).unwrap();
+    let data = std::mem::take(&mut prepared.data);
+    let n = data.theta.len();
+    let observed = Observed::with_data(dataset, &prepared, data);
+    let held = observed.held_out();
+    let held = held.as_ref();
+    assert_eq!(observed.held_out_count(), held.len());
+    // About one cycle in four, from the first quarter of the recording to the last.
+    assert!(held.len() > n / 6 && held.len() < n / 3, "{} of {n}", held.len());
+    assert!(held.first().is_some_and(|&i| i < n / 4) && held.last().is_some_and(|&i| i >= 3 * n / 4), "{held:?}");
+    // Every sample once, fitted or held out.
+    let mut all: Vec<usize> = observed.training().iter().chain(held).copied().collect();
+    all.sort_unstable();
+    assert_eq!(all, (0..n).collect::<Vec<_>>());
+    // Each held-out span is a whole cycle, between two maxima of the deflection.
+    for span in observed.held_out_spans().iter().filter(|s| s.held_out) {
+        let at = |i: usize| observed.data.theta[i];
+        let peak = observed.data.theta.iter().fold(0.0f64, |m, t| m.max(*t));
+        assert!(at(span.range.start) > 0.99 * peak && at(span.range.end) > 0.99 * peak, "{span:?}");
+    }
 }
