@@ -164,10 +164,11 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], zero_se: O
         ))
     } else if !(magnitude.abs() > from_zero) {
         Some(format!(
-            "{:.1} % is within what the zero's uncertainty (± {:.4} mrad, 3σ) makes of a symmetric gear, {:.1} %",
+            "{:.1} % is within the {:.1} % that a zero off by 3σ (σ = {:.4} mrad, the rest reading's) makes of a \
+             symmetric gear",
             100.0 * magnitude.abs(),
-            1e3 * zero_se,
-            100.0 * from_zero
+            100.0 * from_zero,
+            1e3 * zero_se
         ))
     } else if !(delta_bic > MIN_BIC_DROP) {
         Some(format!("the information criterion drops by {delta_bic:.1} (it must drop by more than {MIN_BIC_DROP})"))
