@@ -113,7 +113,7 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], zero_se: O
     };
     // Side by side: four solves along the recording, a fifth of `diagnose`'s time at 60 k samples.
     let (free, symmetric) =
-        rayon::join(|| fit(weights, SpringShape::Mirrored), || fit(weights, SpringShape::Symmetric));
+        rayon::join(|| fit(weights, SpringShape::MirroredFree), || fit(weights, SpringShape::MirroredSymmetric));
     let (Some(free), Some(symmetric)) = (free, symmetric) else {
         return untested("the micro-slip form cannot be fitted to this data");
     };
@@ -147,7 +147,7 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], zero_se: O
             for &i in part {
                 alone[i] = weights[i];
             }
-            fit(&alone, SpringShape::Mirrored).and_then(|half| secants(&half, extent)).map(|(p, m)| relative(p, m))
+            fit(&alone, SpringShape::MirroredFree).and_then(|half| secants(&half, extent)).map(|(p, m)| relative(p, m))
         })
         .collect::<Option<Vec<f64>>>()
         .and_then(|h| <[f64; 2]>::try_from(h).ok());

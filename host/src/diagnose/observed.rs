@@ -307,11 +307,6 @@ fn interleaved_cycles(n: usize, turning_points: &[crate::prepare::TurningPoint])
     parts
 }
 
-/// How far the motion's rates at the same place on the loop spread, and the samples slower
-/// and faster than the median. At θ = A·sin φ on a leg of amplitude A the rate is
-/// A·ω·cos φ, so ω = |rate|/(A·|cos φ|) is the motion's instantaneous frequency: one value for
-/// a single-frequency excitation whatever the amplitude, many for several frequencies or a
-/// random motion. Samples with |θ/A| > 0.8 (rate near zero, ω ill-defined) are left out.
 /// The samples from the first that leaves the first sample's deflection by more than `band` to
 /// the last that differs from the last sample's by more: the motion without the rests at its
 /// ends.
@@ -322,10 +317,14 @@ fn moving(theta: &[f64], band: f64) -> std::ops::Range<usize> {
     start..end.max(start)
 }
 
-/// The spread of the motion's instantaneous frequency over the `moving` samples, and those
-/// samples split at its median. A rest at either end is no rate of the loop: counted, a rest
+/// How far the motion's rates at the same place on the loop spread, and the samples slower
+/// and faster than the median. At θ = A·sin φ on a leg of amplitude A the rate is
+/// A·ω·cos φ, so ω = |rate|/(A·|cos φ|) is the motion's instantaneous frequency: one value for
+/// a single-frequency excitation whatever the amplitude, many for several frequencies or a
+/// random motion. Samples with |θ/A| > 0.8 (rate near zero, ω ill-defined) are left out, and
+/// so are those outside `moving`: a rest at either end is no rate of the loop (counted, a rest
 /// before a one-frequency sine made its "slow half" and let a channel delay of 38 ms be named
-/// on a gear that has none.
+/// on a gear that has none).
 fn rate_spread(data: &FitData, rate: &[f64], moving: std::ops::Range<usize>) -> (f64, [Vec<usize>; 2]) {
     // Formed twice, to sort and to split, rather than kept with its index (16 bytes a sample).
     let frequency = |i: usize| {

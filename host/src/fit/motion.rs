@@ -1607,9 +1607,9 @@ pub enum SpringShape {
     Free,
     /// Knots mirrored about x = 0 over the larger side's extent, each side free
     /// ([`SpringBasis::mirrored_knots`]).
-    Mirrored,
+    MirroredFree,
     /// The same knots, forced point-symmetric: S(−x) = −S(x).
-    Symmetric,
+    MirroredSymmetric,
 }
 
 /// What [`micro_slip_with_columns`] found.
@@ -1642,8 +1642,8 @@ pub fn micro_slip_with_columns(
     motion.check()?;
     let spring = match shape {
         SpringShape::Free => motion.spring_basis(),
-        SpringShape::Mirrored => SpringBasis::mirrored_knots(motion.fitted_range(), motion.knot_noise(), false),
-        SpringShape::Symmetric => SpringBasis::mirrored_knots(motion.fitted_range(), motion.knot_noise(), true),
+        SpringShape::MirroredFree => SpringBasis::mirrored_knots(motion.fitted_range(), motion.knot_noise(), false),
+        SpringShape::MirroredSymmetric => SpringBasis::mirrored_knots(motion.fitted_range(), motion.knot_noise(), true),
     };
     let weighting = Weighting::Given(weights);
     let (columns, elements) = slip_columns(&motion, &spring, extra, Source::Full(&motion), weighting)?;
