@@ -202,6 +202,20 @@ fn effects_are_checked_before_anything_is_written() {
     }
 }
 
+/// A `--motion` file in `dir`: 2 s at rest, then three cycles of a 0.25 Hz sine of `amplitude`.
+fn rest_then_sine(dir: &std::path::Path, amplitude: f64) -> std::path::PathBuf {
+    let rows: String = (0..=14_000)
+        .map(|k| {
+            let t = k as f64 / 1000.0;
+            let x = if t < 2.0 { 0.0 } else { amplitude * (std::f64::consts::TAU * 0.25 * (t - 2.0)).sin() };
+            format!("{t:.3},{x:.9e}\n")
+        })
+        .collect();
+    let motion = dir.join("motion.csv");
+    std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
+    motion
+}
+
 /// A recording that starts at rest is measured from the deflection it reads there, as `fit`
 /// and `predict` place each run: with its encoders zeroed 0.5 mrad off the gear's zero, the
 /// diagnosis is the one of the gear zeroed right (unzeroed, the symmetric baseline was fitted
@@ -211,16 +225,7 @@ fn the_deflection_is_measured_from_the_zero_read_at_rest() {
     let dir = tempfile::tempdir().unwrap();
     let gear = dir.path().join("gear.json");
     std::fs::write(&gear, GEAR).unwrap();
-    // 2 s at rest, then three cycles of a 0.25 Hz sine of 1.168 mrad.
-    let motion = dir.path().join("motion.csv");
-    let rows: String = (0..=14_000)
-        .map(|k| {
-            let t = k as f64 / 1000.0;
-            let x = if t < 2.0 { 0.0 } else { 1.168e-3 * (std::f64::consts::TAU * 0.25 * (t - 2.0)).sin() };
-            format!("{t:.3},{x:.9e}\n")
-        })
-        .collect();
-    std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
+    let motion = rest_then_sine(dir.path(), 1.168e-3);
     let diagnosed_with_zero = |zero: &str| {
         let (gear, motion) = (gear.to_str().unwrap(), motion.to_str().unwrap());
         let args = ["--params", gear, "--motion", motion, "--deflection-zero", zero, "--torque-noise", "0.03"];
@@ -262,16 +267,7 @@ fn sided_gear(plus: f64, minus: f64) -> String {
 fn an_asymmetric_spring_is_named_with_its_tips_secants_and_a_symmetric_one_is_not() {
     let dir = tempfile::tempdir().unwrap();
     let amplitude = 1.168e-3;
-    // 2 s at rest, then three cycles of a 0.25 Hz sine.
-    let motion = dir.path().join("motion.csv");
-    let rows: String = (0..=14_000)
-        .map(|k| {
-            let t = k as f64 / 1000.0;
-            let x = if t < 2.0 { 0.0 } else { amplitude * (std::f64::consts::TAU * 0.25 * (t - 2.0)).sin() };
-            format!("{t:.3},{x:.9e}\n")
-        })
-        .collect();
-    std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
+    let motion = rest_then_sine(dir.path(), amplitude);
     let diagnosed = |name: &str, gear: &str| {
         let path = dir.path().join(format!("{name}.json"));
         std::fs::write(&path, gear).unwrap();
