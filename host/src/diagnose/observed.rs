@@ -5,6 +5,7 @@ use super::extended::{harmonics, kinematic_of, EffectState};
 use crate::fit::held_out::{hold_out, RunShape};
 use crate::fit::motion::Span;
 use crate::input::{Dataset, Recording};
+use crate::prepare::rest::within_rest_band;
 use crate::prepare::{FitData, NoiseModel, Prepared};
 use model_core::Direction;
 use std::borrow::Cow;
@@ -180,8 +181,8 @@ impl Observed {
         }
         let legs = prepared.segmentation.as_ref().map_or(n, |s| n / (s.turning_points.len() + 1).max(1));
         let rate = local_slope(&recording.time, &recording.deflection, (legs / 50).max(2));
-        let band = crate::prepare::rest::REST_BAND_IN_NOISE * prepared.noise.map_or(0.0, |n| n.deflection_rad);
-        let (spread, rate_parts) = rate_spread(&self.data, &rate, moving(&self.data.theta, band));
+        let noise = prepared.noise.map_or(0.0, |n| n.deflection_rad);
+        let (spread, rate_parts) = rate_spread(&self.data, &rate, moving(&self.data.theta, noise));
         self.rate_spread = Some(spread);
         if spread < MIN_RATE_SPREAD {
             let why = format!(
@@ -307,13 +308,11 @@ fn interleaved_cycles(n: usize, turning_points: &[crate::prepare::TurningPoint])
     parts
 }
 
-/// The samples from the first that leaves the first sample's deflection by more than `band` to
-/// the last that differs from the last sample's by more: the motion without the rests at its
-/// ends.
-fn moving(theta: &[f64], band: f64) -> std::ops::Range<usize> {
-    let (Some(&first), Some(&last)) = (theta.first(), theta.last()) else { return 0..0 };
-    let start = theta.iter().position(|t| (t - first).abs() > band).unwrap_or(theta.len());
-    let end = theta.iter().rposition(|t| (t - last).abs() > band).map_or(start, |k| k + 1);
+/// The samples between the rests at either end (each the readings within the rest band of the
+/// end's reading, [`within_rest_band`]; `noise` is σθ): the motion.
+fn moving(theta: &[f64], noise: f64) -> std::ops::Range<usize> {
+    let start = within_rest_band(theta.iter(), noise);
+    let end = theta.len() - within_rest_band(theta.iter().rev(), noise);
     start..end.max(start)
 }
 

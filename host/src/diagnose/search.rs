@@ -131,8 +131,12 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             }
         }
         let Some(fit) = accepted_fit else { break };
-        let rss_before =
-            unweighted_rss(observed, &current, all).map_err(|source| refit_error(&current.active, source.into()))?;
+        let rss_before = match rss_current {
+            Some(rss) => rss,
+            None => {
+                unweighted_rss(observed, &current, all).map_err(|source| refit_error(&current.active, source.into()))?
+            }
+        };
         let rss_after =
             unweighted_rss(observed, &fit, all).map_err(|source| refit_error(&fit.active, source.into()))?;
         for (effect, evidence, mechanism_undecided) in accepted {

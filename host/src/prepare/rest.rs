@@ -28,7 +28,7 @@ pub struct RestWindow {
 /// Band around the first sample's deflection within which the gear counts as still, in σθ:
 /// wider than noise ever spans at these sample counts, and wider than one encoder step
 /// (σθ ≥ step/√12).
-pub const REST_BAND_IN_NOISE: f64 = 4.0;
+const REST_BAND_IN_NOISE: f64 = 4.0;
 /// Fewest samples of a rest window that reads the torque offset, and of one the recording does
 /// not declare (`# start: rest`). Fewer are the first steps of a motion that starts at once: their
 /// mean torque is the spring's over those steps, not the sensor's offset (a sine from rest in
@@ -45,9 +45,7 @@ const REST_TORQUE_FRACTION: f64 = 0.05;
 /// sample and no torque offset).
 pub fn rest_window(time: &[f64], deflection: &[f64], torque: &[f64], noise: f64, declared: bool) -> Option<RestWindow> {
     let first = *deflection.first()?;
-    let band = REST_BAND_IN_NOISE * noise;
-    let within_band = deflection.iter().take_while(|&&theta| (theta - first).abs() <= band).count();
-    let samples = without_drift(deflection, within_band, noise);
+    let samples = without_drift(deflection, within_rest_band(deflection.iter(), noise), noise);
     let still = deflection.get(..samples)?;
     let torque_still = torque.get(..samples)?;
     let seconds = time.get(samples - 1).zip(time.first()).map_or(0.0, |(end, start)| end - start);
@@ -84,6 +82,13 @@ pub fn rest_window(time: &[f64], deflection: &[f64], torque: &[f64], noise: f64,
     };
     let (lo, hi) = torque.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &t| (l.min(t), h.max(t)));
     (declared || torque_nm.abs() <= REST_TORQUE_FRACTION * (hi - lo)).then_some(window)
+}
+
+/// How many of `deflection`'s readings, from its first, stay within the rest band (4σθ, `noise`
+/// being σθ) of the first: a rest at that end, before the drift test shortens it.
+pub fn within_rest_band<'a>(mut deflection: impl Iterator<Item = &'a f64>, noise: f64) -> usize {
+    let Some(&first) = deflection.next() else { return 0 };
+    1 + deflection.take_while(|&&theta| (theta - first).abs() <= REST_BAND_IN_NOISE * noise).count()
 }
 
 /// The smallest change between consecutive readings, rad: the deflection's step where its
