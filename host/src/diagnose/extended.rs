@@ -184,8 +184,8 @@ pub(super) fn direction_sign(direction: Direction) -> f64 {
 
 pub(super) fn kinematic_at(state: &EffectState, observed: &Observed, i: usize) -> f64 {
     match &observed.input_angle {
-        Some(angle) => kinematic_of(state, harmonics(angle[i])),
-        None => 0.0,
+        Some(angle) if state.kinematic != [0.0; 4] => kinematic_of(state, harmonics(angle[i])),
+        _ => 0.0,
     }
 }
 
@@ -244,6 +244,9 @@ pub fn fit_extended(
     // diagnosis corpus's seed 1000 from 0 to 4 wrong physics.
     let mut best: Option<ExtendedFit> = None;
     let mut iteration = 0;
+    // Only the kinematic error reads the input angle's harmonics (its state is cleared when it is
+    // not active): the other trials skip their sines and cosines.
+    let input_angle = observed.input_angle.as_ref().filter(|_| active.contains(&Effect::KinematicError));
     loop {
         iteration += 1;
         let model = Model::new(params)?;
@@ -254,7 +257,7 @@ pub fn fit_extended(
         let mut row = vec![0.0; width];
         for &i in subset {
             // Formed once a sample: the kinematic error's value and its columns use them both.
-            let input_harmonics = observed.input_angle.as_ref().map(|angle| harmonics(angle[i]));
+            let input_harmonics = input_angle.map(|angle| harmonics(angle[i]));
             let x = d.theta[i] + input_harmonics.map_or(0.0, |h| kinematic_of(&state, h));
             let elastic = backlash(x, state.backlash);
             let amplitude = observed.elastic_amplitude(&state, i);

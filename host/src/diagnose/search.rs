@@ -35,10 +35,10 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             .filter(|e| !current.active.iter().any(|a| a == e || a.rival() == Some(*e)))
             .collect();
         let variance = current.chi2 / (n as f64 - current.degrees_of_freedom() as f64).max(1.0);
-        // One candidate at a time: each fit holds its columns for every sample, so fitting them
-        // side by side would multiply the memory by the threads (each solve runs in parallel).
+        // Side by side: a fit sums its normal equations as the samples come and holds nothing
+        // per sample, so the threads cost no memory; the order is the candidates' either way.
         let mut trials: Vec<(Effect, ExtendedFit, Evidence)> = candidates
-            .iter()
+            .par_iter()
             .filter_map(|&effect| {
                 let mut active = current.active.clone();
                 active.push(effect);
