@@ -201,6 +201,9 @@ struct Outcome {
     form: bool,
     /// The diagnosis named an asymmetric spring (no gear of the corpus has one).
     asymmetry: bool,
+    /// The diagnosis named loops that do not follow Masing's rule on a gear whose loops do (the
+    /// micro-slip gears; the genetic gears, which run one loop under a sine).
+    non_masing_on_masing: bool,
     /// The passivity check flagged the loop active exactly when it is.
     passivity_right: bool,
     known_limit: Option<&'static str>,
@@ -377,6 +380,8 @@ fn run(case: &Case) -> Outcome {
         println!("    passivity of {}: {:?}", case.name, outcome.passivity.as_ref().map(|p| &p.words));
     }
     let asymmetry = outcome.asymmetry.named().is_some();
+    let non_masing_on_masing =
+        outcome.non_masing.named().is_some() && matches!(case.physics, Physics::Model | Physics::MicroSlip(_));
     let diagnosis = outcome.diagnosis;
     let named = diagnosis.findings.iter().map(|f| (f.effect, f.magnitude)).collect();
     let undecided = diagnosis.undecided.iter().flat_map(|u| u.effects.into_iter().zip(u.magnitudes)).collect();
@@ -392,6 +397,7 @@ fn run(case: &Case) -> Outcome {
         other_physics,
         form: diagnosis.model_form.is_some(),
         asymmetry,
+        non_masing_on_masing,
         passivity_right: flagged_active == active || ambiguous,
         known_limit: case.known_limit,
     }
@@ -446,6 +452,10 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
             wrong_physics += 1;
             println!("    an asymmetric spring named on {}, whose spring is symmetric", o.name);
         }
+        if o.non_masing_on_masing {
+            wrong_physics += 1;
+            println!("    loops that break Masing's rule named on {}, whose loops follow it", o.name);
+        }
         forms += usize::from(o.other_physics && o.form);
         misses += o.truth.iter().filter(|t| o.found(t.effect).is_none()).count();
         undecided += o
@@ -488,8 +498,8 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
     );
     assert_eq!(
         wrong_physics, 0,
-        "an effect was named on a gear of other physics, a rate effect for its rival, or an asymmetric spring on a \
-         symmetric gear"
+        "an effect was named on a gear of other physics, a rate effect for its rival, an asymmetric spring on a \
+         symmetric gear, or loops that break Masing's rule on a gear whose loops follow it"
     );
     assert_eq!(passivity_wrong, 0, "the passivity check missed an active loop or flagged a passive one");
     assert!(failures.is_empty(), "wrong set or magnitude off by > 25 % on a genetic gear: {failures:?}");

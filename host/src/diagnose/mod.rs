@@ -18,6 +18,7 @@ pub mod effects;
 mod extended;
 pub mod form;
 mod locate;
+pub mod non_masing;
 mod observed;
 pub mod passivity;
 mod search;
@@ -153,6 +154,8 @@ pub struct DiagnoseOutcome {
     pub origin: Option<RunOrigin>,
     /// Whether the spring's two sides differ, about that zero.
     pub asymmetry: asymmetry::AsymmetryCheck,
+    /// Whether the small loops are what the large loop implies under Masing's rule.
+    pub non_masing: non_masing::NonMasingCheck,
 }
 
 /// `dataset` with its deflection measured from its zero θ0 where it is a recording that starts
@@ -162,16 +165,20 @@ pub struct DiagnoseOutcome {
 /// the noise would), called the deflection 5.6 mrad from zero at its closest, and held out
 /// 1.6·10⁵ N·m. The torque read at rest is reported, not removed: the `torque_offset` test
 /// judges it with the rest of the effects.
-fn zeroed(dataset: Dataset) -> (Dataset, Option<RunOrigin>) {
+///
+/// Also the first sample from which the hysteresis state is known ([`OfflineRun::scored_from`]:
+/// 0 from rest, else once the motion has visited both its extremes).
+fn zeroed(dataset: Dataset) -> (Dataset, Option<RunOrigin>, usize) {
     match dataset {
         Dataset::Recording(mut recording) => {
-            let origin = RunOrigin::at_rest(&OfflineRun::of(&recording));
+            let run = OfflineRun::of(&recording);
+            let origin = RunOrigin::at_rest(&run);
             if let Some(origin) = &origin {
                 recording.deflection.iter_mut().for_each(|theta| *theta -= origin.zero_rad);
             }
-            (Dataset::Recording(recording), origin)
+            (Dataset::Recording(recording), origin, run.scored_from)
         }
-        table => (table, None),
+        table => (table, None, 0),
     }
 }
 
@@ -184,7 +191,7 @@ pub fn diagnose_dataset(
     baseline: Option<Params<f64>>,
     seed: u64,
 ) -> Result<DiagnoseOutcome, DiagnoseError> {
-    let (dataset, origin) = zeroed(dataset);
+    let (dataset, origin, known_state_from) = zeroed(dataset);
     let mut prepared = prepare(&dataset)?;
     let baseline = match baseline {
         Some(params) => params,
@@ -218,5 +225,6 @@ pub fn diagnose_dataset(
         &diagnosis.final_fit.active,
         origin.map(|o| o.zero_se_rad.unwrap_or(0.0)),
     );
-    Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin, asymmetry })
+    let non_masing = non_masing::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active, known_state_from);
+    Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin, asymmetry, non_masing })
 }

@@ -1054,13 +1054,18 @@ impl Columns<'_> {
 
     /// Solves `equations` with K_j ≥ 0 and the kind's bounds.
     fn solve(&self, equations: &Equations) -> Result<Solved, FitError> {
+        let spring = self.spring.len();
+        let nonnegative: Vec<bool> =
+            (0..self.len()).map(|j| j < spring || self.own.get(j - spring).copied().unwrap_or(false)).collect();
+        self.solve_bounded(equations, &nonnegative)
+    }
+
+    /// Solves `equations` with the coefficients `nonnegative` flags ≥ 0, the others free.
+    fn solve_bounded(&self, equations: &Equations, nonnegative: &[bool]) -> Result<Solved, FitError> {
         let Equations { gram, rhs, tt } = equations;
         let tt = *tt;
         let n = self.len();
-        let spring = self.spring.len();
-        let nonnegative: Vec<bool> =
-            (0..n).map(|j| j < spring || self.own.get(j - spring).copied().unwrap_or(false)).collect();
-        let coef = nnls_normal(gram, rhs, &nonnegative).ok_or(FitError::Degenerate)?;
+        let coef = nnls_normal(gram, rhs, nonnegative).ok_or(FitError::Degenerate)?;
         if !coef.iter().all(|c| c.is_finite()) {
             return Err(FitError::Degenerate);
         }
@@ -1664,6 +1669,150 @@ pub fn micro_slip_with_columns(
     Ok(ColumnsFit { predicted, chi2, model, parameters: columns.len() })
 }
 
+/// A form of the test of Masing's rule ([`masing_forms_with_columns`]).
+#[derive(Clone, Debug)]
+pub struct FormFit {
+    /// The torque at each sample, N·m.
+    pub predicted: Vec<f64>,
+    /// The weighted residual sum of squares.
+    pub chi2: f64,
+    /// Columns solved for: the spring's, the hysteresis' and the extras.
+    pub parameters: usize,
+}
+
+/// Relative ridge on the diagonal of the spring's and hysteresis' columns of
+/// [`masing_forms_with_columns`], all of them free: the Preisach cells of one relay width
+/// together are a slip element, an element wider than the motion is a spring, and the normal
+/// equations' Cholesky factor needs such collinear columns told apart.
+const FORM_RIDGE: f64 = 1e-9;
+
+/// The two nested forms that test Masing's rule, each with further free columns beside it (the
+/// diagnosis' torque effects), by one least-squares solve with the given weights on every sample
+/// of one recording, following its `reversals`, on the knot rule's spring: `[Masing's, free]`.
+/// Every coefficient is free of sign, the spring's too: these forms test Masing's rule, not
+/// whether a gear dissipates or its spring stiffens.
+///
+/// - **Masing's:** every slip element of the micro-slip kind's candidate grid that slips on the
+///   data, its stiffness of either sign. On a branch from a reversal an element of half-width d
+///   adds k·min(u, d), u half the travel, so the branches are any curve 2f(u) with breakpoints
+///   on the grid: with both signs this is every model that follows Masing's rule, not only the
+///   dissipative ones (the micro-slip kind, k ≥ 0).
+/// - **Free:** those elements and the Preisach kind's cells beside them, weights of either
+///   sign (the kind's smoothness asked of the cells): relays that switch at places on the loop,
+///   not at a travel from the last reversal, which Masing's rule cannot make.
+///
+/// Test forms, not gears: no model of them is evaluated, their torque is their columns' sum.
+pub fn masing_forms_with_columns(
+    theta: &[f64],
+    torque: &[f64],
+    reversals: &Reversals,
+    noise: Option<NoiseModel>,
+    weights: &[f64],
+    extra: &[&[f64]],
+) -> Result<[FormFit; 2], FitError> {
+    let motion = Motion::training_prefix(theta, torque, reversals, theta.len(), noise);
+    motion.check()?;
+    let spring = motion.spring_basis();
+    let elements = Elements::slipping(&motion)?;
+    let cells = Cells::moving(&motion)?;
+    let scale = motion.scale();
+    let form = |with_cells: bool| -> Result<FormFit, FitError> {
+        let cells = with_cells.then_some(&cells);
+        let own = FormRows::width(&elements, cells);
+        let columns = Columns { spring: &spring, own: vec![false; own], extra, scale };
+        let columns_ref = &columns;
+        let mut equations = normal_equations(Source::Full(&motion), columns.len(), Weighting::Given(weights), |run| {
+            let mut rows = FormRows::new(&elements, cells, run)?;
+            Ok(move |sample: &Sample, x: &mut [f64]| rows.fill(sample, columns_ref, x))
+        })?;
+        if let Some(cells) = cells {
+            smooth_density(&mut equations, columns.len(), spring.len() + elements.columns(), cells);
+        }
+        let n = columns.len();
+        for j in 0..spring.len() + own {
+            equations.gram[j * n + j] *= 1.0 + FORM_RIDGE;
+        }
+        let solved = columns.solve_bounded(&equations, &vec![false; n])?;
+        let predicted = form_torque(&motion, &columns, &elements, cells, &solved.coef)?;
+        let chi2 = motion
+            .runs
+            .iter()
+            .flat_map(Run::samples)
+            .zip(&predicted)
+            .map(|(sample, p)| weights.get(sample.index).copied().unwrap_or(0.0) * (sample.torque - p).powi(2))
+            .sum();
+        Ok(FormFit { predicted, chi2, parameters: n })
+    };
+    let (masing, free) = rayon::join(|| form(false), || form(true));
+    Ok([masing?, free?])
+}
+
+/// The hysteresis columns of a form of [`masing_forms_with_columns`] along one run: the slip
+/// elements', then the Preisach cell groups' when there are cells.
+struct FormRows<'c> {
+    elements: StartedElements,
+    cells: Option<(&'c Cells, CellMemory<f64, TURNING_POINTS>)>,
+}
+
+impl<'c> FormRows<'c> {
+    fn new(elements: &Elements, cells: Option<&'c Cells>, run: usize) -> Result<Self, FitError> {
+        let cells = match cells {
+            Some(cells) => Some((cells, CellMemory::new(PreisachCells::new(cells.reach)?, 0.0))),
+            None => None,
+        };
+        Ok(FormRows { elements: StartedElements::new(elements, run), cells })
+    }
+
+    /// The hysteresis columns a form of these rows has.
+    fn width(elements: &Elements, cells: Option<&Cells>) -> usize {
+        elements.columns() + cells.map_or(0, |c| c.groups.len())
+    }
+
+    /// Steps to `sample` and writes its row.
+    fn fill(&mut self, sample: &Sample, columns: &Columns, x: &mut [f64]) -> Result<(), FitError> {
+        self.elements.step(sample.at.theta_m)?;
+        let switched = match &mut self.cells {
+            Some((cells, memory)) => Some((*cells, memory.columns(sample.at.theta_m)?)),
+            None => None,
+        };
+        let elements = &self.elements;
+        columns.row(
+            sample,
+            |own| {
+                let (slips, relays) = own.split_at_mut(elements.slip.len());
+                elements.columns(sample.at.offset, columns.scale, slips);
+                if let Some((cells, all)) = &switched {
+                    for (value, group) in relays.iter_mut().zip(&cells.groups) {
+                        *value = group.iter().map(|&c| all.value[c] + all.slope[c] * sample.at.offset).sum();
+                    }
+                }
+            },
+            x,
+        );
+        Ok(())
+    }
+}
+
+/// The torque of a form's coefficients `coef` at every sample of `motion`, from its rows.
+fn form_torque(
+    motion: &Motion,
+    columns: &Columns,
+    elements: &Elements,
+    cells: Option<&Cells>,
+    coef: &[f64],
+) -> Result<Vec<f64>, FitError> {
+    let mut torque = Vec::with_capacity(motion.runs.iter().map(|run| run.theta.len()).sum());
+    let mut x = vec![0.0; columns.len()];
+    for (k, run) in motion.runs.iter().enumerate() {
+        let mut rows = FormRows::new(elements, cells, k)?;
+        for sample in run.samples() {
+            rows.fill(&sample, columns, &mut x)?;
+            torque.push(x.iter().zip(coef).map(|(a, b)| a * b).sum());
+        }
+    }
+    Ok(torque)
+}
+
 /// The Preisach fit's cells: the grid's reach and the groups of cells that share one weight.
 ///
 /// The grid spans the fitted x's larger side, R = max(−lo, hi). On the shorter side the data
@@ -1789,7 +1938,7 @@ fn preisach_solve(
     cells: &Cells,
 ) -> Result<Solved, FitError> {
     let (mut equations, _) = preisach_equations(source, weighting, columns, cells)?;
-    smooth_density(&mut equations, columns, cells);
+    smooth_density(&mut equations, columns.len(), columns.spring.len(), cells);
     columns.solve(&equations)
 }
 
@@ -1843,10 +1992,9 @@ fn preisach_equations(
 /// 1.15 / 1.13 / 1.14 / 1.19×.
 const DENSITY_SMOOTHING: f64 = 1e-3;
 
-/// Adds [`DENSITY_SMOOTHING`]'s penalty to the equations of a Preisach solve.
-fn smooth_density(equations: &mut Equations, columns: &Columns, cells: &Cells) {
-    let n = columns.len();
-    let first = columns.spring.len();
+/// Adds [`DENSITY_SMOOTHING`]'s penalty to the equations of a solve of `n` columns whose
+/// cells' groups start at column `first`.
+fn smooth_density(equations: &mut Equations, n: usize, first: usize, cells: &Cells) {
     let own = cells.groups.len();
     let mean = (first..first + own).map(|j| equations.gram[j * n + j]).sum::<f64>() / own.max(1) as f64;
     let lambda = DENSITY_SMOOTHING * mean;
@@ -1925,7 +2073,7 @@ pub fn fit_preisach(motion: &Motion, options: &FitOptions) -> Result<MotionFit, 
         let cells = covering.moved(&moved);
         let columns = Columns { spring: &spring, own: vec![true; cells.groups.len()], extra: &[], scale };
         let mut equations = equations.selected(&keep);
-        smooth_density(&mut equations, &columns, &cells);
+        smooth_density(&mut equations, columns.len(), columns.spring.len(), &cells);
         let solved = columns.solve(&equations)?;
         let model = preisach_model(&columns, &cells, &solved)?;
         return motion.score(model, parameters(&model), 1, solved.rss);

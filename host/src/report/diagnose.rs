@@ -1,6 +1,7 @@
 //! What `diagnose` reports: the JSON document and the text for a person.
 use crate::diagnose::asymmetry::{Asymmetry, AsymmetryCheck, MIN_ASYMMETRY};
 use crate::diagnose::form::{ModelForm, Unexplained};
+use crate::diagnose::non_masing::{NonMasing, NonMasingCheck};
 use crate::diagnose::passivity::Passivity;
 use crate::diagnose::{
     DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, Undecided, MAX_HALF_SPREAD, MIN_BIC_DROP,
@@ -37,6 +38,9 @@ pub struct DiagnoseReport {
     pub unexplained: Option<Unexplained>,
     /// Whether the spring's two sides differ (a finding of form), or why it was not tested.
     pub asymmetry: AsymmetryCheck,
+    /// Whether the small loops are what the large loop implies under Masing's rule (a finding of
+    /// form), or why it was not tested.
+    pub non_masing: NonMasingCheck,
     /// ∮T dθ per closed loop; `active` flags a loop that gives energy back.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub passivity: Option<Passivity>,
@@ -98,7 +102,8 @@ impl ModelSummary {
 impl DiagnoseReport {
     /// The report for `outcome` of the file `input`.
     pub fn new(input: String, kind: &'static str, outcome: &DiagnoseOutcome) -> DiagnoseReport {
-        let DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin, asymmetry } = outcome;
+        let DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin, asymmetry, non_masing } =
+            outcome;
         DiagnoseReport {
             input,
             kind,
@@ -117,6 +122,7 @@ impl DiagnoseReport {
             model_form: diagnosis.model_form.clone(),
             unexplained: diagnosis.unexplained.clone(),
             asymmetry: asymmetry.clone(),
+            non_masing: non_masing.clone(),
             passivity: passivity.clone(),
             rejected: diagnosis.rejected.clone(),
             final_model: ModelSummary::new(&diagnosis.final_fit, after),
@@ -244,6 +250,21 @@ impl DiagnoseReport {
                 100.0 * a.explained
             );
         }
+        if let Some(m) = report.non_masing.named() {
+            let _ = writeln!(
+                s,
+                "\nthe loops do not follow Masing's rule, each branch a function of the travel since its reversal \
+                 (non_masing, a finding of form)"
+            );
+            let _ = writeln!(s, "  {}", non_masing_words(m));
+            let _ = writeln!(
+                s,
+                "  ΔBIC {:.0}, explains {:.0} % of Masing's residual; the micro-slip kind follows the rule, the Preisach \
+                 kind (`fit --model preisach`) has the cells",
+                m.delta_bic,
+                100.0 * m.explained
+            );
+        }
         if let Some(p) = report.passivity.as_ref().filter(|p| !p.active) {
             let _ = writeln!(s, "\nenergy: {}", p.words);
         }
@@ -269,7 +290,11 @@ impl DiagnoseReport {
             AsymmetryCheck::Yes(a) => a.rejected.as_ref().map(|why| (a, why)),
             AsymmetryCheck::No { .. } => None,
         };
-        if !report.rejected.is_empty() || asymmetry_rejected.is_some() {
+        let non_masing_rejected = match &report.non_masing {
+            NonMasingCheck::Yes(m) => m.rejected.as_ref().map(|why| (m, why)),
+            NonMasingCheck::No { .. } => None,
+        };
+        if !report.rejected.is_empty() || asymmetry_rejected.is_some() || non_masing_rejected.is_some() {
             let _ = writeln!(s, "\nnot accepted");
             for r in &report.rejected {
                 let _ = writeln!(s, "  - {}: {}", r.effect, r.reason);
@@ -277,15 +302,25 @@ impl DiagnoseReport {
             if let Some((a, why)) = asymmetry_rejected {
                 let _ = writeln!(s, "  - asymmetry ({}): {why}", asymmetry_words(a));
             }
+            if let Some((m, why)) = non_masing_rejected {
+                let _ = writeln!(s, "  - non_masing ({}): {why}", non_masing_words(m));
+            }
         }
         let asymmetry_untested = match &report.asymmetry {
             AsymmetryCheck::No { why } => Some(why),
             AsymmetryCheck::Yes(_) => None,
         };
-        if !report.not_revealable.is_empty() || asymmetry_untested.is_some() {
+        let non_masing_untested = match &report.non_masing {
+            NonMasingCheck::No { why } => Some(why),
+            NonMasingCheck::Yes(_) => None,
+        };
+        if !report.not_revealable.is_empty() || asymmetry_untested.is_some() || non_masing_untested.is_some() {
             let _ = writeln!(s, "\ncannot be told from this data");
             if let Some(why) = asymmetry_untested {
                 let _ = writeln!(s, "  - asymmetry: {why}");
+            }
+            if let Some(why) = non_masing_untested {
+                let _ = writeln!(s, "  - non_masing: {why}");
             }
             // Effects refused for one reason share one line.
             let mut shown: Vec<&str> = Vec::new();
@@ -317,6 +352,27 @@ fn asymmetry_words(a: &Asymmetry) -> String {
         a.minus_nm_per_rad,
         1e3 * a.extent_rad,
         100.0 * a.magnitude
+    )
+}
+
+/// The loops against Masing's rule, in words.
+fn non_masing_words(m: &NonMasing) -> String {
+    let held_out = m.held_out_rms.map_or(String::new(), |[masing, free]| {
+        format!("; held-out cycles {free:.4} N·m against Masing's {masing:.4}")
+    });
+    let parts = m.halves.map_or(String::new(), |[p, q]| {
+        format!(
+            "; each part of the recording alone: ΔBIC {:.0} and {:.0}, explained {:.1} % and {:.1} %",
+            p[0],
+            q[0],
+            100.0 * p[1],
+            100.0 * q[1]
+        )
+    });
+    format!(
+        "the free form (Preisach cells beside the slip elements) departs from Masing's by {:.4} N·m RMS and leaves \
+         {:.1}× the noise{held_out}{parts}",
+        m.magnitude_nm, m.free_to_noise
     )
 }
 
