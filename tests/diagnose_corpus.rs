@@ -204,6 +204,9 @@ struct Outcome {
     /// The diagnosis named loops that do not follow Masing's rule on a gear whose loops do (the
     /// micro-slip gears; the genetic gears, which run one loop under a sine).
     non_masing_on_masing: bool,
+    /// The diagnosis named loops that drift on a gear with return-point memory (the micro-slip
+    /// and genetic gears).
+    ratcheting_with_memory: bool,
     /// The passivity check flagged the loop active exactly when it is.
     passivity_right: bool,
     known_limit: Option<&'static str>,
@@ -380,8 +383,9 @@ fn run(case: &Case) -> Outcome {
         println!("    passivity of {}: {:?}", case.name, outcome.passivity.as_ref().map(|p| &p.words));
     }
     let asymmetry = outcome.asymmetry.named().is_some();
-    let non_masing_on_masing =
-        outcome.non_masing.named().is_some() && matches!(case.physics, Physics::Model | Physics::MicroSlip(_));
+    let with_memory = matches!(case.physics, Physics::Model | Physics::MicroSlip(_));
+    let non_masing_on_masing = outcome.non_masing.named().is_some() && with_memory;
+    let ratcheting_with_memory = outcome.ratcheting.named().is_some() && with_memory;
     let diagnosis = outcome.diagnosis;
     let named = diagnosis.findings.iter().map(|f| (f.effect, f.magnitude)).collect();
     let undecided = diagnosis.undecided.iter().flat_map(|u| u.effects.into_iter().zip(u.magnitudes)).collect();
@@ -398,6 +402,7 @@ fn run(case: &Case) -> Outcome {
         form: diagnosis.model_form.is_some(),
         asymmetry,
         non_masing_on_masing,
+        ratcheting_with_memory,
         passivity_right: flagged_active == active || ambiguous,
         known_limit: case.known_limit,
     }
@@ -456,6 +461,10 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
             wrong_physics += 1;
             println!("    loops that break Masing's rule named on {}, whose loops follow it", o.name);
         }
+        if o.ratcheting_with_memory {
+            wrong_physics += 1;
+            println!("    loops that drift named on {}, whose loops close", o.name);
+        }
         forms += usize::from(o.other_physics && o.form);
         misses += o.truth.iter().filter(|t| o.found(t.effect).is_none()).count();
         undecided += o
@@ -499,7 +508,8 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
     assert_eq!(
         wrong_physics, 0,
         "an effect was named on a gear of other physics, a rate effect for its rival, an asymmetric spring on a \
-         symmetric gear, or loops that break Masing's rule on a gear whose loops follow it"
+         symmetric gear, loops that break Masing's rule on a gear whose loops follow it, or loops that drift on a gear whose \
+         loops close"
     );
     assert_eq!(passivity_wrong, 0, "the passivity check missed an active loop or flagged a passive one");
     assert!(failures.is_empty(), "wrong set or magnitude off by > 25 % on a genetic gear: {failures:?}");

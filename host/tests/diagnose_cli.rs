@@ -59,7 +59,7 @@ fn finds_friction_and_writes_the_documented_json_and_pictures() {
     let cannot: Vec<&str> =
         json["not_revealable"].as_array().unwrap().iter().map(|r| r["effect"].as_str().unwrap()).collect();
     assert_eq!(cannot, ["kinematic_error", "thermal_drift"]);
-    for name in ["residuals.svg", "loop.svg", "masing.svg"] {
+    for name in ["residuals.svg", "loop.svg", "masing.svg", "drift.svg"] {
         let svg = std::fs::read_to_string(plots.join(name)).unwrap();
         assert!(svg.starts_with("<svg"), "{name}");
     }
@@ -379,4 +379,39 @@ fn loops_that_depend_on_where_they_sit_break_masings_rule_and_one_loop_is_not_te
     let one_loop = &json["non_masing"];
     assert_eq!(one_loop["tested"], "no", "{one_loop:#}");
     assert!(one_loop["why"].as_str().unwrap().contains("one loop"), "{one_loop:#}");
+}
+
+/// Ratcheting: under a held load with a dither, the Bouc–Wen gear's loops drift (its peak torque
+/// falls cycle after cycle) and are named, with the maxima and the minima drifting alike; the
+/// micro-slip gear's loops close where they started and are not.
+#[test]
+fn loops_held_under_a_dither_drift_on_a_bouc_wen_gear_and_close_on_a_micro_slip_gear() {
+    let dir = tempfile::tempdir().unwrap();
+    let hold = ["--motion", "hold", "--input-bits", "20", "--output-bits", "20", "--torque-noise", "0.03"];
+    let check = |physics: &str| {
+        let json = simulated_and_diagnosed(
+            dir.path(),
+            &format!("{physics}.csv"),
+            &[&["--physics", physics][..], &hold].concat(),
+        );
+        let found = json["ratcheting"].clone();
+        println!("{physics}: {found}");
+        assert_eq!(found["tested"], "yes", "{physics}: {found:#}");
+        found
+    };
+    let bouc_wen = check("bouc-wen");
+    assert!(bouc_wen["rejected"].is_null(), "{bouc_wen:#}");
+    let plots = dir.path().join("plots");
+    let recording = dir.path().join("bouc-wen.csv");
+    let text = ok(swg_host(&["diagnose", recording.to_str().unwrap(), "--plot", plots.to_str().unwrap()]));
+    assert!(text.contains("loops run over and over drift"), "{text}");
+    let picture = std::fs::read_to_string(plots.join("drift.svg")).unwrap();
+    assert!(picture.contains("(named)") && picture.contains("maxima"), "{picture}");
+    let drift = bouc_wen["drift_nm_per_cycle"].as_f64().unwrap();
+    let ends = [0, 1].map(|k| bouc_wen["ends"][k].as_f64().unwrap());
+    assert!(drift < 0.0 && ends.iter().all(|e| *e < 0.0), "{bouc_wen:#}");
+    assert!(bouc_wen["cycles"].as_u64().unwrap() >= 30, "{bouc_wen:#}");
+    let micro_slip = check("micro-slip");
+    assert!(micro_slip["rejected"].is_string(), "{micro_slip:#}");
+    assert!(micro_slip["drift_nm_per_cycle"].as_f64().unwrap().abs() < 0.1 * drift.abs(), "{micro_slip:#}");
 }

@@ -10,7 +10,7 @@ use swg_host::report::diagnose::DiagnoseReport;
 use swg_host::report::finite::to_json;
 use swg_host::report::output::Outputs;
 use swg_host::report::params::read_params;
-use swg_host::report::plot::{diagnosis_loop_svg, masing_svg, residuals_svg};
+use swg_host::report::plot::{diagnosis_loop_svg, drift_svg, masing_svg, residuals_svg};
 
 #[derive(Args)]
 pub struct DiagnoseArgs {
@@ -22,7 +22,7 @@ pub struct DiagnoseArgs {
     /// Print the result as JSON instead of the report.
     #[arg(long)]
     json: bool,
-    /// Write residuals.svg, loop.svg and masing.svg into this directory.
+    /// Write residuals.svg, loop.svg, masing.svg and drift.svg into this directory.
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
     /// Seed of the baseline fit's particle swarm.
@@ -34,8 +34,10 @@ pub struct DiagnoseArgs {
 
 pub fn run(args: DiagnoseArgs) -> Result<()> {
     let mut outputs = Outputs::new(std::iter::once(args.input.as_path()).chain(args.params.as_deref()));
-    let pictures =
-        args.plot.as_ref().map(|dir| [dir.join("residuals.svg"), dir.join("loop.svg"), dir.join("masing.svg")]);
+    let pictures = args
+        .plot
+        .as_ref()
+        .map(|dir| [dir.join("residuals.svg"), dir.join("loop.svg"), dir.join("masing.svg"), dir.join("drift.svg")]);
     outputs.refuse_inputs(pictures.iter().flatten().map(PathBuf::as_path))?;
     let mut dataset = args.input_options.read_to_fit(&args.input)?;
     // The diagnosis reads a recording's input angle (the kinematic error) but not its output
@@ -52,7 +54,7 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
         .map_err(|error| anyhow::anyhow!("{error}: {}", report.non_finite_cause()))
         .with_context(|| args.input.display().to_string())?;
 
-    if let (Some(dir), Some([residuals_path, loop_path, masing_path])) = (&args.plot, &pictures) {
+    if let (Some(dir), Some([residuals_path, loop_path, masing_path, drift_path])) = (&args.plot, &pictures) {
         let residual_svg = residuals_svg(&outcome.observed, &outcome.before, &outcome.after)?;
         let mirrored = matches!(outcome.asymmetry, AsymmetryCheck::Yes(_));
         let loop_svg = diagnosis_loop_svg(&outcome.observed, &outcome.diagnosis, mirrored)?;
@@ -60,6 +62,7 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
         outputs.stage(residuals_path, residual_svg.as_bytes())?;
         outputs.stage(loop_path, loop_svg.as_bytes())?;
         outputs.stage(masing_path, masing_svg(&outcome.observed, &outcome.non_masing)?.as_bytes())?;
+        outputs.stage(drift_path, drift_svg(&outcome.ratcheting)?.as_bytes())?;
     }
     outputs.commit()?;
     if args.json {
@@ -67,7 +70,7 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
     } else {
         print!("{}", report.human());
         if let Some(dir) = &args.plot {
-            println!("pictures: {0}/residuals.svg, {0}/loop.svg, {0}/masing.svg", dir.display());
+            println!("pictures: {0}/residuals.svg, {0}/loop.svg, {0}/masing.svg, {0}/drift.svg", dir.display());
         }
     }
     Ok(())

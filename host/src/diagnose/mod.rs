@@ -21,6 +21,7 @@ mod locate;
 pub mod non_masing;
 mod observed;
 pub mod passivity;
+pub mod ratcheting;
 mod search;
 
 pub use effects::Effect;
@@ -31,7 +32,7 @@ pub use search::diagnose;
 
 use crate::fit::{fit, FitError, FitOptions};
 use crate::input::Dataset;
-use crate::prepare::{prepare, OfflineRun, RunOrigin, SegmentError};
+use crate::prepare::{prepare, reversals, OfflineRun, RunOrigin, SegmentError};
 use model_core::Params;
 use serde::Serialize;
 
@@ -154,8 +155,10 @@ pub struct DiagnoseOutcome {
     pub origin: Option<RunOrigin>,
     /// Whether the spring's two sides differ, about that zero.
     pub asymmetry: asymmetry::AsymmetryCheck,
-    /// Whether the small loops are what the large loop implies under Masing's rule.
+    /// Whether the loops follow Masing's rule.
     pub non_masing: non_masing::NonMasingCheck,
+    /// Whether loops run over and over drift.
+    pub ratcheting: ratcheting::RatchetingCheck,
 }
 
 /// `dataset` with its deflection measured from its zero θ0 where it is a recording that starts
@@ -226,5 +229,22 @@ pub fn diagnose_dataset(
         origin.map(|o| o.zero_se_rad.unwrap_or(0.0)),
     );
     let non_masing = non_masing::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active, known_state_from);
-    Ok(DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin, asymmetry, non_masing })
+    let ratcheting = match (&observed.time, &observed.noise) {
+        (Some(_), Some(noise)) => {
+            ratcheting::check(&observed.data.theta, &reversals(&observed.data.theta), &after, noise.deflection_rad)
+        }
+        _ => ratcheting::RatchetingCheck::No { why: "a loop table holds one loop, not its cycles".to_string() },
+    };
+    Ok(DiagnoseOutcome {
+        observed,
+        diagnosis,
+        before,
+        after,
+        locate,
+        passivity,
+        origin,
+        asymmetry,
+        non_masing,
+        ratcheting,
+    })
 }

@@ -3,6 +3,7 @@ use crate::diagnose::asymmetry::{Asymmetry, AsymmetryCheck, MIN_ASYMMETRY};
 use crate::diagnose::form::{ModelForm, Unexplained};
 use crate::diagnose::non_masing::{NonMasing, NonMasingCheck};
 use crate::diagnose::passivity::Passivity;
+use crate::diagnose::ratcheting::{Ratcheting, RatchetingCheck};
 use crate::diagnose::{
     DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, Undecided, MAX_HALF_SPREAD, MIN_BIC_DROP,
     MIN_EXPLAINED, MIN_HALF_Z,
@@ -41,6 +42,8 @@ pub struct DiagnoseReport {
     /// Whether the small loops are what the large loop implies under Masing's rule (a finding of
     /// form), or why it was not tested.
     pub non_masing: NonMasingCheck,
+    /// Whether loops run over and over drift (a finding of form), or why it was not tested.
+    pub ratcheting: RatchetingCheck,
     /// ∮T dθ per closed loop; `active` flags a loop that gives energy back.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub passivity: Option<Passivity>,
@@ -102,8 +105,18 @@ impl ModelSummary {
 impl DiagnoseReport {
     /// The report for `outcome` of the file `input`.
     pub fn new(input: String, kind: &'static str, outcome: &DiagnoseOutcome) -> DiagnoseReport {
-        let DiagnoseOutcome { observed, diagnosis, before, after, locate, passivity, origin, asymmetry, non_masing } =
-            outcome;
+        let DiagnoseOutcome {
+            observed,
+            diagnosis,
+            before,
+            after,
+            locate,
+            passivity,
+            origin,
+            asymmetry,
+            non_masing,
+            ratcheting,
+        } = outcome;
         DiagnoseReport {
             input,
             kind,
@@ -123,6 +136,7 @@ impl DiagnoseReport {
             unexplained: diagnosis.unexplained.clone(),
             asymmetry: asymmetry.clone(),
             non_masing: non_masing.clone(),
+            ratcheting: ratcheting.clone(),
             passivity: passivity.clone(),
             rejected: diagnosis.rejected.clone(),
             final_model: ModelSummary::new(&diagnosis.final_fit, after),
@@ -265,6 +279,18 @@ impl DiagnoseReport {
                 100.0 * m.explained
             );
         }
+        if let Some(r) = report.ratcheting.named() {
+            let _ = writeln!(s, "\nloops run over and over drift (ratcheting, a finding of form)");
+            let _ = writeln!(s, "  {}", ratcheting_words(r));
+            let _ = writeln!(
+                s,
+                "  ΔBIC {:.0}, explains {:.0} % of the turning points' scatter; every kind of `fit` has return-point \
+                 memory (a loop closes where it started), none follows the drift; a torque sensor whose offset drifts \
+                 reads alike",
+                r.delta_bic,
+                100.0 * r.explained
+            );
+        }
         if let Some(p) = report.passivity.as_ref().filter(|p| !p.active) {
             let _ = writeln!(s, "\nenergy: {}", p.words);
         }
@@ -294,7 +320,15 @@ impl DiagnoseReport {
             NonMasingCheck::Yes(m) => m.rejected.as_ref().map(|why| (m, why)),
             NonMasingCheck::No { .. } => None,
         };
-        if !report.rejected.is_empty() || asymmetry_rejected.is_some() || non_masing_rejected.is_some() {
+        let ratcheting_rejected = match &report.ratcheting {
+            RatchetingCheck::Yes(r) => r.rejected.as_ref().map(|why| (r, why)),
+            RatchetingCheck::No { .. } => None,
+        };
+        if !report.rejected.is_empty()
+            || asymmetry_rejected.is_some()
+            || non_masing_rejected.is_some()
+            || ratcheting_rejected.is_some()
+        {
             let _ = writeln!(s, "\nnot accepted");
             for r in &report.rejected {
                 let _ = writeln!(s, "  - {}: {}", r.effect, r.reason);
@@ -305,6 +339,9 @@ impl DiagnoseReport {
             if let Some((m, why)) = non_masing_rejected {
                 let _ = writeln!(s, "  - non_masing ({}): {why}", non_masing_words(m));
             }
+            if let Some((r, why)) = ratcheting_rejected {
+                let _ = writeln!(s, "  - ratcheting ({}): {why}", ratcheting_words(r));
+            }
         }
         let asymmetry_untested = match &report.asymmetry {
             AsymmetryCheck::No { why } => Some(why),
@@ -314,13 +351,24 @@ impl DiagnoseReport {
             NonMasingCheck::No { why } => Some(why),
             NonMasingCheck::Yes(_) => None,
         };
-        if !report.not_revealable.is_empty() || asymmetry_untested.is_some() || non_masing_untested.is_some() {
+        let ratcheting_untested = match &report.ratcheting {
+            RatchetingCheck::No { why } => Some(why),
+            RatchetingCheck::Yes(_) => None,
+        };
+        if !report.not_revealable.is_empty()
+            || asymmetry_untested.is_some()
+            || non_masing_untested.is_some()
+            || ratcheting_untested.is_some()
+        {
             let _ = writeln!(s, "\ncannot be told from this data");
             if let Some(why) = asymmetry_untested {
                 let _ = writeln!(s, "  - asymmetry: {why}");
             }
             if let Some(why) = non_masing_untested {
                 let _ = writeln!(s, "  - non_masing: {why}");
+            }
+            if let Some(why) = ratcheting_untested {
+                let _ = writeln!(s, "  - ratcheting: {why}");
             }
             // Effects refused for one reason share one line.
             let mut shown: Vec<&str> = Vec::new();
@@ -373,6 +421,21 @@ fn non_masing_words(m: &NonMasing) -> String {
         "the free form (Preisach cells beside the slip elements) departs from Masing's by {:.4} N·m RMS and leaves \
          {:.1}× the noise{held_out}{parts}",
         m.magnitude_nm, m.free_to_noise
+    )
+}
+
+/// The drift of repeated loops, in words.
+fn ratcheting_words(r: &Ratcheting) -> String {
+    format!(
+        "the torque at the turning points of {} cycles in {} run{} of one loop drifts by {:+.3e} ± {:.1e} N·m per cycle \
+         (maxima {:+.3e}, minima {:+.3e})",
+        r.cycles,
+        r.runs,
+        if r.runs == 1 { "" } else { "s" },
+        r.drift_nm_per_cycle,
+        r.drift_se,
+        r.ends[0],
+        r.ends[1]
     )
 }
 

@@ -1,6 +1,7 @@
 //! SVG pictures of a fit: the torque–deflection loop with the data, the fitted model and the
 //! baselines, and the model's residuals below it.
 use crate::diagnose::non_masing::NonMasingCheck;
+use crate::diagnose::ratcheting::RatchetingCheck;
 use crate::diagnose::{Diagnosis, ExtendedFit, Observed};
 use crate::fit::baselines::{BranchLine, ThreeSegment};
 use crate::input::Branch;
@@ -403,6 +404,63 @@ fn draw_masing(observed: &Observed, check: &NonMasingCheck, svg: &mut String) ->
         .draw_series(shown.iter().zip(&cells).map(|(&i, &t)| Circle::new((d.theta[i] * MRAD, t), 1, blue.filled())))?
         .label("free form − Masing's form: what Masing's rule cannot follow")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, blue.filled()));
+    draw_legend(&mut chart)?;
+    root.present()?;
+    Ok(())
+}
+
+/// Whether loops run over and over drift (`diagnose --plot`'s drift.svg): the final model's
+/// residual at their turning points against the cycle, with the drift fitted; or why they were
+/// not tested.
+pub fn drift_svg(check: &RatchetingCheck) -> Result<String, PlotError> {
+    let mut svg = String::new();
+    drawn("drift picture", draw_drift(check, &mut svg))?;
+    Ok(svg)
+}
+
+fn draw_drift(check: &RatchetingCheck, svg: &mut String) -> DrawResult {
+    let root = SVGBackend::with_string(svg, (960, 640)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let found = match check {
+        RatchetingCheck::Yes(found) => found,
+        RatchetingCheck::No { why } => {
+            root.draw(&Text::new("loops that drift: not tested".to_string(), (40, 40), ("sans-serif", 20)))?;
+            for (k, line) in why.split(": ").enumerate() {
+                root.draw(&Text::new(line.to_string(), (40, 80 + 24 * k as i32), ("sans-serif", 14)))?;
+            }
+            root.present()?;
+            return Ok(());
+        }
+    };
+    let (x_lo, x_hi) = range(found.points.iter().map(|p| p.0 as f64).chain([0.0]));
+    let (y_lo, y_hi) = range(found.points.iter().map(|p| p.1));
+    let verdict = if found.rejected.is_none() { "named" } else { "not named" };
+    let mut chart = new_chart(
+        &root,
+        format!(
+            "loops run over and over ({verdict}): drift {:+.2e} N·m per cycle at their turning points",
+            found.drift_nm_per_cycle
+        ),
+        20,
+        (x_lo, x_hi),
+        (y_lo, y_hi),
+        "cycle of the repeated loop",
+        "final model's residual at the turning point (N·m)",
+    )?;
+    let blue = RGBColor(0, 90, 200);
+    let orange = RGBColor(230, 120, 0);
+    for (maximum, colour, label) in [(true, blue, "at the loops' maxima"), (false, orange, "at the loops' minima")] {
+        chart
+            .draw_series(
+                found
+                    .points
+                    .iter()
+                    .filter(|p| p.2 == maximum)
+                    .map(|&(k, r, _)| Circle::new((k as f64, r), 3, colour.filled())),
+            )?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
+    }
     draw_legend(&mut chart)?;
     root.present()?;
     Ok(())
