@@ -230,8 +230,9 @@ pub fn diagnose_dataset(
     );
     let non_masing = non_masing::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active, known_state_from);
     let ratcheting = match (&observed.time, &observed.noise) {
-        (Some(_), Some(noise)) => {
-            ratcheting::check(&observed.data.theta, &reversals(&observed.data.theta), &after, noise.deflection_rad)
+        (Some(time), Some(noise)) => {
+            let theta = &observed.data.theta;
+            ratcheting::check(time, theta, &reversals(theta), &after, noise.deflection_rad)
         }
         _ => ratcheting::RatchetingCheck::No { why: "a loop table holds one loop, not its cycles".to_string() },
     };

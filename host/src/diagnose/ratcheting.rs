@@ -8,7 +8,8 @@
 //!
 //! **Repeated loops** are runs of at least [`MIN_CYCLES`] consecutive cycles whose maxima lie
 //! within a tolerance of one deflection, and their minima too: [`REPEAT_TOLERANCE`] of the
-//! loops' own span, and at least 4σθ. The first cycle of each run is left out (it may be the
+//! loops' own span, and at least 4σθ; and run at one pace (each fall within [`SAME_PACE`] of
+//! the first's duration). The first cycle of each run is left out (it may be the
 //! loop's first closing). **The drift** is the slope, N·m per cycle, of the final model's
 //! residual at the turning points against the cycle's index, one slope for every run and both
 //! ends (each run and end keeps its own level): the final model has no memory of the cycles, so
@@ -29,6 +30,8 @@ use serde::Serialize;
 pub const MIN_CYCLES: usize = 6;
 /// Turning points of one repeated loop lie within this share of its span of one another.
 pub const REPEAT_TOLERANCE: f64 = 0.1;
+/// The falls (maximum to minimum) of one repeated loop last within this share of one another.
+pub const SAME_PACE: f64 = 0.25;
 
 /// The drift of repeated loops, measured and tested.
 #[derive(Clone, Debug, Serialize)]
@@ -111,11 +114,11 @@ impl Trend {
     }
 }
 
-/// Tests the loops of a recording (deflection `theta`, turning points `reversals`) for a drift,
-/// from the final model's residual `after` at every sample and the deflection noise
+/// Tests the loops of a recording (`time`, s, deflection `theta`, turning points `reversals`)
+/// for a drift, from the final model's residual `after` at every sample and the deflection noise
 /// `noise_theta`, rad.
-pub fn check(theta: &[f64], reversals: &Reversals, after: &[f64], noise_theta: f64) -> RatchetingCheck {
-    let repeated = repeated_loops(theta, reversals, noise_theta);
+pub fn check(time: &[f64], theta: &[f64], reversals: &Reversals, after: &[f64], noise_theta: f64) -> RatchetingCheck {
+    let repeated = repeated_loops(time, theta, reversals, noise_theta);
     if repeated.is_empty() {
         return RatchetingCheck::No {
             why: format!(
@@ -179,7 +182,7 @@ pub fn check(theta: &[f64], reversals: &Reversals, after: &[f64], noise_theta: f
 
 /// The runs of at least [`MIN_CYCLES`] consecutive cycles of one loop: per run, each cycle's
 /// [maximum, minimum] sample (the minimum after the maximum).
-fn repeated_loops(theta: &[f64], reversals: &Reversals, noise_theta: f64) -> Vec<Vec<[usize; 2]>> {
+fn repeated_loops(time: &[f64], theta: &[f64], reversals: &Reversals, noise_theta: f64) -> Vec<Vec<[usize; 2]>> {
     let maxima: Vec<usize> = reversals.maxima().collect();
     let cycles: Vec<[usize; 2]> = maxima
         .iter()
@@ -191,8 +194,14 @@ fn repeated_loops(theta: &[f64], reversals: &Reversals, noise_theta: f64) -> Vec
         let [top, bottom] = cycles[start];
         let span = theta[top] - theta[bottom];
         let tolerance = (REPEAT_TOLERANCE * span).max(4.0 * noise_theta);
+        let duration = time[bottom] - time[top];
+        // One loop at one pace: a change of frequency steps a rate effect's residual, which the
+        // slope would take for a drift (a channel delay on the corpus' micro-slip gear at 0.2
+        // then 0.6 Hz).
         let same = |[t, b]: [usize; 2]| {
-            (theta[t] - theta[top]).abs() <= tolerance && (theta[b] - theta[bottom]).abs() <= tolerance
+            (theta[t] - theta[top]).abs() <= tolerance
+                && (theta[b] - theta[bottom]).abs() <= tolerance
+                && ((time[b] - time[t]) - duration).abs() <= SAME_PACE * duration
         };
         let end = (start..cycles.len()).find(|&k| !same(cycles[k])).unwrap_or(cycles.len());
         if end - start >= MIN_CYCLES && span > 0.0 {
@@ -226,9 +235,15 @@ mod tests {
             }
         }
         let reversals = Reversals { indices: turns, rising_first: true };
-        let runs = repeated_loops(&theta, &reversals, 0.0);
+        let time: Vec<f64> = (0..theta.len()).map(|i| i as f64).collect();
+        let runs = repeated_loops(&time, &theta, &reversals, 0.0);
         assert_eq!(runs.len(), 1, "{runs:?}");
         assert_eq!(runs[0].len(), 10, "{runs:?}");
         assert!(runs[0].iter().all(|[t, b]| theta[*t] == 1.0 && theta[*b] == 0.8));
+        // The same loops at twice the pace from the sixth cycle on: five cycles and five, each
+        // too few.
+        let paced: Vec<f64> =
+            (0..theta.len()).map(|i| if i <= 110 { i as f64 } else { 110.0 + 0.5 * (i - 110) as f64 }).collect();
+        assert!(repeated_loops(&paced, &theta, &reversals, 0.0).is_empty());
     }
 }
