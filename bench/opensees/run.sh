@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The OpenSees gear corpus, end to end: builds swg-host (release), installs requirements.txt into
 # bench/opensees/.venv, checks the catalogue against its targets (verify.py), writes the corpus
-# (generate.py, default bench/out/opensees, kept out of git) and scores fit + predict on it
-# (score.py, also kept in OUT/score.md).
+# (generate.py, default bench/out/opensees, kept out of git), scores fit + predict on it
+# (score.py, also kept in OUT/score.md) and the diagnosis on its materials with concealed effects
+# (diagnose.py: recordings and diagnoses in OUT/diagnose, the table in OUT/diagnose.md).
 #     bash bench/opensees/run.sh [OUT_DIR] [--seed N]
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -21,3 +22,4 @@ shift || true
 "$venv/bin/python" bench/opensees/verify.py
 "$venv/bin/python" bench/opensees/generate.py --out "$out" --swg-host "$swg" "$@"
 "$venv/bin/python" bench/opensees/score.py "$out" --swg-host "$swg"
+"$venv/bin/python" bench/opensees/diagnose.py "$out/diagnose" --swg-host "$swg" | tee "$out/diagnose.md"

@@ -191,17 +191,20 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 _ => None,
             },
         }),
-        Structure::Form { form: model_form, kept } => {
+        Structure::Form { form: model_form, kept, told } => {
             // The effects that stood in for the loop's shape are not named; the others stay.
             let (kept_findings, withdrawn): (Vec<Finding>, Vec<Finding>) =
                 findings.into_iter().partition(|f| kept.contains(&f.effect));
             for finding in withdrawn {
+                let why = told.iter().find(|(e, _)| *e == finding.effect).map(|(_, why)| why.clone());
                 rejected.push(Rejection {
                     effect: finding.effect,
-                    reason: format!(
-                        "stands in for the loop's shape: the {} model explains the recording without it",
-                        model_form.model
-                    ),
+                    reason: why.unwrap_or_else(|| {
+                        format!(
+                            "stands in for the loop's shape: the {} model explains the recording without it",
+                            model_form.model
+                        )
+                    }),
                     magnitude: finding.magnitude,
                     evidence: finding.evidence,
                 });
