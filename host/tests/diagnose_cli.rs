@@ -414,6 +414,26 @@ fn loops_held_under_a_dither_drift_on_a_bouc_wen_gear_and_close_on_a_micro_slip_
     let micro_slip = check("micro-slip");
     assert!(micro_slip["rejected"].is_string(), "{micro_slip:#}");
     assert!(micro_slip["drift_nm_per_cycle"].as_f64().unwrap().abs() < 0.1 * drift.abs(), "{micro_slip:#}");
+    // A dither held at +A/2, then at −A/2 (1 kHz): both holds relax towards zero torque, and
+    // measured along the torque each holds they add up (as measured, they cancelled: unnamed).
+    let amplitude = 1.168e-3;
+    let smooth = |u: f64| u * u * u * (10.0 + u * (-15.0 + 6.0 * u));
+    let mut rows = vec!["time_s,deflection_rad".to_string()];
+    let mut push = |theta: f64| rows.push(format!("{:.6},{theta:e}", rows.len() as f64 / 1000.0));
+    (0..500).for_each(|_| push(0.0));
+    for (from, to) in [(0.0, 0.5), (0.5, -0.5)] {
+        (0..2000).for_each(|i| push((from + (to - from) * smooth(f64::from(i) / 2000.0)) * amplitude));
+        (0..6000).for_each(|i| {
+            push((to - 0.04 * (1.0 - (std::f64::consts::TAU * 5.0 * f64::from(i) / 1000.0).cos())) * amplitude)
+        });
+    }
+    let motion = dir.path().join("two-holds-motion.csv");
+    std::fs::write(&motion, rows.join("\n") + "\n").unwrap();
+    let args = ["--physics", "bouc-wen", "--motion", motion.to_str().unwrap()];
+    let json = simulated_and_diagnosed(dir.path(), "two-holds.csv", &[&args[..], &hold[2..]].concat());
+    let two = &json["ratcheting"];
+    assert!(two["rejected"].is_null() && two["runs"] == 2, "{two:#}");
+    assert!(two["drift_nm_per_cycle"].as_f64().unwrap() < 0.0, "{two:#}");
 }
 
 /// On gears of an independent simulator (`data/opensees/`, see its README) a channel delay does

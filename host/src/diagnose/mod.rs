@@ -232,7 +232,7 @@ pub fn diagnose_dataset(
     let ratcheting = match (&observed.time, &observed.noise) {
         (Some(time), Some(noise)) => {
             let theta = &observed.data.theta;
-            ratcheting::check(time, theta, &reversals(theta), &after, noise.deflection_rad)
+            ratcheting::check(time, theta, &observed.data.torque, &reversals(theta), &after, noise.deflection_rad)
         }
         _ => ratcheting::RatchetingCheck::No { why: "a loop table holds one loop, not its cycles".to_string() },
     };

@@ -6,6 +6,12 @@
 //! cycle, under a held load with dither most of all (issue 17: its peak torque fell by 0.4 N·m
 //! over a hold). No kind of `fit` follows a drift of the loops, so it is named, not modelled.
 //!
+//! **The drift's sign.** Each run's residual is taken along the sign of the torque it holds
+//! (a loop about zero: as measured), so that loops relaxing towards zero torque under a + and
+//! a − load add up instead of cancelling (a Bouc–Wen gear held at +A/2 and at −A/2 drifted by
+//! −5.8·10⁻³ and +6.4·10⁻³ N·m per cycle, pooled +1.2·10⁻³, unnamed), while a torque sensor's
+//! offset drifting in time, the same sign under both loads, cancels.
+//!
 //! **Repeated loops** are runs of at least [`MIN_CYCLES`] consecutive cycles whose maxima lie
 //! within a tolerance of one deflection, and their minima too: [`REPEAT_TOLERANCE`] of the
 //! loops' own span, and at least 4σθ; and run at one pace (each fall within [`SAME_PACE`] of
@@ -30,6 +36,9 @@ use serde::Serialize;
 pub const MIN_CYCLES: usize = 6;
 /// Turning points of one repeated loop lie within this share of its span of one another.
 pub const REPEAT_TOLERANCE: f64 = 0.1;
+/// A run of repeated loops holds a torque when the mean of its turning points' torques is at
+/// least this share of the loop's torque span from zero.
+pub const HELD_SHARE: f64 = 0.5;
 /// The falls (maximum to minimum) of one repeated loop last within this share of one another.
 pub const SAME_PACE: f64 = 0.25;
 
@@ -39,7 +48,8 @@ pub struct Ratcheting {
     /// The runs of repeated loops and the cycles they hold, all told.
     pub runs: usize,
     pub cycles: usize,
-    /// The torque's drift at the turning points, N·m per cycle, and its standard error.
+    /// The torque's drift at the turning points, N·m per cycle, along the sign of the torque each
+    /// run holds (below 0: the loops relax towards zero torque), and its standard error.
     pub drift_nm_per_cycle: f64,
     pub drift_se: f64,
     /// The drift fitted on the maxima alone and on the minima alone, N·m per cycle.
@@ -117,7 +127,14 @@ impl Trend {
 /// Tests the loops of a recording (`time`, s, deflection `theta`, turning points `reversals`)
 /// for a drift, from the final model's residual `after` at every sample and the deflection noise
 /// `noise_theta`, rad.
-pub fn check(time: &[f64], theta: &[f64], reversals: &Reversals, after: &[f64], noise_theta: f64) -> RatchetingCheck {
+pub fn check(
+    time: &[f64],
+    theta: &[f64],
+    torque: &[f64],
+    reversals: &Reversals,
+    after: &[f64],
+    noise_theta: f64,
+) -> RatchetingCheck {
     let repeated = repeated_loops(time, theta, reversals, noise_theta);
     if repeated.is_empty() {
         return RatchetingCheck::No {
@@ -134,9 +151,10 @@ pub fn check(time: &[f64], theta: &[f64], reversals: &Reversals, after: &[f64], 
     let mut shown = Vec::new();
     for run in &repeated {
         cycles += run.len();
+        let along = held_sign(torque, run);
         for (end, trend) in ends.iter_mut().enumerate() {
             let points: Vec<(f64, f64)> =
-                run.iter().enumerate().skip(1).map(|(k, turns)| (k as f64, after[turns[end]])).collect();
+                run.iter().enumerate().skip(1).map(|(k, turns)| (k as f64, along * after[turns[end]])).collect();
             trend.add(&points);
             both.add(&points);
             shown.extend(points.iter().map(|&(k, r)| (k as usize, r, end == 0)));
@@ -178,6 +196,20 @@ pub fn check(time: &[f64], theta: &[f64], reversals: &Reversals, after: &[f64], 
         rejected,
         points: shown,
     })
+}
+
+/// The sign of the torque a run of repeated loops holds, by which its drift is measured: the
+/// mean of the measured torque at its turning points where that is at least
+/// [`HELD_SHARE`] of the loop's torque span from zero, else +1 (a loop about zero holds none).
+fn held_sign(torque: &[f64], run: &[[usize; 2]]) -> f64 {
+    let n = run.len() as f64;
+    let mean = run.iter().map(|[t, b]| 0.5 * (torque[*t] + torque[*b])).sum::<f64>() / n;
+    let span = run.iter().map(|[t, b]| torque[*t] - torque[*b]).sum::<f64>() / n;
+    if mean.abs() >= HELD_SHARE * span.abs() {
+        mean.signum()
+    } else {
+        1.0
+    }
 }
 
 /// The runs of at least [`MIN_CYCLES`] consecutive cycles of one loop: per run, each cycle's

@@ -211,13 +211,22 @@ impl DiagnoseReport {
                 _ => String::new(),
             };
             let _ = writeln!(s, "  RSS {:.5} → {:.5} (N·m)²{held}", form.rss_before, form.rss_after);
+        }
+        if report.model_form.is_some() && report.findings.is_empty() {
+            // The form says what is missing; the effects it withdrew are under "not accepted".
         } else if report.findings.is_empty() && !report.undecided.is_empty() {
             let _ =
                 writeln!(s, "\nno effect named: the torque the model lacks is kept, its mechanism undecided (below)");
         } else if report.findings.is_empty() {
             let _ = writeln!(s, "\nno missing physics found: no effect passed the evidence tests");
         } else {
-            let _ = writeln!(s, "\nmissing physics, most important first");
+            // Beside a named form, the effects that still pass on top of it.
+            let heading = if report.model_form.is_some() {
+                "missing physics beside the form, most important first"
+            } else {
+                "missing physics, most important first"
+            };
+            let _ = writeln!(s, "\n{heading}");
             for (k, f) in report.findings.iter().enumerate() {
                 let _ = writeln!(s, "  {}. {}: {:.4e} {} ({})", k + 1, f.effect, f.magnitude, f.unit, f.meaning);
                 let _ = writeln!(s, "     where: {}", f.location);
@@ -282,11 +291,17 @@ impl DiagnoseReport {
         if let Some(r) = report.ratcheting.named() {
             let _ = writeln!(s, "\nloops run over and over drift (ratcheting, a finding of form)");
             let _ = writeln!(s, "  {}", ratcheting_words(r));
+            let sensor = if r.drift_nm_per_cycle > 0.0 {
+                "the loops move away from zero torque, where a gear held at one deflection relaxes towards it: a \
+                 torque sensor whose offset drifts reads so"
+            } else {
+                "a torque sensor whose offset drifts towards zero reads alike; held at loads of both signs, its drift \
+                 would cancel"
+            };
             let _ = writeln!(
                 s,
                 "  ΔBIC {:.0}, explains {:.0} % of the turning points' scatter; every kind of `fit` has return-point \
-                 memory (a loop closes where it started), none follows the drift; a torque sensor whose offset drifts \
-                 reads alike",
+                 memory (a loop closes where it started), none follows the drift; {sensor}",
                 r.delta_bic,
                 100.0 * r.explained
             );
@@ -428,7 +443,7 @@ fn non_masing_words(m: &NonMasing) -> String {
 fn ratcheting_words(r: &Ratcheting) -> String {
     format!(
         "the torque at the turning points of {} cycles in {} run{} of one loop drifts by {:+.3e} ± {:.1e} N·m per cycle \
-         (maxima {:+.3e}, minima {:+.3e})",
+         along the torque held (maxima {:+.3e}, minima {:+.3e})",
         r.cycles,
         r.runs,
         if r.runs == 1 { "" } else { "s" },
