@@ -230,6 +230,18 @@ pub fn diagnose_dataset(
     );
     let non_masing = non_masing::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active, known_state_from);
     let ratcheting = match (&observed.time, &observed.noise) {
+        // A torque that drifts with the temperature drifts at the turning points too: where the
+        // recording warms and no thermal drift is in the model, the two cannot be told apart (a
+        // warming micro-slip gear whose thermal drift the search refused was named ratcheting).
+        (Some(_), Some(_))
+            if observed.warming.is_some() && !diagnosis.final_fit.active.contains(&Effect::ThermalDrift) =>
+        {
+            ratcheting::RatchetingCheck::No {
+                why: "the temperature changes over the recording and no thermal drift is in the model: a drift of the \
+                      loops cannot be told from the torque's drift with the temperature"
+                    .to_string(),
+            }
+        }
         (Some(time), Some(noise)) => {
             let theta = &observed.data.theta;
             ratcheting::check(time, theta, &observed.data.torque, &reversals(theta), &after, noise.deflection_rad)
