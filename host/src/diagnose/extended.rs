@@ -255,16 +255,26 @@ pub fn fit_extended(
         // the effects' columns and the weights) were ≥ 49 bytes a sample at 10 M samples.
         let mut normal = NormalEquations::new(scale, r, width);
         let mut row = vec![0.0; width];
+        let mut amplitudes = observed.elastic_amplitudes(&state);
+        // The loop of the last amplitude: a leg's samples share one, and forming it costs a
+        // logarithm and an exponential.
+        let mut on_loop: Option<(f64, Option<model_core::Loop<f64>>)> = None;
         for &i in subset {
             // Formed once a sample: the kinematic error's value and its columns use them both.
             let input_harmonics = input_angle.map(|angle| harmonics(angle[i]));
             let x = d.theta[i] + input_harmonics.map_or(0.0, |h| kinematic_of(&state, h));
             let elastic = backlash(x, state.backlash);
-            let amplitude = observed.elastic_amplitude(&state, i);
-            let (spring, hysteresis) = model
-                .at_amplitude(amplitude)
-                .and_then(|l| l.evaluate_parts(elastic, d.direction[i]))
-                .unwrap_or_default();
+            let amplitude = amplitudes.at(i);
+            let at_amplitude = match on_loop {
+                Some((of, at)) if of.to_bits() == amplitude.to_bits() => at,
+                _ => {
+                    let at = model.at_amplitude(amplitude).ok();
+                    on_loop = Some((amplitude, at));
+                    at
+                }
+            };
+            let (spring, hysteresis) =
+                at_amplitude.and_then(|l| l.evaluate_parts(elastic, d.direction[i]).ok()).unwrap_or_default();
             let stiffness = spring.stiffness + hysteresis.stiffness;
             // The effects' columns fill `row` in order; `width` counted them.
             let mut column = 0;
@@ -297,7 +307,7 @@ pub fn fit_extended(
             // ∂T/∂r = k·A·|cos φ|·∂p/∂r, ∂p/∂r = sin φ − φ·e^(−rφ).
             let phase = Phase::new::<Libm>(elastic / amplitude, d.direction[i]);
             push(k * amplitude * phase.abs_cos * (phase.sin - phase.angle * (-r * phase.angle).exp()));
-            normal.add(elastic, d.torque[i], d.direction[i], amplitude, weights[i], &row);
+            normal.add(elastic, d.torque[i], &phase, amplitude, weights[i], &row);
         }
         let solution = normal.solve().ok_or(ExtendedFitError::Degenerate)?;
         params = basis::params(scale, r, &solution, reference_amplitude)?;
