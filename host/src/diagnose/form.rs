@@ -54,13 +54,24 @@ pub enum Structure {
     Noise,
     /// The micro-slip form fits better; `kept` are the accepted effects that still pass on top
     /// of it (deflection effects, which the form cannot take as columns, are kept as they are);
-    /// `told` why an effect that passes was still withdrawn (its rival fits the form as well).
+    /// `untold` the rate effects that pass on it but whose rival fits it as well.
     Form {
         form: ModelForm,
         kept: Vec<Effect>,
-        told: Vec<(Effect, String)>,
+        untold: Vec<Untold>,
     },
     Unexplained(Unexplained),
+}
+
+/// A rate-dependent torque that the form lacks and whose mechanism it cannot tell: `effect`
+/// passes on top of the form, and `rival` in its place fits it as well.
+#[derive(Clone, Debug)]
+pub struct Untold {
+    pub effect: Effect,
+    pub rival: Effect,
+    /// Each one's magnitude on the form, in its unit.
+    pub magnitudes: [f64; 2],
+    pub why: String,
 }
 
 /// The torque column of an effect that adds torque (`None` for the deflection effects).
@@ -134,10 +145,12 @@ pub fn judge(
         let extra: Vec<&[f64]> = columns.iter().filter(|(e, _)| Some(*e) != skip).map(|(_, c)| c.as_slice()).collect();
         micro_slip_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &extra, SpringShape::Free)
             .ok()
-            .map(|fit| (fit.predicted, fit.chi2))
+            .map(|fit| (fit.predicted, fit.chi2, fit.extra))
     };
     let Some(with_all) = with(None) else { return Structure::Noise };
     let form_chi2 = with_all.1;
+    let on_the_form =
+        |effect: Effect| columns.iter().position(|(e, _)| *e == effect).map_or(f64::NAN, |k| with_all.2[k]);
     // Each torque effect must still pass on top of the form, and a rate effect must fit better
     // there than its rival in its place (damping dθ/dt against a delay's −K·dθ/dt, K the form's):
     // the genetic model's stiffness told them apart, and where its shape is wrong so may be
@@ -153,7 +166,7 @@ pub fn judge(
             _ => None,
         }
     };
-    let mut withdrawn: Vec<(Effect, String)> = Vec::new();
+    let mut untold: Vec<Untold> = Vec::new();
     let kept: Vec<Effect> = final_fit
         .active
         .iter()
@@ -161,7 +174,7 @@ pub fn judge(
         .filter(|&effect| match columns.iter().find(|(e, _)| *e == effect) {
             None => true,
             Some(_) => {
-                let passes = with(Some(effect)).is_some_and(|(_, without)| {
+                let passes = with(Some(effect)).is_some_and(|(_, without, _)| {
                     let drop = without - form_chi2;
                     drop / variance - ln_n > MIN_BIC_DROP && drop / without >= MIN_EXPLAINED
                 });
@@ -183,27 +196,35 @@ pub fn judge(
                             SpringShape::Free,
                         )
                         .ok()?;
-                        ((fit.chi2 - form_chi2) / variance <= MIN_BIC_DROP).then_some(rival)
+                        // The rival's column is the last.
+                        let magnitude = fit.extra.last().copied().unwrap_or(f64::NAN);
+                        ((fit.chi2 - form_chi2) / variance <= MIN_BIC_DROP).then_some((rival, magnitude))
                     });
-                if let (true, Some(rival)) = (passes, rival) {
-                    withdrawn.push((
+                if let (true, Some((rival, rival_magnitude))) = (passes, rival) {
+                    untold.push(Untold {
                         effect,
-                        format!(
+                        rival,
+                        magnitudes: [on_the_form(effect), rival_magnitude],
+                        why: format!(
                             "on the {} model, which fits the loop's shape, {rival} in its place fits as well: the \
-                             mechanism cannot be told",
+                             mechanism cannot be told (magnitudes on that model)",
                             model_core::Kind::MicroSlip.name()
                         ),
-                    ));
+                    });
                 }
                 passes && rival.is_none()
             }
         })
         .collect();
-    let kept_columns: Vec<&[f64]> =
-        columns.iter().filter(|(e, _)| kept.contains(e)).map(|(_, c)| c.as_slice()).collect();
+    // An untold torque is real: the form keeps it, as the final model does.
+    let kept_columns: Vec<&[f64]> = columns
+        .iter()
+        .filter(|(e, _)| kept.contains(e) || untold.iter().any(|u| u.effect == *e))
+        .map(|(_, c)| c.as_slice())
+        .collect();
     // Every torque effect kept: the solve with all of them is the form's.
     let (form_torque, form_chi2) = if kept_columns.len() == columns.len() {
-        with_all
+        (with_all.0, with_all.1)
     } else {
         match micro_slip_with_columns(
             &data.theta,
@@ -238,11 +259,12 @@ pub fn judge(
         format!("the genetic model with {}", final_fit.active.iter().map(|e| e.name()).collect::<Vec<_>>().join(" + "))
     };
     if delta_bic > MIN_BIC_DROP && explained >= MIN_EXPLAINED && held_out_better {
-        let kept_words = if kept.is_empty() {
-            String::new()
-        } else {
-            format!(" with {}", kept.iter().map(|e| e.name()).collect::<Vec<_>>().join(" + "))
-        };
+        let in_form: Vec<String> = kept
+            .iter()
+            .map(|e| e.name().to_string())
+            .chain(untold.iter().map(|u| format!("{} or {}", u.effect.name(), u.rival.name())))
+            .collect();
+        let kept_words = if in_form.is_empty() { String::new() } else { format!(" with {}", in_form.join(" + ")) };
         Structure::Form {
             form: ModelForm {
                 model: model_core::Kind::MicroSlip.name(),
@@ -260,7 +282,7 @@ pub fn judge(
                 held_out_after: held_out,
             },
             kept,
-            told: withdrawn,
+            untold,
         }
     } else if rms > STRUCTURE_FACTOR * noise_rms {
         Structure::Unexplained(Unexplained {

@@ -2,7 +2,7 @@
 //! evidence is strong, repeat.
 use super::effects::Effect;
 use super::extended::{columns, direction_sign, fit_extended, ExtendedFit, ExtendedFitError};
-use super::form::{self, Structure, Unexplained};
+use super::form::{self, Structure, Unexplained, Untold};
 use super::locate::{locate, torque, Observation};
 use super::observed::Observed;
 use super::{DiagnoseError, Diagnosis, Evidence, Finding, Rejection, Undecided};
@@ -191,29 +191,53 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 _ => None,
             },
         }),
-        Structure::Form { form: model_form, kept, told } => {
-            // The effects that stood in for the loop's shape are not named; the others stay.
+        Structure::Form { form: model_form, kept, untold } => {
+            // The effects that stood in for the loop's shape are not named; the others stay. A
+            // rate effect that passes on the form, where its rival fits as well, is a torque
+            // the form lacks whose mechanism is not told: kept in the model, both named.
             let (kept_findings, withdrawn): (Vec<Finding>, Vec<Finding>) =
                 findings.into_iter().partition(|f| kept.contains(&f.effect));
-            for finding in withdrawn {
-                let why = told.iter().find(|(e, _)| *e == finding.effect).map(|(_, why)| why.clone());
+            for finding in withdrawn.into_iter().filter(|f| !untold.iter().any(|u| u.effect == f.effect)) {
                 rejected.push(Rejection {
                     effect: finding.effect,
-                    reason: why.unwrap_or_else(|| {
-                        format!(
-                            "stands in for the loop's shape: the {} model explains the recording without it",
-                            model_form.model
-                        )
-                    }),
+                    reason: format!(
+                        "stands in for the loop's shape: the {} model explains the recording without it",
+                        model_form.model
+                    ),
                     magnitude: finding.magnitude,
                     evidence: finding.evidence,
                 });
             }
-            let final_fit =
-                fit_extended(observed, all, &weights, &kept, &baseline).map_err(|source| refit_error(&kept, source))?;
+            let in_model: Vec<Effect> = current
+                .active
+                .iter()
+                .copied()
+                .filter(|e| kept.contains(e) || untold.iter().any(|u| u.effect == *e))
+                .collect();
+            let final_fit = fit_extended(observed, all, &weights, &in_model, &baseline)
+                .map_err(|source| refit_error(&in_model, source))?;
+            // One kept undecided by the search already is not told twice.
+            let untold: Vec<Untold> =
+                untold.into_iter().filter(|u| !undecided.iter().any(|kept| kept.effects[0] == u.effect)).collect();
+            for Untold { effect, rival, magnitudes, why } in untold {
+                let without: Vec<Effect> = in_model.iter().copied().filter(|&e| e != effect).collect();
+                let before = fit_extended(observed, all, &weights, &without, &baseline)
+                    .map_err(|source| refit_error(&without, source))?;
+                let rss = |fit: &ExtendedFit| {
+                    unweighted_rss(observed, fit, all).map_err(|source| refit_error(&fit.active, source.into()))
+                };
+                undecided.push(Undecided {
+                    effects: [effect, rival],
+                    magnitudes,
+                    units: [effect.unit(), rival.unit()],
+                    words: why,
+                    rss_before: rss(&before)?,
+                    rss_after: rss(&final_fit)?,
+                });
+            }
             let held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
             // An undecided torque that stood in for the shape goes with the shape.
-            undecided.retain(|u| kept.contains(&u.effects[0]));
+            undecided.retain(|u| in_model.contains(&u.effects[0]));
             Ok(Diagnosis {
                 final_fit,
                 baseline,

@@ -1628,6 +1628,8 @@ pub struct ColumnsFit {
     pub model: GearModel<f64>,
     /// Columns solved for: the spring's, the slip elements' and the extras.
     pub parameters: usize,
+    /// The extra columns' coefficients, in their order.
+    pub extra: Vec<f64>,
 }
 
 /// The micro-slip form with further free columns beside it (the diagnosis' torque effects), in
@@ -1666,7 +1668,7 @@ pub fn micro_slip_with_columns(
             predicted.push(p);
         }
     }
-    Ok(ColumnsFit { predicted, chi2, model, parameters: columns.len() })
+    Ok(ColumnsFit { predicted, chi2, model, parameters: columns.len(), extra: free })
 }
 
 /// A form of the test of Masing's rule ([`masing_forms_with_columns`]).
