@@ -479,3 +479,93 @@ fn on_an_independent_simulators_gears_a_channel_delay_does_not_stand_in_for_the_
     let magnitude = kept["magnitudes"][damping].as_f64().unwrap();
     assert!((magnitude - 40.0).abs() <= 0.25 * 40.0, "damping {magnitude} N·m·s/rad against 40 concealed");
 }
+
+/// `data/opensees/FILE` diagnosed, as JSON, after `edit` has rewritten its rows (time_s,
+/// theta_in_rad, theta_out_rad, torque_nm): the recording of a gear of an independent simulator.
+fn opensees_diagnosed(file: &str, edit: impl Fn(Vec<[f64; 4]>) -> Vec<[f64; 4]>) -> serde_json::Value {
+    let text = std::fs::read_to_string(repo(&format!("data/opensees/{file}"))).unwrap();
+    let (head, body): (Vec<&str>, Vec<&str>) =
+        text.lines().partition(|l| l.starts_with('#') || l.starts_with("time_s"));
+    let rows: Vec<[f64; 4]> = body
+        .iter()
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            [v[0], v[1], v[2], v[3]]
+        })
+        .collect();
+    let lines: Vec<String> = head
+        .iter()
+        .map(|l| l.to_string())
+        .chain(edit(rows).iter().map(|r| r.map(|x| x.to_string()).join(",")))
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(file);
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    serde_json::from_str(&ok(swg_host(&["diagnose", path.to_str().unwrap(), "--json"]))).unwrap()
+}
+
+/// `rows` after a rest of 2 s before them: the first row's angles held, the torque reading
+/// `torque` with noise of σ = 0.05 N·m (a fixed sequence), the rows after moved on in time.
+fn after_a_rest(rows: Vec<[f64; 4]>, torque: f64) -> Vec<[f64; 4]> {
+    let dt = rows[1][0] - rows[0][0];
+    let count = (2.0 / dt).round() as usize;
+    let mut state: u64 = 11;
+    let mut noise = move || {
+        // Sum of 12 uniforms less 6: near-Gaussian, σ = 1.
+        (0..12)
+            .map(|_| {
+                state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+                (state >> 11) as f64 / (1u64 << 53) as f64
+            })
+            .sum::<f64>()
+            - 6.0
+    };
+    let rest = (0..count).map(|k| [k as f64 * dt, rows[0][1], rows[0][2], torque + 0.05 * noise()]);
+    rest.chain(rows.iter().map(|r| [r[0] + count as f64 * dt, r[1], r[2], r[3]])).collect()
+}
+
+/// Names of the findings of a diagnosis' JSON.
+fn effects_named(json: &serde_json::Value) -> Vec<String> {
+    json["findings"].as_array().unwrap().iter().map(|f| f["effect"].as_str().unwrap().to_string()).collect()
+}
+
+/// The search on the form. OpenSees' Iwan material is a micro-slip gear: with 40 N·m·s/rad of
+/// damping concealed, the genetic form's misfit made the slow and fast estimates disagree (159
+/// and 49) and the damping was refused; searched on the micro-slip form it is named at 40 ± 10 %.
+/// With a torque sensor's offset of 0.15 N·m added, read at rest too, both are named. An offset
+/// needs that reading on the form: OpenSees' asymmetric spring with nothing concealed is fitted
+/// there with an offset of −0.055 N·m that its loop does not have (wrong physics until the rest
+/// was asked for); with a rest that reads 0 it is not named either.
+#[test]
+fn effects_the_genetic_form_hid_are_found_on_the_micro_slip_form() {
+    let magnitude = |json: &serde_json::Value, effect: &str| {
+        let finding = json["findings"].as_array().unwrap().iter().find(|f| f["effect"] == effect);
+        finding.map(|f| f["magnitude"].as_f64().unwrap()).unwrap_or(f64::NAN)
+    };
+    let json = opensees_diagnosed("iwan-viscous_damping.csv", |rows| rows);
+    assert!(json["model_form"].is_object(), "{:#}", json["model_form"]);
+    assert_eq!(effects_named(&json), ["viscous_damping"], "{:#}", json["findings"]);
+    let damping = magnitude(&json, "viscous_damping");
+    assert!((damping - 40.0).abs() <= 4.0, "damping {damping} N·m·s/rad against 40 concealed");
+    assert!(json["findings"][0]["where"].as_str().unwrap().contains("micro-slip form"), "{:#}", json["findings"]);
+
+    let offset = 0.15;
+    let json = opensees_diagnosed("iwan-viscous_damping.csv", |rows| {
+        after_a_rest(rows.into_iter().map(|[t, a, b, torque]| [t, a, b, torque + offset]).collect(), offset)
+    });
+    let mut found = effects_named(&json);
+    found.sort();
+    assert_eq!(found, ["torque_offset", "viscous_damping"], "{:#}", json["findings"]);
+    let read = magnitude(&json, "torque_offset");
+    assert!((read - offset).abs() <= 0.1 * offset, "offset {read} N·m against {offset}");
+
+    for rest in [false, true] {
+        let json = opensees_diagnosed("asymmetric-none.csv", |rows| if rest { after_a_rest(rows, 0.0) } else { rows });
+        assert!(effects_named(&json).is_empty(), "rest {rest}: {:#}", json["findings"]);
+        if !rest {
+            let refused = json["rejected"].as_array().unwrap().iter().find(|r| r["effect"] == "torque_offset");
+            let reason = refused.map(|r| r["reason"].as_str().unwrap()).unwrap_or_default();
+            assert!(reason.contains("without the torque read at rest"), "{reason}");
+        }
+    }
+}

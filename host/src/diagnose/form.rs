@@ -89,6 +89,25 @@ pub(super) fn torque_column(observed: &Observed, effect: Effect) -> Option<Vec<f
     }
 }
 
+/// The form's columns of the `effects` that add torque ([`torque_column`]; a delay's,
+/// [`delay_on_the_form`], beside the others'): what the form is judged with and the search on it starts from.
+pub fn columns_of(
+    observed: &Observed,
+    reversals: &crate::gear::Reversals,
+    noise: crate::prepare::NoiseModel,
+    weights: &[f64],
+    effects: &[Effect],
+) -> Vec<(Effect, Vec<f64>)> {
+    let mut columns: Vec<(Effect, Vec<f64>)> =
+        effects.iter().filter_map(|&e| torque_column(observed, e).map(|c| (e, c))).collect();
+    if effects.contains(&Effect::ChannelDelay) {
+        if let Some(column) = delay_on_the_form(observed, reversals, noise, weights, &columns) {
+            columns.push((Effect::ChannelDelay, column));
+        }
+    }
+    columns
+}
+
 /// A channel delay's column on the micro-slip form, −K·dθ/dt with K the form's own tangent
 /// stiffness along the recording (fitted with the other torque effects' `columns`), so that the
 /// delay is tested on top of the form as a torque effect is. Kept untested, as the deflection
@@ -96,7 +115,7 @@ pub(super) fn torque_column(observed: &Observed, effect: Effect) -> Option<Vec<f
 /// with nothing, damping or backlash concealed, Iwan's with friction, Menegotto–Pinto's and the
 /// peak-oriented one's with damping (`bash bench/opensees/run.sh`, its diagnosis corpus: 6
 /// wrong physics of 36; the last two went with the rival test in `judge`).
-fn delay_on_the_form(
+pub(super) fn delay_on_the_form(
     observed: &Observed,
     reversals: &crate::gear::Reversals,
     noise: crate::prepare::NoiseModel,
@@ -134,13 +153,7 @@ pub fn judge(
     let chi2: f64 = final_residuals.iter().zip(weights).map(|(r, w)| w * r * r).sum();
     let variance = chi2 / (n as f64 - final_fit.degrees_of_freedom() as f64).max(1.0);
     let ln_n = (n as f64).ln();
-    let mut columns: Vec<(Effect, Vec<f64>)> =
-        final_fit.active.iter().filter_map(|&e| torque_column(observed, e).map(|c| (e, c))).collect();
-    if final_fit.active.contains(&Effect::ChannelDelay) {
-        if let Some(column) = delay_on_the_form(observed, &reversals, noise, weights, &columns) {
-            columns.push((Effect::ChannelDelay, column));
-        }
-    }
+    let columns = columns_of(observed, &reversals, noise, weights, &final_fit.active);
     let with = |skip: Option<Effect>| {
         let extra: Vec<&[f64]> = columns.iter().filter(|(e, _)| Some(*e) != skip).map(|(_, c)| c.as_slice()).collect();
         micro_slip_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &extra, SpringShape::Free)

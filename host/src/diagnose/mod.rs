@@ -20,6 +20,7 @@ pub mod form;
 mod locate;
 pub mod non_masing;
 mod observed;
+mod on_form;
 pub mod passivity;
 pub mod ratcheting;
 mod search;
@@ -170,8 +171,9 @@ pub struct DiagnoseOutcome {
 /// judges it with the rest of the effects.
 ///
 /// Also the first sample from which the hysteresis state is known ([`OfflineRun::scored_from`]:
-/// 0 from rest, else once the motion has visited both its extremes).
-fn zeroed(dataset: Dataset) -> (Dataset, Option<RunOrigin>, usize) {
+/// 0 from rest, else once the motion has visited both its extremes), and the torque read at
+/// rest with its standard error (N·m), where the rest window is long enough to read it.
+fn zeroed(dataset: Dataset) -> (Dataset, Option<RunOrigin>, usize, Option<(f64, f64)>) {
     match dataset {
         Dataset::Recording(mut recording) => {
             let run = OfflineRun::of(&recording);
@@ -179,9 +181,12 @@ fn zeroed(dataset: Dataset) -> (Dataset, Option<RunOrigin>, usize) {
             if let Some(origin) = &origin {
                 recording.deflection.iter_mut().for_each(|theta| *theta -= origin.zero_rad);
             }
-            (Dataset::Recording(recording), origin, run.scored_from)
+            let rest_torque = run.rest.and_then(|rest| {
+                rest.torque_nm.map(|torque| (torque, run.noise.torque_nm / (rest.samples.max(1) as f64).sqrt()))
+            });
+            (Dataset::Recording(recording), origin, run.scored_from, rest_torque)
         }
-        table => (table, None, 0),
+        table => (table, None, 0, None),
     }
 }
 
@@ -194,7 +199,7 @@ pub fn diagnose_dataset(
     baseline: Option<Params<f64>>,
     seed: u64,
 ) -> Result<DiagnoseOutcome, DiagnoseError> {
-    let (dataset, origin, known_state_from) = zeroed(dataset);
+    let (dataset, origin, known_state_from, rest_torque) = zeroed(dataset);
     let mut prepared = prepare(&dataset)?;
     let baseline = match baseline {
         Some(params) => params,
@@ -213,7 +218,8 @@ pub fn diagnose_dataset(
     };
     // The diagnosis holds the samples once: moved from `prepared`, not copied.
     let data = std::mem::take(&mut prepared.data);
-    let observed = Observed::with_data(dataset, &prepared, data);
+    let mut observed = Observed::with_data(dataset, &prepared, data);
+    observed.rest_torque = rest_torque;
     let diagnosis = diagnose(&observed, baseline)?;
     let before = diagnosis.baseline.residuals(&observed, observed.samples()).map_err(DiagnoseError::Baseline)?;
     let after =

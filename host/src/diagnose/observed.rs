@@ -37,6 +37,9 @@ pub struct Observed {
     split: HeldOut,
     /// Effects this data cannot reveal, with why.
     pub cannot_reveal: Vec<(Effect, String)>,
+    /// The torque read at rest before the motion and its standard error, N·m: a torque
+    /// sensor's offset reads there as it does everywhere.
+    pub rest_torque: Option<(f64, f64)>,
     /// The ends of a recording's legs as (deflection, sample index): the first sample, every
     /// turning point, the last sample. Leg k (from end k to end k + 1) holds the samples after
     /// turning point k − 1 up to turning point k. The kinematic error moves the elastic turning
@@ -134,6 +137,7 @@ impl Observed {
             samples: (0..n).collect(),
             split: HeldOut::Spans(Vec::new()),
             cannot_reveal: Vec::new(),
+            rest_torque: None,
             leg_ends: None,
             data,
         };

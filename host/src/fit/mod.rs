@@ -824,14 +824,13 @@ fn total_noise_weights_into(
     noise: &NoiseModel,
     weights: &mut Vec<f64>,
 ) -> Result<(), model_core::Error> {
-    let (var_t, var_theta) = (noise.torque_nm.powi(2), noise.deflection_rad.powi(2));
     weights.clear();
     // At once, not by doubling: the first weights go into an empty buffer (unit weights are
     // not stored).
     weights.reserve_exact(data.theta.len());
     for i in 0..data.theta.len() {
         let stiffness = model.stiffness(data.theta[i], data.direction[i], data.amplitude[i])?;
-        weights.push(1.0 / (var_t + var_theta * stiffness * stiffness).max(f64::MIN_POSITIVE));
+        weights.push(noise.weight(stiffness));
     }
     Ok(())
 }

@@ -283,7 +283,7 @@ enum Weighting<'a> {
 enum Weigher<'a> {
     Carried,
     Given(&'a [f64]),
-    Model { evaluator: Box<model_core::Evaluator<f64>>, var_t: f64, var_theta: f64 },
+    Model { evaluator: Box<model_core::Evaluator<f64>>, noise: NoiseModel },
 }
 
 impl<'a> Weighting<'a> {
@@ -291,11 +291,7 @@ impl<'a> Weighting<'a> {
         Ok(match *self {
             Weighting::Carried => Weigher::Carried,
             Weighting::Given(weights) => Weigher::Given(weights),
-            Weighting::Model(model, noise) => Weigher::Model {
-                evaluator: Box::new(model.evaluator(0.0)?),
-                var_t: noise.torque_nm.powi(2),
-                var_theta: noise.deflection_rad.powi(2),
-            },
+            Weighting::Model(model, noise) => Weigher::Model { evaluator: Box::new(model.evaluator(0.0)?), noise },
         })
     }
 }
@@ -307,9 +303,8 @@ impl Weigher<'_> {
         match self {
             Weigher::Carried => Ok(sample.weight),
             Weigher::Given(weights) => Ok(weights.get(sample.index).copied().unwrap_or(0.0)),
-            Weigher::Model { evaluator, var_t, var_theta } => {
-                let stiffness = step_offline(evaluator.as_mut(), sample.at)?.stiffness;
-                Ok(1.0 / (*var_t + *var_theta * stiffness * stiffness).max(f64::MIN_POSITIVE))
+            Weigher::Model { evaluator, noise } => {
+                Ok(noise.weight(step_offline(evaluator.as_mut(), sample.at)?.stiffness))
             }
         }
     }

@@ -29,6 +29,15 @@ pub struct NoiseModel {
     pub deflection_rad: f64,
 }
 
+impl NoiseModel {
+    /// A sample's total-noise weight 1/(σT² + σθ²·K²) where the model's stiffness is K: the
+    /// deflection's noise reaches the torque through the stiffness.
+    #[inline]
+    pub fn weight(&self, stiffness: f64) -> f64 {
+        1.0 / (self.torque_nm.powi(2) + self.deflection_rad.powi(2) * stiffness * stiffness).max(f64::MIN_POSITIVE)
+    }
+}
+
 /// A dataset ready to fit.
 #[derive(Clone, Debug)]
 pub struct Prepared {

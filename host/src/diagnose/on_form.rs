@@ -1,0 +1,409 @@
+//! The search on the form: when the micro-slip form is named ([`super::form::judge`]), the
+//! torque effects the search on the genetic form did not name are tried again on top of the
+//! form, judged against the form's residual and the noise rather than against the misfit of
+//! the genetic loop. On the gears of an independent simulator the genetic misfit refused real
+//! effects: an offset that "differs on the two sides of the loop", a damping whose slow and fast
+//! estimates disagree, an effect that "explains under 5 %" of a misfit several times the noise
+//! (`bash bench/opensees/run.sh`, its diagnosis corpus).
+//!
+//! Each round fits the form with the effects kept so far and each candidate beside them (one
+//! least-squares solve each, [`micro_slip_with_columns`]) and takes the one that explains most.
+//! It is named when, as an effect on the genetic form must:
+//! - the information criterion drops by more than [`MIN_BIC_DROP`] and it explains at least
+//!   [`MIN_EXPLAINED`] of the form's weighted residual;
+//! - the form with it leaves at most [`STRUCTURE_FACTOR`] times the noise: a form that leaves
+//!   more is not one to judge effects on;
+//! - the held-out samples are predicted better with it, each fitted without them;
+//! - each interleaved half alone shows it (|z| ≥ [`MIN_HALF_Z`]) with magnitudes of one sign
+//!   within [`MAX_HALF_SPREAD`] of their mean;
+//! - a rate effect's slower and faster estimates do not disagree (as [`super::search`]'s rate
+//!   test: a rate too slow to show it agrees with anything), and its rival in its place fits
+//!   worse by more than [`MIN_BIC_DROP`]; where the rival fits as well, the torque is kept
+//!   undecided between the two;
+//! - a torque offset agrees with the torque read at rest, which it needs, and is one constant on
+//!   both sides of the loop and at small and large |θ| alike.
+//!
+//! Coulomb friction is not tried: on this form it is a slip element of no width, rate-independent
+//! hysteresis, which one amplitude cannot tell from the gear's own (a second amplitude can).
+//! z is the likelihood ratio's, √(Δχ²/s²), with the sign of the magnitude: the bounded solve
+//! gives no covariance.
+use super::effects::Effect;
+use super::form::{columns_of, delay_on_the_form, torque_column, Untold, STRUCTURE_FACTOR};
+use super::observed::Observed;
+use super::{Evidence, MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
+use crate::fit::motion::{micro_slip_with_columns, SpringShape};
+use crate::gear::run_offline;
+use crate::gear::Reversals;
+use crate::prepare::NoiseModel;
+use rayon::prelude::*;
+
+/// Effects tried on the form: the torque effects but friction (see the module's doc).
+const TRIED: [Effect; 4] = [Effect::TorqueOffset, Effect::ViscousDamping, Effect::ThermalDrift, Effect::ChannelDelay];
+
+/// An effect the search on the form names, with its magnitude on the form.
+#[derive(Clone, Debug)]
+pub struct OnForm {
+    pub effect: Effect,
+    pub magnitude: f64,
+    pub evidence: Evidence,
+    /// Unweighted RSS of the form, (N·m)², before and after it.
+    pub rss_before: f64,
+    pub rss_after: f64,
+}
+
+/// What the search on the form found: effects named, effects kept undecided between two, and
+/// each effect tried and refused with why (`magnitude`, `evidence`, reason).
+#[derive(Clone, Debug, Default)]
+pub struct FormSearch {
+    pub named: Vec<OnForm>,
+    pub untold: Vec<Untold>,
+    pub refused: Vec<(Effect, f64, Evidence, String)>,
+    /// Every torque effect on the form at the end, with its magnitude there: the ones the
+    /// model had, the ones named and the untold ones.
+    pub magnitudes: Vec<(Effect, f64)>,
+}
+
+/// One solve of the form with torque columns beside it.
+struct Solve {
+    predicted: Vec<f64>,
+    chi2: f64,
+    parameters: usize,
+    /// The last column's coefficient (the effect being tried).
+    last: f64,
+}
+
+/// The recording, its weights and what the form is fitted along.
+struct Form<'a> {
+    observed: &'a Observed,
+    reversals: &'a Reversals,
+    noise: NoiseModel,
+    weights: &'a [f64],
+}
+
+impl Form<'_> {
+    /// The form with `columns`, fitted on the samples `on` (every sample when `None`; the others
+    /// are followed with weight 0).
+    fn solve(&self, columns: &[&[f64]], on: Option<&[usize]>) -> Option<Solve> {
+        let data = &self.observed.data;
+        let restricted;
+        let weights = match on {
+            None => self.weights,
+            Some(samples) => {
+                let mut w = vec![0.0; self.weights.len()];
+                for &i in samples {
+                    w[i] = self.weights[i];
+                }
+                restricted = w;
+                &restricted
+            }
+        };
+        let fit = micro_slip_with_columns(
+            &data.theta,
+            &data.torque,
+            self.reversals,
+            Some(self.noise),
+            weights,
+            columns,
+            SpringShape::Free,
+        )
+        .ok()?;
+        // χ² is over the samples fitted only: the others carry weight 0.
+        let last = fit.extra.last().copied().unwrap_or(0.0);
+        Some(Solve { predicted: fit.predicted, chi2: fit.chi2, parameters: fit.parameters, last })
+    }
+
+    /// The column of `effect` beside the `kept` columns (a delay's follows the form's stiffness
+    /// with them).
+    fn column(&self, effect: Effect, kept: &[(Effect, Vec<f64>)]) -> Option<Vec<f64>> {
+        match effect {
+            Effect::ChannelDelay => delay_on_the_form(self.observed, self.reversals, self.noise, self.weights, kept),
+            _ => torque_column(self.observed, effect),
+        }
+    }
+
+    /// Magnitude and z of the last of `columns` fitted on `on`, against the form with the others.
+    fn estimate(&self, columns: &[&[f64]], on: &[usize]) -> Option<(f64, f64)> {
+        let (_, others) = columns.split_last()?;
+        let with = self.solve(columns, Some(on))?;
+        let without = self.solve(others, Some(on))?;
+        let variance = with.chi2 / (on.len() as f64 - with.parameters as f64).max(1.0);
+        let z = ((without.chi2 - with.chi2).max(0.0) / variance).sqrt();
+        Some((with.last, z.copysign(with.last)))
+    }
+}
+
+/// Searches for the torque effects the form lacks, beside the effects `in_model` (those with a
+/// torque column go on top of the form); the effects `judged` on the form already (withdrawn as
+/// standing in for its shape) are not tried again. `weights` are the diagnosis' total-noise
+/// weights, by the genetic baseline's stiffness; the search weighs the samples by the form's
+/// own: the deflection's noise reaches the torque through the gear's stiffness, and the genetic
+/// loop is infinitely stiff at its tips where the form is not.
+pub fn search(
+    observed: &Observed,
+    reversals: &Reversals,
+    noise: NoiseModel,
+    weights: &[f64],
+    in_model: &[Effect],
+    judged: &[Effect],
+) -> FormSearch {
+    let weights = form_weights(observed, reversals, noise, weights, in_model).unwrap_or_else(|| weights.to_vec());
+    let mut kept = columns_of(observed, reversals, noise, &weights, in_model);
+    let form = Form { observed, reversals, noise, weights: &weights };
+    let n = observed.data.theta.len();
+    let ln_n = (n as f64).ln();
+    let noise_rms = (weights.iter().map(|w| 1.0 / w).sum::<f64>() / n as f64).sqrt();
+    let revealable = observed.revealable();
+    let mut found = FormSearch::default();
+    let mut tried: Vec<Effect> = Vec::new();
+    loop {
+        let columns: Vec<&[f64]> = kept.iter().map(|(_, c)| c.as_slice()).collect();
+        let Some(current) = form.solve(&columns, None) else { break };
+        let variance = current.chi2 / (n as f64 - current.parameters as f64).max(1.0);
+        let candidates: Vec<Effect> = TRIED
+            .into_iter()
+            .filter(|e| revealable.contains(e) && !tried.contains(e) && !judged.contains(e))
+            .filter(|e| !in_model.contains(e) && !kept.iter().any(|(k, _)| k == e || k.rival() == Some(*e)))
+            .collect();
+        let mut trials: Vec<(Effect, Vec<f64>, Solve, Evidence)> = candidates
+            .par_iter()
+            .filter_map(|&effect| {
+                let column = form.column(effect, &kept)?;
+                let with: Vec<&[f64]> = columns.iter().copied().chain(std::iter::once(column.as_slice())).collect();
+                let solve = form.solve(&with, None)?;
+                let drop = (current.chi2 - solve.chi2).max(0.0);
+                let evidence = Evidence {
+                    delta_bic: drop / variance - ln_n,
+                    explained: drop / current.chi2,
+                    z: (drop / variance).sqrt().copysign(solve.last),
+                    halves: None,
+                    halves_z: None,
+                };
+                Some((effect, column, solve, evidence))
+            })
+            .collect();
+        trials.sort_by(|a, b| b.3.explained.total_cmp(&a.3.explained));
+        // The first of the round's trials that passes every test is taken; the ones before it
+        // are refused and not tried again.
+        let mut taken = None;
+        for (effect, column, solve, mut evidence) in trials {
+            tried.push(effect);
+            let rms_after = (unweighted_rss(&observed.data.torque, &solve.predicted) / n as f64).sqrt();
+            let with: Vec<&[f64]> = columns.iter().copied().chain(std::iter::once(column.as_slice())).collect();
+            let refused = if evidence.delta_bic <= MIN_BIC_DROP {
+                Some(format!("on the micro-slip form: ΔBIC {:.1}, not above {MIN_BIC_DROP}", evidence.delta_bic))
+            } else if evidence.explained < MIN_EXPLAINED {
+                Some(format!(
+                    "on the micro-slip form: explains {:.1} % of its residual, less than {:.0} %",
+                    100.0 * evidence.explained,
+                    100.0 * MIN_EXPLAINED
+                ))
+            } else if rms_after > STRUCTURE_FACTOR * noise_rms {
+                Some(format!(
+                    "the micro-slip form with it leaves RMS {rms_after:.4} N·m, over {STRUCTURE_FACTOR}× the noise's \
+                     {noise_rms:.4}: no form here to judge it on"
+                ))
+            } else {
+                held_out_check(&form, &columns, &with)
+                    .or_else(|| halves_check(&form, &with, &mut evidence))
+                    .or_else(|| rate_check(&form, &with, effect))
+                    .or_else(|| rest_check(observed, effect, solve.last, evidence.z))
+                    .or_else(|| sides_check(&form, &with, effect))
+            };
+            match refused {
+                Some(reason) => found.refused.push((effect, solve.last, evidence, reason)),
+                None => {
+                    taken = Some((effect, column, solve, evidence, variance, current.predicted));
+                    break;
+                }
+            }
+        }
+        let Some((effect, column, solve, evidence, variance, before)) = taken else { break };
+        let rival = effect.rival().filter(|r| revealable.contains(r)).and_then(|rival| {
+            let rival_column = form.column(rival, &kept)?;
+            let with: Vec<&[f64]> = columns.iter().copied().chain(std::iter::once(rival_column.as_slice())).collect();
+            let fit = form.solve(&with, None)?;
+            ((fit.chi2 - solve.chi2) / variance <= MIN_BIC_DROP).then_some((rival, fit.last))
+        });
+        match rival {
+            Some((rival, rival_magnitude)) => found.untold.push(Untold {
+                effect,
+                rival,
+                magnitudes: [solve.last, rival_magnitude],
+                why: format!(
+                    "found on the micro-slip form, where {rival} in its place fits as well: the mechanism cannot be \
+                     told (magnitudes on that form)"
+                ),
+            }),
+            None => found.named.push(OnForm {
+                effect,
+                magnitude: solve.last,
+                evidence,
+                rss_before: unweighted_rss(&observed.data.torque, &before),
+                rss_after: unweighted_rss(&observed.data.torque, &solve.predicted),
+            }),
+        }
+        kept.push((effect, column));
+    }
+    let columns: Vec<&[f64]> = kept.iter().map(|(_, c)| c.as_slice()).collect();
+    let data = &observed.data;
+    if let Ok(fit) = micro_slip_with_columns(
+        &data.theta,
+        &data.torque,
+        reversals,
+        Some(noise),
+        &weights,
+        &columns,
+        SpringShape::Free,
+    ) {
+        found.magnitudes = kept.iter().map(|(e, _)| *e).zip(fit.extra).collect();
+    }
+    found
+}
+
+/// Each sample's total-noise weight by the stiffness of the form fitted with `weights` and the
+/// torque columns of `in_model`, along the recording; `None` where the form cannot be fitted.
+fn form_weights(
+    observed: &Observed,
+    reversals: &Reversals,
+    noise: NoiseModel,
+    weights: &[f64],
+    in_model: &[Effect],
+) -> Option<Vec<f64>> {
+    let data = &observed.data;
+    let columns = columns_of(observed, reversals, noise, weights, in_model);
+    let extra: Vec<&[f64]> = columns.iter().map(|(_, c)| c.as_slice()).collect();
+    let fit =
+        micro_slip_with_columns(&data.theta, &data.torque, reversals, Some(noise), weights, &extra, SpringShape::Free)
+            .ok()?;
+    let along = run_offline(&fit.model, &data.theta, reversals).ok()?;
+    Some(along.iter().map(|e| noise.weight(e.stiffness)).collect())
+}
+
+fn unweighted_rss(torque: &[f64], predicted: &[f64]) -> f64 {
+    torque.iter().zip(predicted).map(|(t, p)| (t - p).powi(2)).sum()
+}
+
+/// The held-out samples predicted better with the last of `with` than by `without`, each fitted
+/// without them; `None` when they are (or nothing is held out).
+fn held_out_check(form: &Form, without: &[&[f64]], with: &[&[f64]]) -> Option<String> {
+    let held = form.observed.held_out();
+    if held.is_empty() {
+        return None;
+    }
+    let training = form.observed.training();
+    let torque = &form.observed.data.torque;
+    let rms = |columns: &[&[f64]]| -> Option<f64> {
+        let fit = form.solve(columns, Some(&training))?;
+        Some((held.iter().map(|&i| (torque[i] - fit.predicted[i]).powi(2)).sum::<f64>() / held.len() as f64).sqrt())
+    };
+    let (before, after) = (rms(without)?, rms(with)?);
+    (after >= before).then(|| {
+        format!(
+            "on the micro-slip form it does not predict the held-out samples better (RMS {before:.4} → {after:.4} N·m)"
+        )
+    })
+}
+
+/// Each interleaved half alone shows the effect, with one magnitude; `None` when it does.
+fn halves_check(form: &Form, with: &[&[f64]], evidence: &mut Evidence) -> Option<String> {
+    let [a, b] = &form.observed.parts;
+    let (Some((ma, za)), Some((mb, zb))) = (form.estimate(with, a), form.estimate(with, b)) else {
+        return Some("on the micro-slip form it could not be fitted on each half alone".into());
+    };
+    evidence.halves = Some([ma, mb]);
+    evidence.halves_z = Some([za, zb]);
+    if za.abs() < MIN_HALF_Z || zb.abs() < MIN_HALF_Z {
+        Some(format!("on the micro-slip form not clear in both halves alone (z = {za:.1} and {zb:.1})"))
+    } else if ma.signum() != mb.signum() || (ma - mb).abs() > MAX_HALF_SPREAD * (ma + mb).abs() / 2.0 {
+        Some(format!("on the micro-slip form the halves disagree: {ma:.4e} and {mb:.4e}"))
+    } else {
+        None
+    }
+}
+
+/// A torque offset reads at rest as it does in motion, and on the form it must be read there:
+/// the torque read at rest before the motion must not disagree with the offset the form fits
+/// (by [`MIN_HALF_Z`] standard errors of their difference). Without a rest long enough to read,
+/// the form's misfit and an offset cannot be told apart: on OpenSees' asymmetric spring with
+/// nothing concealed, whose loop the form follows with its spring's stiffness bound at 0 near
+/// θ = 0, an offset of −0.055 N·m passed every other test, on both sides of the loop and at
+/// small and large |θ| alike. `None` when they agree, or for another effect.
+fn rest_check(observed: &Observed, effect: Effect, magnitude: f64, z: f64) -> Option<String> {
+    if effect != Effect::TorqueOffset {
+        return None;
+    }
+    let Some((at_rest, at_rest_error)) = observed.rest_torque else {
+        return Some(
+            "on the micro-slip form an offset cannot be told from the form's misfit without the torque read at rest: \
+             record the gear standing still before the motion"
+                .into(),
+        );
+    };
+    let error = if z != 0.0 { (magnitude / z).abs() } else { f64::INFINITY };
+    ((magnitude - at_rest).abs() > MIN_HALF_Z * error.hypot(at_rest_error)).then(|| {
+        format!(
+            "on the micro-slip form it fits {magnitude:.4} N·m, but the torque read at rest is {at_rest:.4} ± \
+             {at_rest_error:.4} N·m: the form's misfit, not the sensor's offset"
+        )
+    })
+}
+
+/// A torque offset is one constant over the whole loop: fitted on the loaded (θ ≥ 0) and the
+/// unloaded (θ < 0) samples alone, and on the outer and inner halves of the samples by |θ|, the
+/// two of each split must not disagree ([`disagree`]). Where the form follows one part of the
+/// loop less well than the rest, an offset takes the difference. `None` when they agree, or for
+/// another effect.
+fn sides_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
+    if effect != Effect::TorqueOffset {
+        return None;
+    }
+    let theta = &form.observed.data.theta;
+    let mut magnitude: Vec<f64> = theta.iter().map(|t| t.abs()).collect();
+    magnitude.sort_by(f64::total_cmp);
+    let middle = magnitude[magnitude.len() / 2];
+    // Each split formed when it is tested: two lists of every sample.
+    let split = |by_size: bool| -> (Vec<usize>, Vec<usize>) {
+        (0..theta.len()).partition(|&i| if by_size { theta[i].abs() >= middle } else { theta[i] >= 0.0 })
+    };
+    [("θ ≥ 0", "θ < 0", false), ("|θ| ≥ its median", "|θ| below it", true)].into_iter().find_map(
+        |(first, second, by_size)| {
+            let (a, b) = split(by_size);
+            let (Some((ma, za)), Some((mb, zb))) = (form.estimate(with, &a), form.estimate(with, &b)) else {
+                return Some(format!("on the micro-slip form it could not be fitted at {first} and at {second} alone"));
+            };
+            disagree(ma, za, mb, zb).then(|| {
+                format!(
+                "on the micro-slip form {ma:.4e} N·m at {first} and {mb:.4e} N·m at {second}: not one constant, so \
+                 what it takes is the form's misfit on part of the loop"
+            )
+            })
+        },
+    )
+}
+
+/// Two estimates (magnitude and its z) disagree: [`MIN_HALF_Z`] standard errors of their
+/// difference apart, and of opposite signs or more than [`MAX_HALF_SPREAD`] apart relative to
+/// their mean. The likelihood ratio's z gives each estimate's standard error.
+fn disagree(a: f64, za: f64, b: f64, zb: f64) -> bool {
+    let error = |m: f64, z: f64| if z != 0.0 { (m / z).abs() } else { f64::INFINITY };
+    let apart = (a - b).abs() / error(a, za).hypot(error(b, zb));
+    apart > MIN_HALF_Z && (a.signum() != b.signum() || (a - b).abs() > MAX_HALF_SPREAD * (a + b).abs() / 2.0)
+}
+
+/// A rate effect's slower and faster estimates (the recording's `rate_parts`) do not disagree:
+/// they disagree when they are [`MIN_HALF_Z`] standard errors of their difference apart and
+/// also differ in sign or by more than [`MAX_HALF_SPREAD`]. `None` when they agree, or when the
+/// effect is not a rate effect or the recording has one rate.
+fn rate_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
+    let parts = form.observed.rate_parts.as_ref().filter(|_| effect.is_rate_dependent())?;
+    let (Some((ms, zs)), Some((mf, zf))) = (form.estimate(with, &parts[0]), form.estimate(with, &parts[1])) else {
+        return Some("on the micro-slip form it could not be fitted at each rate alone".into());
+    };
+    disagree(ms, zs, mf, zf).then(|| {
+        format!(
+            "on the micro-slip form {ms:.4e} {unit} at the slower and {mf:.4e} {unit} at the faster motion: the \
+                 loop's opening does not scale with the rate",
+            unit = effect.unit()
+        )
+    })
+}
