@@ -115,6 +115,20 @@ pub struct Diagnosis {
     pub undecided: Vec<Undecided>,
     /// Structure that neither the vocabulary nor a model kind explains.
     pub unexplained: Option<form::Unexplained>,
+    /// The final model where it is the named form with the torque effects beside it (none of
+    /// the deflection effects, which the form cannot take): its torque along the recording.
+    /// `final_fit` is then the genetic model with the same effects, whose magnitudes the form's
+    /// replace.
+    pub final_form: Option<FinalForm>,
+}
+
+/// The named form with the torque effects beside it, as the final model.
+#[derive(Clone, Debug)]
+pub struct FinalForm {
+    /// The model kind: `micro-slip`.
+    pub model: &'static str,
+    /// Its torque at every sample, N·m.
+    pub predicted: Vec<f64>,
 }
 
 /// Why a diagnosis could not be made.
@@ -222,11 +236,15 @@ pub fn diagnose_dataset(
     observed.rest_torque = rest_torque;
     let diagnosis = diagnose(&observed, baseline)?;
     let before = diagnosis.baseline.residuals(&observed, observed.samples()).map_err(DiagnoseError::Baseline)?;
-    let after =
-        diagnosis.final_fit.residuals(&observed, observed.samples()).map_err(|source| DiagnoseError::Refit {
-            effects: diagnosis.final_fit.active.iter().map(|e| format!(" + {}", e.name())).collect(),
-            source: source.into(),
-        })?;
+    let after = match &diagnosis.final_form {
+        Some(form) => observed.data.torque.iter().zip(&form.predicted).map(|(t, p)| t - p).collect(),
+        None => {
+            diagnosis.final_fit.residuals(&observed, observed.samples()).map_err(|source| DiagnoseError::Refit {
+                effects: diagnosis.final_fit.active.iter().map(|e| format!(" + {}", e.name())).collect(),
+                source: source.into(),
+            })?
+        }
+    };
     let locate = locate(&observed, &before);
     let asymmetry = asymmetry::check(
         &observed,

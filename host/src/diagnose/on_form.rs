@@ -23,6 +23,9 @@
 //! - a torque offset agrees with the torque read at rest, which it needs, and is one constant on
 //!   both sides of the loop and at small and large |θ| alike.
 //!
+//! The samples are weighed by the form's own stiffness (total noise σT² + K²σθ²), not by the
+//! genetic baseline's, which is infinitely stiff at the loop's tips where the form is not.
+//!
 //! Coulomb friction is not tried: on this form it is a slip element of no width, rate-independent
 //! hysteresis, which one amplitude cannot tell from the gear's own (a second amplitude can).
 //! z is the likelihood ratio's, √(Δχ²/s²), with the sign of the magnitude: the bounded solve
@@ -61,6 +64,10 @@ pub struct FormSearch {
     /// Every torque effect on the form at the end, with its magnitude there: the ones the
     /// model had, the ones named and the untold ones.
     pub magnitudes: Vec<(Effect, f64)>,
+    /// The form with all of them: its torque at every sample, and its RMS on the held-out
+    /// samples fitted without them (N·m).
+    pub predicted: Option<Vec<f64>>,
+    pub held_out_rms: Option<f64>,
 }
 
 /// One solve of the form with torque columns beside it.
@@ -68,7 +75,9 @@ struct Solve {
     predicted: Vec<f64>,
     chi2: f64,
     parameters: usize,
-    /// The last column's coefficient (the effect being tried).
+    /// The columns' coefficients, in their order.
+    coefficients: Vec<f64>,
+    /// The last one's (the effect being tried), 0 without columns.
     last: f64,
 }
 
@@ -109,7 +118,13 @@ impl Form<'_> {
         .ok()?;
         // χ² is over the samples fitted only: the others carry weight 0.
         let last = fit.extra.last().copied().unwrap_or(0.0);
-        Some(Solve { predicted: fit.predicted, chi2: fit.chi2, parameters: fit.parameters, last })
+        Some(Solve {
+            predicted: fit.predicted,
+            chi2: fit.chi2,
+            parameters: fit.parameters,
+            coefficients: fit.extra,
+            last,
+        })
     }
 
     /// The column of `effect` beside the `kept` columns (a delay's follows the form's stiffness
@@ -245,19 +260,24 @@ pub fn search(
         kept.push((effect, column));
     }
     let columns: Vec<&[f64]> = kept.iter().map(|(_, c)| c.as_slice()).collect();
-    let data = &observed.data;
-    if let Ok(fit) = micro_slip_with_columns(
-        &data.theta,
-        &data.torque,
-        reversals,
-        Some(noise),
-        &weights,
-        &columns,
-        SpringShape::Free,
-    ) {
-        found.magnitudes = kept.iter().map(|(e, _)| *e).zip(fit.extra).collect();
+    if let Some(fit) = form.solve(&columns, None) {
+        found.magnitudes = kept.iter().map(|(e, _)| *e).zip(fit.coefficients).collect();
+        found.predicted = Some(fit.predicted);
     }
+    found.held_out_rms = held_out_rms(&form, &columns);
     found
+}
+
+/// RMS on the held-out samples of the form with `columns`, fitted without them, N·m; `None`
+/// when nothing is held out.
+fn held_out_rms(form: &Form, columns: &[&[f64]]) -> Option<f64> {
+    let held = form.observed.held_out();
+    if held.is_empty() {
+        return None;
+    }
+    let fit = form.solve(columns, Some(&form.observed.training()))?;
+    let torque = &form.observed.data.torque;
+    Some((held.iter().map(|&i| (torque[i] - fit.predicted[i]).powi(2)).sum::<f64>() / held.len() as f64).sqrt())
 }
 
 /// Each sample's total-noise weight by the stiffness of the form fitted with `weights` and the
@@ -286,17 +306,7 @@ fn unweighted_rss(torque: &[f64], predicted: &[f64]) -> f64 {
 /// The held-out samples predicted better with the last of `with` than by `without`, each fitted
 /// without them; `None` when they are (or nothing is held out).
 fn held_out_check(form: &Form, without: &[&[f64]], with: &[&[f64]]) -> Option<String> {
-    let held = form.observed.held_out();
-    if held.is_empty() {
-        return None;
-    }
-    let training = form.observed.training();
-    let torque = &form.observed.data.torque;
-    let rms = |columns: &[&[f64]]| -> Option<f64> {
-        let fit = form.solve(columns, Some(&training))?;
-        Some((held.iter().map(|&i| (torque[i] - fit.predicted[i]).powi(2)).sum::<f64>() / held.len() as f64).sqrt())
-    };
-    let (before, after) = (rms(without)?, rms(with)?);
+    let (before, after) = (held_out_rms(form, without)?, held_out_rms(form, with)?);
     (after >= before).then(|| {
         format!(
             "on the micro-slip form it does not predict the held-out samples better (RMS {before:.4} → {after:.4} N·m)"

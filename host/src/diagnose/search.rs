@@ -6,7 +6,7 @@ use super::form::{self, Structure, Unexplained, Untold};
 use super::locate::{locate, torque, Observation};
 use super::observed::Observed;
 use super::on_form;
-use super::{DiagnoseError, Diagnosis, Evidence, Finding, Rejection, Undecided};
+use super::{DiagnoseError, Diagnosis, Evidence, FinalForm, Finding, Rejection, Undecided};
 use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use crate::fit::total_noise_weights;
 use model_core::{Model, Params};
@@ -186,6 +186,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             weights,
             held_out_rms,
             model_form: None,
+            final_form: None,
             undecided,
             unexplained: match structure {
                 Structure::Unexplained(unexplained) => Some(located(observed, unexplained, &final_residuals)),
@@ -221,6 +222,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 untold.into_iter().filter(|u| !undecided.iter().any(|kept| kept.effects[0] == u.effect)).collect();
             // The torque effects the genetic form's misfit hid, searched for on the form.
             let mut kept_findings = kept_findings;
+            let mut on_the_form = None;
             if let Some(noise) = observed.noise {
                 let reversals = crate::prepare::reversals(&observed.data.theta);
                 let found = on_form::search(observed, &reversals, noise, &weights, &in_model, &judged);
@@ -260,7 +262,12 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                     in_model.push(pair.effect);
                     untold.push(pair);
                 }
+                on_the_form = found.predicted.map(|predicted| (predicted, found.held_out_rms));
             }
+            // The final model is the form with its torque effects, where no deflection effect
+            // (which the form cannot take) is in the model.
+            let deflection = in_model.iter().any(|e| matches!(e, Effect::Backlash | Effect::KinematicError));
+            let on_the_form = on_the_form.filter(|_| !deflection);
             let final_fit = fit_extended(observed, all, &weights, &in_model, &baseline)
                 .map_err(|source| refit_error(&in_model, source))?;
             for Untold { effect, rival, magnitudes, why } in untold {
@@ -279,7 +286,12 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                     rss_after: rss(&final_fit)?,
                 });
             }
-            let held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
+            let mut held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
+            let final_form = on_the_form.map(|(predicted, form_held_out)| {
+                // The held-out line compares the baseline with the final model, the form.
+                held_out_rms = held_out_rms.zip(form_held_out).map(|((baseline, _), form)| (baseline, form));
+                FinalForm { model: model_form.model, predicted }
+            });
             // An undecided torque that stood in for the shape goes with the shape.
             undecided.retain(|u| in_model.contains(&u.effects[0]));
             Ok(Diagnosis {
@@ -292,6 +304,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 model_form: Some(model_form),
                 undecided,
                 unexplained: None,
+                final_form,
             })
         }
     }

@@ -60,8 +60,14 @@ pub struct ModelSummary {
     pub rss: f64,
     pub rms: f64,
     pub n: usize,
+    /// The genetic model's parameters: the baseline's, or the final genetic model's with the
+    /// effects (beside a `form` too).
     pub params: Params<f64>,
     pub effects: Vec<Effect>,
+    /// The model kind the final model is, with the torque effects beside it, where the
+    /// diagnosis named that form: `rss` and `rms` are then its.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub form: Option<&'static str>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -90,7 +96,7 @@ pub struct Criteria {
 }
 
 impl ModelSummary {
-    fn new(fit: &ExtendedFit, residuals: &[f64]) -> ModelSummary {
+    fn new(fit: &ExtendedFit, residuals: &[f64], form: Option<&'static str>) -> ModelSummary {
         let rss: f64 = residuals.iter().map(|r| r * r).sum();
         ModelSummary {
             rss,
@@ -98,6 +104,7 @@ impl ModelSummary {
             n: residuals.len(),
             params: fit.params,
             effects: fit.active.clone(),
+            form,
         }
     }
 }
@@ -120,7 +127,7 @@ impl DiagnoseReport {
         DiagnoseReport {
             input,
             kind,
-            baseline: ModelSummary::new(&diagnosis.baseline, before),
+            baseline: ModelSummary::new(&diagnosis.baseline, before, None),
             noise: observed.noise,
             origin: *origin,
             locate: locate.clone(),
@@ -139,7 +146,7 @@ impl DiagnoseReport {
             ratcheting: ratcheting.clone(),
             passivity: passivity.clone(),
             rejected: diagnosis.rejected.clone(),
-            final_model: ModelSummary::new(&diagnosis.final_fit, after),
+            final_model: ModelSummary::new(&diagnosis.final_fit, after, diagnosis.final_form.as_ref().map(|f| f.model)),
             held_out: diagnosis.held_out_rms.map(|(rms_before, rms_after)| HeldOut {
                 rms_before,
                 rms_after,
@@ -319,7 +326,8 @@ impl DiagnoseReport {
             };
             fm.effects.iter().map(words).collect::<Vec<_>>().join(" + ")
         };
-        let _ = writeln!(s, "\nfinal model (baseline + {effects}): RSS {:.5} (N·m)², RMS {:.4} N·m", fm.rss, fm.rms);
+        let base = fm.form.map_or("baseline".to_string(), |form| format!("the {form} model"));
+        let _ = writeln!(s, "\nfinal model ({base} + {effects}): RSS {:.5} (N·m)², RMS {:.4} N·m", fm.rss, fm.rms);
         if let Some(h) = &report.held_out {
             let _ = writeln!(
                 s,
