@@ -152,7 +152,9 @@ impl Form<'_> {
 /// standing in for its shape) are not tried again. `weights` are the diagnosis' total-noise
 /// weights, by the genetic baseline's stiffness; the search weighs the samples by the form's
 /// own: the deflection's noise reaches the torque through the gear's stiffness, and the genetic
-/// loop is infinitely stiff at its tips where the form is not.
+/// loop is infinitely stiff at its tips where the form is not. Magnitudes are in the effects'
+/// units ([`in_its_unit`]), a thermal drift's relative to `c1`, the genetic baseline's linear
+/// stiffness.
 pub fn search(
     observed: &Observed,
     reversals: &Reversals,
@@ -160,6 +162,7 @@ pub fn search(
     weights: &[f64],
     in_model: &[Effect],
     judged: &[Effect],
+    c1: f64,
 ) -> FormSearch {
     let weights = form_weights(observed, reversals, noise, weights, in_model).unwrap_or_else(|| weights.to_vec());
     let mut kept = columns_of(observed, reversals, noise, &weights, in_model);
@@ -225,7 +228,7 @@ pub fn search(
                     .or_else(|| sides_check(&form, &with, effect))
             };
             match refused {
-                Some(reason) => found.refused.push((effect, solve.last, evidence, reason)),
+                Some(reason) => found.refused.push((effect, in_its_unit(effect, solve.last, c1), evidence, reason)),
                 None => {
                     taken = Some((effect, column, solve, evidence, variance, current.predicted));
                     break;
@@ -251,7 +254,7 @@ pub fn search(
             }),
             None => found.named.push(OnForm {
                 effect,
-                magnitude: solve.last,
+                magnitude: in_its_unit(effect, solve.last, c1),
                 evidence,
                 rss_before: unweighted_rss(&observed.data.torque, &before),
                 rss_after: unweighted_rss(&observed.data.torque, &solve.predicted),
@@ -261,11 +264,22 @@ pub fn search(
     }
     let columns: Vec<&[f64]> = kept.iter().map(|(_, c)| c.as_slice()).collect();
     if let Some(fit) = form.solve(&columns, None) {
-        found.magnitudes = kept.iter().map(|(e, _)| *e).zip(fit.coefficients).collect();
+        found.magnitudes = kept.iter().zip(fit.coefficients).map(|((e, _), c)| (*e, in_its_unit(*e, c, c1))).collect();
         found.predicted = Some(fit.predicted);
     }
     found.held_out_rms = held_out_rms(&form, &columns);
     found
+}
+
+/// An effect's magnitude in its unit ([`Effect::unit`]) from its column's coefficient on the
+/// form: the coefficient itself, but a thermal drift's, whose column is the warming times θ
+/// (N·m/(rad·K)), over the linear stiffness `c1` it is the relative change of per kelvin (as
+/// on the genetic model; the form's raw coefficient read thousands of times the concealed drift).
+fn in_its_unit(effect: Effect, coefficient: f64, c1: f64) -> f64 {
+    match effect {
+        Effect::ThermalDrift => coefficient / c1,
+        _ => coefficient,
+    }
 }
 
 /// RMS on the held-out samples of the form with `columns`, fitted without them, N·m; `None`
@@ -349,8 +363,7 @@ fn rest_check(observed: &Observed, effect: Effect, magnitude: f64, z: f64) -> Op
                 .into(),
         );
     };
-    let error = if z != 0.0 { (magnitude / z).abs() } else { f64::INFINITY };
-    ((magnitude - at_rest).abs() > MIN_HALF_Z * error.hypot(at_rest_error)).then(|| {
+    disagree(magnitude, error_of(magnitude, z), at_rest, at_rest_error).then(|| {
         format!(
             "on the micro-slip form it fits {magnitude:.4} N·m, but the torque read at rest is {at_rest:.4} ± \
              {at_rest_error:.4} N·m: the form's misfit, not the sensor's offset"
@@ -381,7 +394,7 @@ fn sides_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
             let (Some((ma, za)), Some((mb, zb))) = (form.estimate(with, &a), form.estimate(with, &b)) else {
                 return Some(format!("on the micro-slip form it could not be fitted at {first} and at {second} alone"));
             };
-            disagree(ma, za, mb, zb).then(|| {
+            disagree(ma, error_of(ma, za), mb, error_of(mb, zb)).then(|| {
                 format!(
                 "on the micro-slip form {ma:.4e} N·m at {first} and {mb:.4e} N·m at {second}: not one constant, so \
                  what it takes is the form's misfit on part of the loop"
@@ -391,13 +404,22 @@ fn sides_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
     )
 }
 
-/// Two estimates (magnitude and its z) disagree: [`MIN_HALF_Z`] standard errors of their
+/// Two estimates with their standard errors disagree: [`MIN_HALF_Z`] standard errors of their
 /// difference apart, and of opposite signs or more than [`MAX_HALF_SPREAD`] apart relative to
-/// their mean. The likelihood ratio's z gives each estimate's standard error.
-fn disagree(a: f64, za: f64, b: f64, zb: f64) -> bool {
-    let error = |m: f64, z: f64| if z != 0.0 { (m / z).abs() } else { f64::INFINITY };
-    let apart = (a - b).abs() / error(a, za).hypot(error(b, zb));
+/// their mean. Both, because the form's own misfit moves an estimate by more than its error
+/// (an offset of 0.195 N·m on the form beside 0.202 ± 0.001 read at rest, 0.2 concealed).
+fn disagree(a: f64, error_a: f64, b: f64, error_b: f64) -> bool {
+    let apart = (a - b).abs() / error_a.hypot(error_b);
     apart > MIN_HALF_Z && (a.signum() != b.signum() || (a - b).abs() > MAX_HALF_SPREAD * (a + b).abs() / 2.0)
+}
+
+/// An estimate's standard error from its likelihood ratio's z.
+fn error_of(magnitude: f64, z: f64) -> f64 {
+    if z != 0.0 {
+        (magnitude / z).abs()
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// A rate effect's slower and faster estimates (the recording's `rate_parts`) do not disagree:
@@ -409,7 +431,7 @@ fn rate_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
     let (Some((ms, zs)), Some((mf, zf))) = (form.estimate(with, &parts[0]), form.estimate(with, &parts[1])) else {
         return Some("on the micro-slip form it could not be fitted at each rate alone".into());
     };
-    disagree(ms, zs, mf, zf).then(|| {
+    disagree(ms, error_of(ms, zs), mf, error_of(mf, zf)).then(|| {
         format!(
             "on the micro-slip form {ms:.4e} {unit} at the slower and {mf:.4e} {unit} at the faster motion: the \
                  loop's opening does not scale with the rate",

@@ -1,7 +1,7 @@
 //! The greedy search: try every revealable effect, accept the one that explains most if the
 //! evidence is strong, repeat.
 use super::effects::Effect;
-use super::extended::{columns, direction_sign, fit_extended, ExtendedFit, ExtendedFitError};
+use super::extended::{columns, direction_sign, fit_extended, EffectState, ExtendedFit, ExtendedFitError};
 use super::form::{self, Structure, Unexplained, Untold};
 use super::locate::{locate, torque, Observation};
 use super::observed::Observed;
@@ -225,7 +225,8 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             let mut on_the_form = None;
             if let Some(noise) = observed.noise {
                 let reversals = crate::prepare::reversals(&observed.data.theta);
-                let found = on_form::search(observed, &reversals, noise, &weights, &in_model, &judged);
+                let found =
+                    on_form::search(observed, &reversals, noise, &weights, &in_model, &judged, baseline.params.c1);
                 // Refused on both forms: both reasons, the genetic one's figures.
                 for (effect, magnitude, evidence, reason) in found.refused {
                     match rejected.iter_mut().find(|r| r.effect == effect) {
@@ -233,29 +234,33 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                         None => rejected.push(Rejection { effect, reason, magnitude, evidence }),
                     }
                 }
+                // The effects named on the genetic form and kept beside this one take their
+                // magnitudes on it: the genetic model's misfit leaned on them (a 0.15 N·m offset
+                // on OpenSees' Iwan material read 0.40 there).
+                for finding in &mut kept_findings {
+                    if let Some(&(effect, magnitude)) = found.magnitudes.iter().find(|(e, _)| *e == finding.effect) {
+                        finding.magnitude = magnitude;
+                        finding.active = effect.gives_energy_back(magnitude);
+                        finding.location = location_at(effect, magnitude, &EffectState::default());
+                    }
+                }
                 for named in found.named {
                     rejected.retain(|r| r.effect != named.effect);
                     in_model.push(named.effect);
+                    // Its magnitude beside every effect on the form, as the kept ones'.
+                    let magnitude =
+                        found.magnitudes.iter().find(|(e, _)| *e == named.effect).map_or(named.magnitude, |(_, m)| *m);
                     kept_findings.push(Finding {
                         effect: named.effect,
-                        magnitude: named.magnitude,
+                        magnitude,
                         unit: named.effect.unit(),
                         meaning: named.effect.magnitude_meaning(),
                         location: format!("found on the {} form, its magnitude there", model_form.model),
                         rss_before: named.rss_before,
                         rss_after: named.rss_after,
                         evidence: named.evidence,
-                        active: named.effect.gives_energy_back(named.magnitude),
+                        active: named.effect.gives_energy_back(magnitude),
                     });
-                }
-                // The effects named on the genetic form and kept beside this one take their
-                // magnitudes on it: the genetic model's misfit leaned on them (a 0.15 N·m offset
-                // on OpenSees' Iwan material read 0.40 there).
-                for finding in &mut kept_findings {
-                    if let Some((_, magnitude)) = found.magnitudes.iter().find(|(e, _)| *e == finding.effect) {
-                        finding.magnitude = *magnitude;
-                        finding.active = finding.effect.gives_energy_back(*magnitude);
-                    }
                 }
                 for pair in found.untold {
                     rejected.retain(|r| r.effect != pair.effect && r.effect != pair.rival);
@@ -794,15 +799,18 @@ fn held_out(
 }
 
 fn location_words(effect: Effect, fit: &ExtendedFit) -> String {
-    let s = &fit.state;
+    location_at(effect, fit.magnitude(effect), &fit.state)
+}
+
+/// [`location_words`] of an effect of `magnitude` (the kinematic error's harmonics from `s`).
+fn location_at(effect: Effect, magnitude: f64, s: &EffectState) -> String {
     match effect {
         Effect::Backlash => format!(
-            "around zero torque: the deflection jumps by {:.3e} rad while the torque crosses zero",
-            s.backlash
+            "around zero torque: the deflection jumps by {magnitude:.3e} rad while the torque crosses zero"
         ),
         Effect::CoulombFriction => format!(
             "on both directions, the whole loop: the torque is {} N·m higher while the deflection rises than while it falls",
-            torque(2.0 * s.coulomb)
+            torque(2.0 * magnitude)
         ),
         Effect::ViscousDamping => {
             "grows with the deflection rate: largest where the loop crosses zero deflection, zero at the turning points".into()
@@ -818,8 +826,8 @@ fn location_words(effect: Effect, fit: &ExtendedFit) -> String {
         Effect::TorqueOffset => "everywhere: the whole loop is shifted in torque".into(),
         Effect::ChannelDelay => format!(
             "grows with the deflection rate times the stiffness: the torque channel runs {:.3} ms {} the angles",
-            1e3 * s.delay.abs(),
-            if s.delay >= 0.0 { "behind" } else { "ahead of" }
+            1e3 * magnitude.abs(),
+            if magnitude >= 0.0 { "behind" } else { "ahead of" }
         ),
     }
 }
