@@ -227,47 +227,8 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 let reversals = crate::prepare::reversals(&observed.data.theta);
                 let found =
                     on_form::search(observed, &reversals, noise, &weights, &in_model, &judged, baseline.params.c1);
-                // Refused on both forms: both reasons, the genetic one's figures.
-                for (effect, magnitude, evidence, reason) in found.refused {
-                    match rejected.iter_mut().find(|r| r.effect == effect) {
-                        Some(earlier) => earlier.reason = format!("{}; {reason}", earlier.reason),
-                        None => rejected.push(Rejection { effect, reason, magnitude, evidence }),
-                    }
-                }
-                // The effects named on the genetic form and kept beside this one take their
-                // magnitudes on it: the genetic model's misfit leaned on them (a 0.15 N·m offset
-                // on OpenSees' Iwan material read 0.40 there).
-                for finding in &mut kept_findings {
-                    if let Some(&(effect, magnitude)) = found.magnitudes.iter().find(|(e, _)| *e == finding.effect) {
-                        finding.magnitude = magnitude;
-                        finding.active = effect.gives_energy_back(magnitude);
-                        finding.location = location_at(effect, magnitude, &EffectState::default());
-                    }
-                }
-                for named in found.named {
-                    rejected.retain(|r| r.effect != named.effect);
-                    in_model.push(named.effect);
-                    // Its magnitude beside every effect on the form, as the kept ones'.
-                    let magnitude =
-                        found.magnitudes.iter().find(|(e, _)| *e == named.effect).map_or(named.magnitude, |(_, m)| *m);
-                    kept_findings.push(Finding {
-                        effect: named.effect,
-                        magnitude,
-                        unit: named.effect.unit(),
-                        meaning: named.effect.magnitude_meaning(),
-                        location: format!("found on the {} form, its magnitude there", model_form.model),
-                        rss_before: named.rss_before,
-                        rss_after: named.rss_after,
-                        evidence: named.evidence,
-                        active: named.effect.gives_energy_back(magnitude),
-                    });
-                }
-                for pair in found.untold {
-                    rejected.retain(|r| r.effect != pair.effect && r.effect != pair.rival);
-                    in_model.push(pair.effect);
-                    untold.push(pair);
-                }
-                on_the_form = found.predicted.map(|predicted| (predicted, found.held_out_rms));
+                on_the_form =
+                    merge(found, model_form.model, &mut kept_findings, &mut rejected, &mut in_model, &mut untold);
             }
             // The final model is the form with its torque effects, where no deflection effect
             // (which the form cannot take) is in the model.
@@ -313,6 +274,60 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             })
         }
     }
+}
+
+/// Takes what the search on the form found into the diagnosis: its refusals beside the genetic
+/// search's, the kept `findings` at their magnitudes on the form, the effects it names and the
+/// torques it keeps undecided (into `in_model` too). The form with all of them: its torque along
+/// the recording and its held-out RMS.
+fn merge(
+    found: on_form::FormSearch,
+    form: &str,
+    findings: &mut Vec<Finding>,
+    rejected: &mut Vec<Rejection>,
+    in_model: &mut Vec<Effect>,
+    untold: &mut Vec<Untold>,
+) -> Option<(Vec<f64>, Option<f64>)> {
+    // Refused on both forms: both reasons, the genetic one's figures.
+    for (effect, magnitude, evidence, reason) in found.refused {
+        match rejected.iter_mut().find(|r| r.effect == effect) {
+            Some(earlier) => earlier.reason = format!("{}; {reason}", earlier.reason),
+            None => rejected.push(Rejection { effect, reason, magnitude, evidence }),
+        }
+    }
+    // The effects named on the genetic form and kept beside the form take their magnitudes on
+    // it: the genetic model's misfit leaned on them (a 0.15 N·m offset on OpenSees' Iwan
+    // material read 0.40 there).
+    for finding in findings.iter_mut() {
+        if let Some(&(effect, magnitude)) = found.magnitudes.iter().find(|(e, _)| *e == finding.effect) {
+            finding.magnitude = magnitude;
+            finding.active = effect.gives_energy_back(magnitude);
+            finding.location = location_at(effect, magnitude, &EffectState::default());
+        }
+    }
+    for named in found.named {
+        rejected.retain(|r| r.effect != named.effect);
+        in_model.push(named.effect);
+        // Its magnitude beside every effect on the form, as the kept ones'.
+        let magnitude = found.magnitudes.iter().find(|(e, _)| *e == named.effect).map_or(named.magnitude, |(_, m)| *m);
+        findings.push(Finding {
+            effect: named.effect,
+            magnitude,
+            unit: named.effect.unit(),
+            meaning: named.effect.magnitude_meaning(),
+            location: format!("found on the {form} form, its magnitude there"),
+            rss_before: named.rss_before,
+            rss_after: named.rss_after,
+            evidence: named.evidence,
+            active: named.effect.gives_energy_back(magnitude),
+        });
+    }
+    for pair in found.untold {
+        rejected.retain(|r| r.effect != pair.effect && r.effect != pair.rival);
+        in_model.push(pair.effect);
+        untold.push(pair);
+    }
+    found.predicted.map(|predicted| (predicted, found.held_out_rms))
 }
 
 /// An effect accepted in a round, with its evidence and, when its mechanism stays undecided
