@@ -26,7 +26,7 @@ use super::effects::Effect;
 use super::form::torque_column;
 use super::form::STRUCTURE_FACTOR;
 use super::observed::Observed;
-use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED};
+use super::{weights_on, MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::fit::motion::{micro_slip_with_columns, ColumnsFit, SpringShape};
 use crate::gear::run_offline;
 use crate::prepare::reversals;
@@ -143,11 +143,9 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], zero_se: O
         .par_iter()
         .filter(|_| both_sides)
         .map(|part| {
-            let mut alone = vec![0.0; weights.len()];
-            for &i in part {
-                alone[i] = weights[i];
-            }
-            fit(&alone, SpringShape::MirroredFree).and_then(|half| secants(&half, extent)).map(|(p, m)| relative(p, m))
+            fit(&weights_on(weights, part.iter().copied()), SpringShape::MirroredFree)
+                .and_then(|half| secants(&half, extent))
+                .map(|(p, m)| relative(p, m))
         })
         .collect::<Option<Vec<f64>>>()
         .and_then(|h| <[f64; 2]>::try_from(h).ok());

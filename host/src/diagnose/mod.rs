@@ -46,6 +46,29 @@ pub const MIN_HALF_Z: f64 = 3.0;
 /// Largest difference of the halves' magnitudes, relative to their mean.
 pub const MAX_HALF_SPREAD: f64 = 0.5;
 
+/// Two magnitudes of one effect differ: in sign, or by more than [`MAX_HALF_SPREAD`] of their
+/// mean.
+fn magnitudes_differ(a: f64, b: f64) -> bool {
+    a.signum() != b.signum() || (a - b).abs() > MAX_HALF_SPREAD * (a + b).abs() / 2.0
+}
+
+/// Two estimates with their standard errors disagree: [`MIN_HALF_Z`] standard errors of their
+/// difference apart, and their magnitudes differ ([`magnitudes_differ`]). Both, since a rate too
+/// slow to show an effect agrees with anything, and a form's own misfit moves an estimate by
+/// more than its error.
+fn estimates_disagree(a: f64, error_a: f64, b: f64, error_b: f64) -> bool {
+    (a - b).abs() / error_a.hypot(error_b) > MIN_HALF_Z && magnitudes_differ(a, b)
+}
+
+/// `weights` on `samples` alone, 0 elsewhere: a fit of those samples that follows the others.
+fn weights_on(weights: &[f64], samples: impl IntoIterator<Item = usize>) -> Vec<f64> {
+    let mut alone = vec![0.0; weights.len()];
+    for i in samples {
+        alone[i] = weights[i];
+    }
+    alone
+}
+
 /// The numbers behind accepting or rejecting an effect.
 #[derive(Clone, Debug, Serialize)]
 pub struct Evidence {

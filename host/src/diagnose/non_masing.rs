@@ -26,7 +26,7 @@
 use super::effects::Effect;
 use super::form::{torque_column, STRUCTURE_FACTOR};
 use super::observed::Observed;
-use super::{MIN_BIC_DROP, MIN_EXPLAINED};
+use super::{weights_on, MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::fit::motion::{masing_forms_with_columns, FormFit};
 use crate::prepare::reversals;
 use serde::Serialize;
@@ -142,11 +142,7 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], known_stat
         Some(Pair { masing, free, fitted: weights.iter().filter(|&&w| w > 0.0).count() })
     };
     let known = |i: usize| i >= known_state_from;
-    let only = |samples: &[usize]| {
-        let mut alone = vec![0.0; weights.len()];
-        samples.iter().filter(|&&i| known(i)).for_each(|&i| alone[i] = weights[i]);
-        alone
-    };
+    let only = |samples: &[usize]| weights_on(weights, samples.iter().copied().filter(|&i| known(i)));
     let held_out: Vec<usize> = observed.held_out().iter().copied().filter(|&i| known(i)).collect();
     // One pair at a time (each pair's two forms side by side, which keeps both cores busy):
     // each form holds its torque at every sample, 16 bytes a sample a pair; the whole

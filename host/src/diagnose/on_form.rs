@@ -15,7 +15,7 @@
 //!   more is not one to judge effects on;
 //! - the held-out samples are predicted better with it, each fitted without them;
 //! - each interleaved half alone shows it (|z| ≥ [`MIN_HALF_Z`]) with magnitudes of one sign
-//!   within [`MAX_HALF_SPREAD`] of their mean;
+//!   within [`super::MAX_HALF_SPREAD`] of their mean;
 //! - a rate effect's slower and faster estimates do not disagree (as [`super::search`]'s rate
 //!   test: a rate too slow to show it agrees with anything), and its rival in its place fits
 //!   worse by more than [`MIN_BIC_DROP`]; where the rival fits as well, the torque is kept
@@ -33,7 +33,8 @@
 use super::effects::Effect;
 use super::form::{columns_of, delay_on_the_form, torque_column, Untold, STRUCTURE_FACTOR};
 use super::observed::Observed;
-use super::{Evidence, MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
+use super::{estimates_disagree, magnitudes_differ, weights_on};
+use super::{Evidence, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use crate::fit::motion::{micro_slip_with_columns, SpringShape};
 use crate::gear::run_offline;
 use crate::gear::Reversals;
@@ -98,11 +99,7 @@ impl Form<'_> {
         let weights = match on {
             None => self.weights,
             Some(samples) => {
-                let mut w = vec![0.0; self.weights.len()];
-                for &i in samples {
-                    w[i] = self.weights[i];
-                }
-                restricted = w;
+                restricted = weights_on(self.weights, samples.iter().copied());
                 &restricted
             }
         };
@@ -338,7 +335,7 @@ fn halves_check(form: &Form, with: &[&[f64]], evidence: &mut Evidence) -> Option
     evidence.halves_z = Some([za, zb]);
     if za.abs() < MIN_HALF_Z || zb.abs() < MIN_HALF_Z {
         Some(format!("on the micro-slip form not clear in both halves alone (z = {za:.1} and {zb:.1})"))
-    } else if ma.signum() != mb.signum() || (ma - mb).abs() > MAX_HALF_SPREAD * (ma + mb).abs() / 2.0 {
+    } else if magnitudes_differ(ma, mb) {
         Some(format!("on the micro-slip form the halves disagree: {ma:.4e} and {mb:.4e}"))
     } else {
         None
@@ -363,7 +360,7 @@ fn rest_check(observed: &Observed, effect: Effect, magnitude: f64, z: f64) -> Op
                 .into(),
         );
     };
-    disagree(magnitude, error_of(magnitude, z), at_rest, at_rest_error).then(|| {
+    estimates_disagree(magnitude, error_of(magnitude, z), at_rest, at_rest_error).then(|| {
         format!(
             "on the micro-slip form it fits {magnitude:.4} N·m, but the torque read at rest is {at_rest:.4} ± \
              {at_rest_error:.4} N·m: the form's misfit, not the sensor's offset"
@@ -373,7 +370,7 @@ fn rest_check(observed: &Observed, effect: Effect, magnitude: f64, z: f64) -> Op
 
 /// A torque offset is one constant over the whole loop: fitted on the loaded (θ ≥ 0) and the
 /// unloaded (θ < 0) samples alone, and on the outer and inner halves of the samples by |θ|, the
-/// two of each split must not disagree ([`disagree`]). Where the form follows one part of the
+/// two of each split must not disagree ([`estimates_disagree`]). Where the form follows one part of the
 /// loop less well than the rest, an offset takes the difference. `None` when they agree, or for
 /// another effect.
 fn sides_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
@@ -394,7 +391,7 @@ fn sides_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
             let (Some((ma, za)), Some((mb, zb))) = (form.estimate(with, &a), form.estimate(with, &b)) else {
                 return Some(format!("on the micro-slip form it could not be fitted at {first} and at {second} alone"));
             };
-            disagree(ma, error_of(ma, za), mb, error_of(mb, zb)).then(|| {
+            estimates_disagree(ma, error_of(ma, za), mb, error_of(mb, zb)).then(|| {
                 format!(
                 "on the micro-slip form {ma:.4e} N·m at {first} and {mb:.4e} N·m at {second}: not one constant, so \
                  what it takes is the form's misfit on part of the loop"
@@ -402,15 +399,6 @@ fn sides_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
             })
         },
     )
-}
-
-/// Two estimates with their standard errors disagree: [`MIN_HALF_Z`] standard errors of their
-/// difference apart, and of opposite signs or more than [`MAX_HALF_SPREAD`] apart relative to
-/// their mean. Both, because the form's own misfit moves an estimate by more than its error
-/// (an offset of 0.195 N·m on the form beside 0.202 ± 0.001 read at rest, 0.2 concealed).
-fn disagree(a: f64, error_a: f64, b: f64, error_b: f64) -> bool {
-    let apart = (a - b).abs() / error_a.hypot(error_b);
-    apart > MIN_HALF_Z && (a.signum() != b.signum() || (a - b).abs() > MAX_HALF_SPREAD * (a + b).abs() / 2.0)
 }
 
 /// An estimate's standard error from its likelihood ratio's z.
@@ -424,14 +412,14 @@ fn error_of(magnitude: f64, z: f64) -> f64 {
 
 /// A rate effect's slower and faster estimates (the recording's `rate_parts`) do not disagree:
 /// they disagree when they are [`MIN_HALF_Z`] standard errors of their difference apart and
-/// also differ in sign or by more than [`MAX_HALF_SPREAD`]. `None` when they agree, or when the
+/// also differ in sign or by more than [`super::MAX_HALF_SPREAD`]. `None` when they agree, or when the
 /// effect is not a rate effect or the recording has one rate.
 fn rate_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
     let parts = form.observed.rate_parts.as_ref().filter(|_| effect.is_rate_dependent())?;
     let (Some((ms, zs)), Some((mf, zf))) = (form.estimate(with, &parts[0]), form.estimate(with, &parts[1])) else {
         return Some("on the micro-slip form it could not be fitted at each rate alone".into());
     };
-    disagree(ms, error_of(ms, zs), mf, error_of(mf, zf)).then(|| {
+    estimates_disagree(ms, error_of(ms, zs), mf, error_of(mf, zf)).then(|| {
         format!(
             "on the micro-slip form {ms:.4e} {unit} at the slower and {mf:.4e} {unit} at the faster motion: the \
                  loop's opening does not scale with the rate",

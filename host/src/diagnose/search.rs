@@ -6,6 +6,7 @@ use super::form::{self, Structure, Unexplained, Untold};
 use super::locate::{locate, torque, Observation};
 use super::observed::Observed;
 use super::on_form;
+use super::{estimates_disagree, magnitudes_differ};
 use super::{DiagnoseError, Diagnosis, Evidence, FinalForm, Finding, Rejection, Undecided};
 use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use crate::fit::total_noise_weights;
@@ -481,12 +482,9 @@ fn rate_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit, effect: E
         Err(reason) => return reason,
     };
     let (pooled, pooled_error) = (fit.magnitude(effect), fit.magnitude_error(effect));
-    let apart = (ms - mf).abs() / es.hypot(ef);
     if !(pooled.abs() >= MIN_HALF_Z * pooled_error) {
         Some(format!("not clear over every rate pooled ({pooled:.3e} ± {pooled_error:.1e} {})", effect.unit()))
-    } else if apart > MIN_HALF_Z
-        && (ms.signum() != mf.signum() || (ms - mf).abs() > MAX_HALF_SPREAD * (ms + mf).abs() / 2.0)
-    {
+    } else if estimates_disagree(ms, es, mf, ef) {
         Some(format!(
             "{ms:.4e} ± {es:.1e} {unit} at the slower and {mf:.4e} ± {ef:.1e} {unit} at the faster motion: {}",
             if effect == Effect::CoulombFriction {
@@ -691,7 +689,7 @@ fn offset_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit) -> Opti
         if za.abs() < MIN_HALF_Z || zb.abs() < MIN_HALF_Z {
             return Some(format!("not clear both at {a} and at {b} (z = {za:.1} and {zb:.1})"));
         }
-        if ma.signum() != mb.signum() || (ma - mb).abs() > MAX_HALF_SPREAD * (ma + mb).abs() / 2.0 {
+        if magnitudes_differ(ma, mb) {
             return Some(format!(
                 "{ma:.4e} N·m at {a} and {mb:.4e} N·m at {b}: not one constant, so the residual has a shape that an \
                  offset only leans on"
