@@ -193,6 +193,8 @@ struct Outcome {
     /// its magnitude fitted in its own place.
     undecided: Vec<(Effect, f64)>,
     truth: Vec<EffectValue>,
+    /// The effects the diagnosis said cannot be told from this data.
+    untellable: Vec<Effect>,
     /// Why the diagnosis turned down each other effect, to read when a case goes wrong.
     rejected: Vec<String>,
     /// The gear's hysteresis is not the genetic model's.
@@ -391,12 +393,20 @@ fn run(case: &Case) -> Outcome {
     let undecided = diagnosis.undecided.iter().flat_map(|u| u.effects.into_iter().zip(u.magnitudes)).collect();
     let rejected =
         diagnosis.rejected.iter().map(|r| format!("{} ({:.3e}): {}", r.effect, r.magnitude, r.reason)).collect();
+    let untellable = outcome
+        .observed
+        .cannot_reveal
+        .iter()
+        .map(|(effect, _)| *effect)
+        .chain(diagnosis.untellable.iter().map(|u| u.effect))
+        .collect();
     let other_physics = !matches!(case.physics, Physics::Model);
     Outcome {
         name: case.name.clone(),
         named,
         undecided,
         truth: case.truth.clone(),
+        untellable,
         rejected,
         other_physics,
         form: diagnosis.model_form.is_some(),
@@ -425,6 +435,7 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
     let mut passivity_wrong = 0;
     let mut false_alarms = 0;
     let mut misses = 0;
+    let mut said_untellable = 0;
     let mut undecided = 0;
     let mut errors = Vec::new();
     let mut failures = Vec::new();
@@ -466,7 +477,9 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
             println!("    loops that drift named on {}, whose loops close", o.name);
         }
         forms += usize::from(o.other_physics && o.form);
-        misses += o.truth.iter().filter(|t| o.found(t.effect).is_none()).count();
+        let missed: Vec<Effect> = o.truth.iter().map(|t| t.effect).filter(|&e| o.found(e).is_none()).collect();
+        misses += missed.len();
+        said_untellable += missed.iter().filter(|e| o.untellable.contains(e)).count();
         undecided += o
             .truth
             .iter()
@@ -499,7 +512,7 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
     let median_error = errors.get(errors.len() / 2).copied().unwrap_or(0.0);
     let max_error = errors.last().copied().unwrap_or(0.0);
     println!(
-        "corpus seed {base_seed}: {right}/{} right set, {wrong_physics} wrong physics named, {false_alarms} false alarms, {misses} misses, {undecided} told as either of two, magnitude error median {:.1} % max {:.1} %; model form named on {forms}/{} gears of other physics; passivity wrong on {passivity_wrong}",
+        "corpus seed {base_seed}: {right}/{} right set, {wrong_physics} wrong physics named, {false_alarms} false alarms, {misses} misses ({said_untellable} said to be untellable from the data), {undecided} told as either of two, magnitude error median {:.1} % max {:.1} %; model form named on {forms}/{} gears of other physics; passivity wrong on {passivity_wrong}",
         outcomes.len(),
         100.0 * median_error,
         100.0 * max_error,

@@ -21,7 +21,9 @@ Scored as the corpus scores its gears of other physics: right when exactly the t
 there stands in for the material's shape: wrong physics; a rate effect named for its rival:
 wrong physics. A finding of form counts as wrong physics where the material cannot have it
 (asymmetry but on `asymmetric`; non_masing on `iwan`, `catalogue`, `asymmetric`, whose elements
-are elastic-perfectly-plastic, Masing's; ratcheting but on `bouc-wen`). Prints a markdown table
+are elastic-perfectly-plastic, Masing's; ratcheting but on `bouc-wen`). A miss whose effect the
+report lists as one that cannot be told from this data (`not_revealable`) is counted apart: an
+honest "cannot tell", not a right answer. Prints a markdown table
 and the counts; writes the recordings and each diagnosis (JSON) to OUT_DIR.
 """
 from __future__ import annotations
@@ -126,10 +128,14 @@ def score(material: str, truth: str, report: dict) -> dict:
             if material not in allowed:
                 wrong.append(finding)
     kept = [u for u in undecided if truth in u]
+    untold = [u["effect"] for u in report.get("not_revealable", [])]
+    missed = [e for e in truth_set if e not in found]
     return {
         "named": named, "undecided": undecided, "forms": forms, "wrong": wrong,
         "right": len(found) == len(truth_set) and not [e for e in named if e not in truth_set],
-        "miss": len(truth_set) - len(found),
+        "miss": len(missed),
+        # Missed, but the report says it cannot be told from this data: honest, not right.
+        "cannot_tell": bool(missed) and all(e in untold for e in missed),
         "told_as_either": bool(kept) and truth not in named,
         "rival": any(RIVAL.get(truth) == e for e in named),
     }
@@ -175,6 +181,8 @@ def main() -> int:
             "right" if s["right"] else "missed")
         if s["right"] and s["told_as_either"]:
             verdict = "right (either of two)"
+        if not s["wrong"] and s["cannot_tell"]:
+            verdict = "missed: said it cannot be told"
         undecided = "; ".join(" or ".join(pair) for pair in s["undecided"]) or "—"
         print(f"| {material} | {effect}{'' if value is None else f' {value:g}'} | {', '.join(s['named']) or '—'} | "
               f"{undecided} | {', '.join(s['forms']) or '—'} | {verdict} |")
@@ -182,8 +190,10 @@ def main() -> int:
     wrong = sum(len(s["wrong"]) for *_, s in rows)
     misses = sum(s["miss"] for *_, s in rows)
     either = sum(s["told_as_either"] for *_, s in rows)
+    cannot_tell = sum(s["cannot_tell"] and not s["wrong"] for *_, s in rows)
     print(f"\n{right}/{len(rows)} right ({either} of them kept as either of two), {wrong} wrong physics named, "
-          f"{misses} misses ({time.perf_counter() - started:.0f} s)")
+          f"{misses} misses ({cannot_tell} of them said to be untellable from this data) "
+          f"({time.perf_counter() - started:.0f} s)")
     return 0
 
 

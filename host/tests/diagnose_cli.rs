@@ -568,10 +568,50 @@ fn effects_the_genetic_form_hid_are_found_on_the_micro_slip_form() {
     for rest in [false, true] {
         let json = opensees_diagnosed("asymmetric-none.csv", |rows| if rest { after_a_rest(rows, 0.0) } else { rows });
         assert!(effects_named(&json).is_empty(), "rest {rest}: {:#}", json["findings"]);
-        if !rest {
-            let refused = json["rejected"].as_array().unwrap().iter().find(|r| r["effect"] == "torque_offset");
-            let reason = refused.map(|r| r["reason"].as_str().unwrap()).unwrap_or_default();
-            assert!(reason.contains("without the torque read at rest"), "{reason}");
-        }
+        // Without the rest the offset cannot be told on the form: the report says so, and does
+        // not refuse it (a refusal read as its absence).
+        let untellable = untellable(&json);
+        let refused = json["rejected"].as_array().unwrap().iter().any(|r| r["effect"] == "torque_offset");
+        assert_eq!(refused, rest, "rest {rest}: {:#}", json["rejected"]);
+        let why = untellable.iter().find(|(effect, _)| effect == "torque_offset").map(|(_, why)| why.as_str());
+        assert_eq!(why.is_some_and(|why| why.contains("without the torque read at rest")), !rest, "{why:?}");
     }
+}
+
+/// The effects a diagnosis' JSON says cannot be told from its data, with why.
+fn untellable(json: &serde_json::Value) -> Vec<(String, String)> {
+    let entries = json["not_revealable"].as_array().unwrap().iter();
+    entries.map(|r| (r["effect"].as_str().unwrap().to_string(), r["why"].as_str().unwrap().to_string())).collect()
+}
+
+/// Coulomb friction on the micro-slip form is a slip element of no width, which the form's
+/// narrowest elements follow: where the genetic form's search did not name it, the report says it
+/// cannot be told, and neither refuses it (which read as "no friction": OpenSees' Iwan and
+/// catalogue springs with 0.1 N·m of friction concealed were refused so, as standing in for the
+/// loop's shape) nor lists it as revealable. Where the genetic search names a friction the form
+/// keeps, it is named (OpenSees' Bouc–Wen material with 0.1 N·m, `bash bench/opensees/run.sh`).
+#[test]
+fn friction_on_the_micro_slip_form_is_said_to_be_untellable_not_refused() {
+    let friction = 0.1;
+    let json = opensees_diagnosed("iwan-viscous_damping.csv", |rows| {
+        // The deflection θ_in/50 − θ_out (the recording's ratio), along which friction opposes.
+        let deflection: Vec<f64> = rows.iter().map(|r| r[1] / 50.0 - r[2]).collect();
+        // Its sign over ±2 samples, held where the encoders read no change.
+        let mut sign = 1.0;
+        let mut with = rows.clone();
+        for k in 0..rows.len() {
+            let change = deflection[(k + 2).min(rows.len() - 1)] - deflection[k.saturating_sub(2)];
+            if change != 0.0 {
+                sign = change.signum();
+            }
+            with[k][3] += friction * sign;
+        }
+        with
+    });
+    assert!(json["model_form"].is_object(), "{:#}", json["model_form"]);
+    assert!(!effects_named(&json).contains(&"coulomb_friction".to_string()), "{:#}", json["findings"]);
+    let why = untellable(&json).into_iter().find(|(effect, _)| effect == "coulomb_friction").map(|(_, why)| why);
+    assert!(why.as_ref().is_some_and(|why| why.contains("slip element of no width")), "{why:?}");
+    assert!(!json["rejected"].as_array().unwrap().iter().any(|r| r["effect"] == "coulomb_friction"));
+    assert!(!json["revealable"].as_array().unwrap().iter().any(|e| e == "coulomb_friction"));
 }

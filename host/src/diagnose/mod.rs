@@ -29,6 +29,7 @@ pub use effects::Effect;
 pub use extended::{fit_extended, EffectState, ExtendedFit, ExtendedFitError};
 pub use locate::{locate, Observation};
 pub use observed::{local_slope, Observed};
+pub use on_form::Untellable;
 pub use search::diagnose;
 
 use crate::fit::{fit, FitError, FitOptions};
@@ -136,6 +137,8 @@ pub struct Diagnosis {
     pub model_form: Option<form::ModelForm>,
     /// Torques kept in the final model without a name: either of two effects.
     pub undecided: Vec<Undecided>,
+    /// Effects the named form cannot tell from this data, and why (not refused).
+    pub untellable: Vec<Untellable>,
     /// Structure that neither the vocabulary nor a model kind explains.
     pub unexplained: Option<form::Unexplained>,
     /// The final model where it is the named form with the torque effects beside it (none of

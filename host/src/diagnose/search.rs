@@ -189,6 +189,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             model_form: None,
             final_form: None,
             undecided,
+            untellable: Vec::new(),
             unexplained: match structure {
                 Structure::Unexplained(unexplained) => Some(located(observed, unexplained, &final_residuals)),
                 _ => None,
@@ -224,12 +225,20 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             // The torque effects the genetic form's misfit hid, searched for on the form.
             let mut kept_findings = kept_findings;
             let mut on_the_form = None;
+            let mut untellable = Vec::new();
             if let Some(noise) = observed.noise {
                 let reversals = crate::prepare::reversals(&observed.data.theta);
                 let found =
                     on_form::search(observed, &reversals, noise, &weights, &in_model, &judged, baseline.params.c1);
-                on_the_form =
-                    merge(found, model_form.model, &mut kept_findings, &mut rejected, &mut in_model, &mut untold);
+                on_the_form = merge(
+                    found,
+                    model_form.model,
+                    &mut kept_findings,
+                    &mut rejected,
+                    &mut in_model,
+                    &mut untold,
+                    &mut untellable,
+                );
             }
             // The final model is the form with its torque effects, where no deflection effect
             // (which the form cannot take) is in the model.
@@ -270,6 +279,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 held_out_rms,
                 model_form: Some(model_form),
                 undecided,
+                untellable,
                 unexplained: None,
                 final_form,
             })
@@ -279,8 +289,9 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
 
 /// Takes what the search on the form found into the diagnosis: its refusals beside the genetic
 /// search's, the kept `findings` at their magnitudes on the form, the effects it names and the
-/// torques it keeps undecided (into `in_model` too). The form with all of them: its torque along
-/// the recording and its held-out RMS.
+/// torques it keeps undecided (into `in_model` too), and the effects it cannot tell (no longer
+/// refused: `untellable`). The form with all of them: its torque along the recording and its
+/// held-out RMS.
 fn merge(
     found: on_form::FormSearch,
     form: &str,
@@ -288,7 +299,12 @@ fn merge(
     rejected: &mut Vec<Rejection>,
     in_model: &mut Vec<Effect>,
     untold: &mut Vec<Untold>,
+    untellable: &mut Vec<on_form::Untellable>,
 ) -> Option<(Vec<f64>, Option<f64>)> {
+    for effect in &found.untellable {
+        rejected.retain(|r| r.effect != effect.effect);
+    }
+    untellable.extend(found.untellable);
     // Refused on both forms: both reasons, the genetic one's figures.
     for (effect, magnitude, evidence, reason) in found.refused {
         match rejected.iter_mut().find(|r| r.effect == effect) {

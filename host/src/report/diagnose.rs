@@ -25,7 +25,10 @@ pub struct DiagnoseReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub origin: Option<RunOrigin>,
     pub locate: Vec<Observation>,
+    /// The effects the data can reveal: searched for, and each named or refused.
     pub revealable: Vec<Effect>,
+    /// The effects it cannot, and why: the data lack a column or a motion, or the named form
+    /// cannot tell them from its own hysteresis.
     pub not_revealable: Vec<NotRevealable>,
     pub findings: Vec<Finding>,
     /// Torques the final model keeps whose mechanism the data cannot tell (either of two).
@@ -131,11 +134,16 @@ impl DiagnoseReport {
             noise: observed.noise,
             origin: *origin,
             locate: locate.clone(),
-            revealable: observed.revealable(),
+            revealable: observed
+                .revealable()
+                .into_iter()
+                .filter(|e| !diagnosis.untellable.iter().any(|u| u.effect == *e))
+                .collect(),
             not_revealable: observed
                 .cannot_reveal
                 .iter()
                 .map(|(effect, why)| NotRevealable { effect: *effect, why: why.clone() })
+                .chain(diagnosis.untellable.iter().map(|u| NotRevealable { effect: u.effect, why: u.why.to_string() }))
                 .collect(),
             findings: diagnosis.findings.clone(),
             undecided: diagnosis.undecided.clone(),
