@@ -615,3 +615,139 @@ fn friction_on_the_micro_slip_form_is_said_to_be_untellable_not_refused() {
     assert!(!json["rejected"].as_array().unwrap().iter().any(|r| r["effect"] == "coulomb_friction"));
     assert!(!json["revealable"].as_array().unwrap().iter().any(|e| e == "coulomb_friction"));
 }
+
+/// The measured spring's runs read their deflection's zero at rest: the three 1 A runs read one
+/// zero (−8.42 mrad, within a few µrad of one another), and with a 3 A run recorded after the
+/// first −4 N·m excursion the zero has moved (−8.97 mrad, `data/real/README.md`): the report says
+/// it moves, and pools nothing.
+#[test]
+fn several_measured_runs_read_one_deflection_zero_until_a_large_loop_moves_it() {
+    let run = |name: &str| repo(&format!("data/real/sea-spring-2/{name}"));
+    let small =
+        ["kt-1-4-13-2-27022023-171453.csv", "kt-1-5-14-2-27022023-171936.csv", "kt-1-6-15-2-27022023-172030.csv"];
+    let paths: Vec<String> = small.iter().map(|n| run(n)).collect();
+    let args: Vec<&str> = ["diagnose", "--json"].into_iter().chain(paths.iter().map(String::as_str)).collect();
+    let json: serde_json::Value = serde_json::from_str(&ok(swg_host(&args))).unwrap();
+    assert_eq!(json["runs"].as_array().unwrap().len(), 3);
+    let zero = &json["across"]["zero"];
+    assert_eq!(zero["one_zero"], true, "{zero:#}");
+    let pooled = zero["pooled"][0].as_f64().unwrap();
+    assert!((pooled + 8.422e-3).abs() < 1e-5, "{zero:#}");
+
+    let later = run("kt-3-5-20-2-27022023-172613.csv");
+    let args: Vec<&str> = args.into_iter().chain([later.as_str()]).collect();
+    let json: serde_json::Value = serde_json::from_str(&ok(swg_host(&args))).unwrap();
+    let zero = &json["across"]["zero"];
+    assert_eq!(zero["one_zero"], false, "{zero:#}");
+    assert!(zero["pooled"].is_null() && (zero["range"][0].as_f64().unwrap() + 8.97e-3).abs() < 1e-5, "{zero:#}");
+    let text = ok(swg_host(&args[..1].iter().chain(&args[2..]).copied().collect::<Vec<_>>()));
+    assert!(text.contains("run 4: ") && text.contains("deflection zero: moves between the 4 runs"), "{text}");
+}
+
+/// Simulates `gear` (JSON) along `args` into `dir/name`; the recording's path.
+fn simulated(dir: &std::path::Path, name: &str, gear: &str, args: &[&str]) -> String {
+    let params = dir.join(format!("{name}.json"));
+    std::fs::write(&params, gear).unwrap();
+    let recording = dir.join(name).display().to_string();
+    ok(swg_host(&[&["simulate", "--params", params.to_str().unwrap(), "--out", &recording][..], args].concat()));
+    recording
+}
+
+/// `diagnose --json` of several runs.
+fn diagnosed_together(runs: &[&str]) -> serde_json::Value {
+    serde_json::from_str(&ok(swg_host(&[&["diagnose", "--json"][..], runs].concat()))).unwrap()
+}
+
+/// An effect named in several runs is pooled where the runs read one magnitude (a torque offset
+/// of 0.2 N·m in two runs of independent noise), and said to disagree where they do not (a third
+/// run reads 0.6 N·m): the runs are independent parts, judged by the rule the halves of one run
+/// follow.
+#[test]
+fn an_effect_named_in_several_runs_is_pooled_where_they_agree_and_not_where_they_differ() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, offset: f64, seed: &str| {
+        let effect = format!("torque_offset={offset}");
+        let noise = ["--output-bits", "20", "--input-bits", "20", "--torque-noise", "0.03", "--seed", seed];
+        let motion = ["--cycles", "3", "--frequency", "0.2,0.6", "--effect", &effect];
+        simulated(dir.path(), name, GEAR, &[&motion[..], &noise].concat())
+    };
+    let (a, b, c) = (run("a.csv", 0.2, "1"), run("b.csv", 0.2, "2"), run("c.csv", 0.6, "3"));
+    let offset = |json: &serde_json::Value| -> serde_json::Value {
+        let effects = json["across"]["effects"].as_array().unwrap();
+        effects.iter().find(|e| e["effect"] == "torque_offset").cloned().unwrap_or_default()
+    };
+    let json = diagnosed_together(&[&a, &b]);
+    let both = offset(&json);
+    assert_eq!((both["named_in"].as_u64(), &both["agree"]), (Some(2), &serde_json::json!(true)), "{both:#}");
+    let pooled = both["pooled"][0].as_f64().unwrap();
+    assert!((pooled - 0.2).abs() < 0.02, "pooled {pooled} N·m of 0.2");
+
+    let all = offset(&diagnosed_together(&[&a, &b, &c]));
+    assert_eq!((all["named_in"].as_u64(), &all["agree"]), (Some(3), &serde_json::json!(false)), "{all:#}");
+    assert!(all["pooled"].is_null(), "{all:#}");
+}
+
+/// A `--motion` file in `dir`: 2 s at rest, then one cycle of a 0.25 Hz sine of `amplitude`.
+fn rest_then_one_cycle(dir: &std::path::Path, amplitude: f64) -> std::path::PathBuf {
+    let rows: String = (0..=6_000)
+        .map(|k| {
+            let t = k as f64 / 1000.0;
+            let x = if t < 2.0 { 0.0 } else { amplitude * (std::f64::consts::TAU * 0.25 * (t - 2.0)).sin() };
+            format!("{t:.3},{x:.9e}\n")
+        })
+        .collect();
+    let motion = dir.join("one-cycle.csv");
+    std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
+    motion
+}
+
+/// A run of one cycle cannot check an asymmetry on its own parts (each a leg, one side of the
+/// loop), as the measured spring's runs are recorded: two such runs are the parts. The gear
+/// whose + side is 15 % softer is named asymmetric across two runs of independent noise, with
+/// the mean of their magnitudes; the symmetric gear is not.
+#[test]
+fn runs_of_one_cycle_each_check_an_asymmetry_that_no_one_of_them_can() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion = rest_then_one_cycle(dir.path(), 1.168e-3);
+    let pair = |gear: &str, name: &str| -> serde_json::Value {
+        let runs: Vec<String> = ["1", "2"]
+            .iter()
+            .map(|seed| {
+                let args = ["--motion", motion.to_str().unwrap(), "--torque-noise", "0.03", "--seed", seed];
+                simulated(dir.path(), &format!("{name}-{seed}.csv"), gear, &args)
+            })
+            .collect();
+        diagnosed_together(&runs.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let asymmetric = pair(&sided_gear(0.85, 1.15), "asymmetric");
+    for run in asymmetric["runs"].as_array().unwrap() {
+        let alone = run["asymmetry"]["rejected"].as_str().unwrap_or_default();
+        assert!(alone.contains("do not each reach both sides"), "{alone}");
+    }
+    let across = &asymmetric["across"]["asymmetry"];
+    assert_eq!(across["named"], true, "{across:#}");
+    let magnitude = across["magnitude"].as_f64().unwrap();
+    assert!((-0.4..-0.2).contains(&magnitude), "{across:#}");
+
+    let symmetric = pair(&sided_gear(1.0, 1.0), "symmetric");
+    assert_eq!(symmetric["across"]["asymmetry"]["named"], false, "{:#}", symmetric["across"]["asymmetry"]);
+}
+
+/// Runs are diagnosed together only where they can be: a loop table is one loop, and a run that
+/// cannot be read is named; either way nothing is written.
+#[test]
+fn several_runs_are_checked_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let plots = dir.path().join("plots");
+    let plot = plots.to_str().unwrap();
+    let recording = repo("data/real/sea-spring-2/kt-1-4-13-2-27022023-171453.csv");
+    let table = repo("data/seed/lht-20-50.csv");
+    let broken = dir.path().join("broken.csv");
+    std::fs::write(&broken, "# swg-recording v1\ntime_s,deflection_rad,torque_nm\n0,0,0\n0.01,x,0\n").unwrap();
+    for (second, expected) in [(table.as_str(), "a loop table is one loop"), (broken.to_str().unwrap(), "broken.csv")] {
+        let output = swg_host(&["diagnose", &recording, second, "--plot", plot]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success() && stderr.contains(expected), "{stderr}");
+        assert!(!plots.exists());
+    }
+}

@@ -56,6 +56,11 @@ pub struct Asymmetry {
     pub delta_bic: f64,
     /// Share of the symmetric spring's weighted residual that the free one explains.
     pub explained: f64,
+    /// The free fit's weighted residual against the noise's (1: the noise alone).
+    pub form_to_noise: f64,
+    /// Every test on the whole recording passes: it is named unless its parts disagree or
+    /// cannot be checked (a run of one cycle, whose parts are legs of one side each).
+    pub whole_passes: bool,
     /// Why it is not named; `None` when it is.
     pub rejected: Option<String>,
 }
@@ -151,7 +156,7 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], zero_se: O
         .and_then(|h| <[f64; 2]>::try_from(h).ok());
     // A zero off by δ moves the origin the secants start from: an apparent asymmetry of 2δ/a.
     let from_zero = 3.0 * 2.0 * zero_se / extent;
-    let rejected = if !(variance <= STRUCTURE_FACTOR * STRUCTURE_FACTOR) {
+    let on_the_whole = if !(variance <= STRUCTURE_FACTOR * STRUCTURE_FACTOR) {
         Some(format!(
             "the micro-slip form leaves {:.1}× the noise, so a difference between the sides may be its misfit of \
              the loop's shape",
@@ -180,24 +185,26 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], zero_se: O
             100.0 * MIN_EXPLAINED
         ))
     } else {
-        match halves {
-            None if !both_sides => Some(
-                "its two parts (alternate cycles) do not each reach both sides, so whether they agree cannot be \
-                 checked: record several cycles"
-                    .to_string(),
-            ),
-            None => Some("the two parts of the recording cannot each be fitted alone".to_string()),
-            Some([a, b]) if a.signum() != magnitude.signum() || b.signum() != magnitude.signum() => Some(format!(
-                "the two parts disagree on which side is the softer: {:+.1} % and {:+.1} %",
-                100.0 * a,
-                100.0 * b
-            )),
-            Some([a, b]) if (a - b).abs() > MAX_HALF_SPREAD * (0.5 * (a + b)).abs() => {
-                Some(format!("the two parts disagree: {:+.1} % and {:+.1} %", 100.0 * a, 100.0 * b))
-            }
-            Some(_) => None,
-        }
+        None
     };
+    let whole_passes = on_the_whole.is_none();
+    let rejected = on_the_whole.or_else(|| match halves {
+        None if !both_sides => Some(
+            "its two parts (alternate cycles) do not each reach both sides, so whether they agree cannot be \
+                 checked: record several cycles"
+                .to_string(),
+        ),
+        None => Some("the two parts of the recording cannot each be fitted alone".to_string()),
+        Some([a, b]) if a.signum() != magnitude.signum() || b.signum() != magnitude.signum() => Some(format!(
+            "the two parts disagree on which side is the softer: {:+.1} % and {:+.1} %",
+            100.0 * a,
+            100.0 * b
+        )),
+        Some([a, b]) if (a - b).abs() > MAX_HALF_SPREAD * (0.5 * (a + b)).abs() => {
+            Some(format!("the two parts disagree: {:+.1} % and {:+.1} %", 100.0 * a, 100.0 * b))
+        }
+        Some(_) => None,
+    });
     AsymmetryCheck::Yes(Asymmetry {
         extent_rad: extent,
         plus_nm_per_rad: plus,
@@ -206,6 +213,8 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], zero_se: O
         halves,
         delta_bic,
         explained,
+        form_to_noise: variance.sqrt(),
+        whole_passes,
         rejected,
     })
 }

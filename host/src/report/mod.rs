@@ -2,6 +2,7 @@
 //! file `push` reads), the diagnosis' JSON and text, the pictures, and files written whole
 //! (all of a command's outputs or none), and the check that no figure is NaN or infinite.
 pub mod diagnose;
+pub mod diagnose_runs;
 pub mod finite;
 pub mod fit;
 pub mod output;

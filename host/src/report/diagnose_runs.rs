@@ -1,0 +1,96 @@
+//! The report of several runs diagnosed together: each run's report, one line each in the text,
+//! and what the runs show together.
+use super::diagnose::DiagnoseReport;
+use crate::diagnose::runs::{Across, RunVerdict};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// Every run's report, in the order given, and what they show together (JSON and text).
+#[derive(Clone, Debug, Serialize)]
+pub struct RunsReport {
+    pub runs: Vec<DiagnoseReport>,
+    pub across: Across,
+}
+
+impl RunsReport {
+    /// The report printed for a person: one line per run, then the runs together.
+    pub fn human(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "{} runs, each diagnosed alone from its own start, then together\n", self.runs.len());
+        for (k, run) in self.runs.iter().enumerate() {
+            let zero = run
+                .origin
+                .map_or("θ0 not read (no rest)".to_string(), |o| format!("θ0 {:+.4} mrad", 1e3 * o.zero_rad));
+            let form = run.model_form.as_ref().map_or(String::new(), |f| format!("; form: {}", f.model));
+            let mut kept: Vec<String> = run.findings.iter().map(|f| f.effect.to_string()).collect();
+            kept.extend(run.undecided.iter().map(|u| format!("{} or {}", u.effects[0], u.effects[1])));
+            let named = if kept.is_empty() { "no effect named".to_string() } else { kept.join(", ") };
+            let held = run
+                .held_out
+                .as_ref()
+                .map_or(String::new(), |h| format!("; held-out RMS {:.4} → {:.4} N·m", h.rms_before, h.rms_after));
+            let _ = writeln!(s, "run {}: {} ({} samples)", k + 1, run.input, run.baseline.n);
+            let _ = writeln!(s, "  {zero}{form}; {named}{held}");
+        }
+        let across = &self.across;
+        let _ = writeln!(s, "\nthe runs together");
+        if let Some(zero) = &across.zero {
+            let read = zero.runs.iter().filter(|z| z.is_some()).count();
+            let words = match zero.pooled {
+                Some([mean, error]) if mean.abs() > 3.0 * error => format!(
+                    "the encoder's zero is off the gear's (deflection_offset), one zero in the {read} runs read at \
+                     rest: {:+.4} ± {:.4} mrad",
+                    1e3 * mean,
+                    1e3 * error
+                ),
+                Some([mean, error]) => format!(
+                    "one zero in the {read} runs read at rest, at the encoder's within its error: {:+.4} ± {:.4} mrad",
+                    1e3 * mean,
+                    1e3 * error
+                ),
+                None if zero.one_zero => format!("one zero in the {read} runs read at rest"),
+                None => format!(
+                    "moves between the {read} runs read at rest, over {:+.4} … {:+.4} mrad, beyond the error of \
+                     each reading: each run is measured from its own (the remanence of the loops before it, or a \
+                     zero that moves), as `fit` places each run",
+                    1e3 * zero.range[0],
+                    1e3 * zero.range[1]
+                ),
+            };
+            let _ = writeln!(s, "  - deflection zero: {words}");
+        }
+        let _ = writeln!(s, "  - asymmetry: {}", across.asymmetry.words);
+        for effect in &across.effects {
+            let each: Vec<String> = effect
+                .runs
+                .iter()
+                .enumerate()
+                .map(|(k, v)| {
+                    let what = match *v {
+                        RunVerdict::Named { magnitude, error } => format!("named {magnitude:.4e} ± {error:.1e}"),
+                        RunVerdict::Undecided { magnitude } => format!("either of two, {magnitude:.4e}"),
+                        RunVerdict::Refused { magnitude, .. } => format!("refused ({magnitude:.4e})"),
+                        RunVerdict::CannotTell => "cannot tell".to_string(),
+                    };
+                    format!("run {}: {what}", k + 1)
+                })
+                .collect();
+            let refused = effect.runs.iter().filter(|v| matches!(v, RunVerdict::Refused { .. })).count();
+            let of = effect.runs.len();
+            let others = if refused > 0 { format!(", refused in {refused}") } else { String::new() };
+            let verdict = match (effect.named_in, effect.pooled) {
+                (0, _) => format!("kept as either of two only{others}"),
+                (1, _) => format!("named in 1 of {of} runs{others}"),
+                (n, Some([mean, error])) => format!(
+                    "named in {n} of {of} runs{others}; the {n} agree: {mean:.4e} ± {error:.1e} {}",
+                    effect.unit
+                ),
+                (n, None) if effect.agree => format!("named in {n} of {of} runs{others}; the {n} agree"),
+                (n, None) => format!("named in {n} of {of} runs{others}; the {n} disagree on its magnitude"),
+            };
+            let _ = writeln!(s, "  - {}: {verdict} ({}; {})", effect.effect, effect.unit, each.join(", "));
+        }
+        let _ = writeln!(s, "\neach run's full report: `swg-host diagnose RUN`, or `--json` (its `runs`)");
+        s
+    }
+}
