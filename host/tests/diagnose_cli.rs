@@ -751,3 +751,44 @@ fn several_runs_are_checked_before_anything_is_written() {
         assert!(!plots.exists());
     }
 }
+
+/// Masing's rule across runs, what "record several amplitudes" asks for: the Preisach gear
+/// (loops that depend on where they sit) run at three amplitudes, twice each, breaks it, and the
+/// micro-slip gear (Masing by construction) does not. Each run alone is one loop, which cannot
+/// show it; one run at each amplitude cannot check it on two independent parts, and says which
+/// runs would.
+#[test]
+fn runs_at_several_amplitudes_test_masings_rule_that_no_one_of_them_can() {
+    let dir = tempfile::tempdir().unwrap();
+    let runs = |physics: &str, seeds: &[&str]| -> Vec<String> {
+        let mut paths = Vec::new();
+        for amplitude in ["0.4e-3", "0.8e-3", "1.2e-3"] {
+            for seed in seeds {
+                let recording = dir.path().join(format!("{physics}-{amplitude}-{seed}.csv")).display().to_string();
+                let noise = ["--output-bits", "20", "--input-bits", "20", "--torque-noise", "0.03", "--seed", seed];
+                let motion = ["--physics", physics, "--amplitude", amplitude, "--cycles", "3", "--frequency", "0.5"];
+                ok(swg_host(&[&["simulate", "--out", &recording][..], &motion, &noise].concat()));
+                paths.push(recording);
+            }
+        }
+        paths
+    };
+    let masing = |paths: &[String]| -> serde_json::Value {
+        let json = diagnosed_together(&paths.iter().map(String::as_str).collect::<Vec<_>>());
+        for run in json["runs"].as_array().unwrap() {
+            assert_eq!(run["non_masing"]["tested"], "no", "one loop alone: {:#}", run["non_masing"]);
+        }
+        json["across"]["non_masing"].clone()
+    };
+    let preisach = masing(&runs("preisach", &["1", "2"]));
+    assert_eq!((&preisach["tested"], &preisach["rejected"]), (&"yes".into(), &serde_json::Value::Null), "{preisach:#}");
+    let [masing_held, free_held] = [0, 1].map(|k| preisach["held_out_rms"][k].as_f64().unwrap());
+    assert!(free_held < masing_held && preisach["explained"].as_f64().unwrap() > 0.1, "{preisach:#}");
+
+    let micro_slip = masing(&runs("micro-slip", &["1", "2"]));
+    assert!(micro_slip["rejected"].is_string() && micro_slip["delta_bic"].as_f64().unwrap() < 0.0, "{micro_slip:#}");
+
+    let once = masing(&runs("preisach", &["3"]));
+    let why = once["rejected"].as_str().unwrap_or_default();
+    assert!(why.contains("record each amplitude twice"), "{once:#}");
+}

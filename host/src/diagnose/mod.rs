@@ -201,6 +201,8 @@ pub struct DiagnoseOutcome {
     pub non_masing: non_masing::NonMasingCheck,
     /// Whether loops run over and over drift.
     pub ratcheting: ratcheting::RatchetingCheck,
+    /// The first sample from which the hysteresis state is known: 0 from rest.
+    pub known_state_from: usize,
 }
 
 /// `dataset` with its deflection measured from its zero θ0 where it is a recording that starts
@@ -310,5 +312,6 @@ pub fn diagnose_dataset(
         asymmetry,
         non_masing,
         ratcheting,
+        known_state_from,
     })
 }

@@ -27,8 +27,10 @@ use super::effects::Effect;
 use super::form::{torque_column, STRUCTURE_FACTOR};
 use super::observed::Observed;
 use super::{weights_on, MIN_BIC_DROP, MIN_EXPLAINED};
-use crate::fit::motion::{masing_forms_with_columns, FormFit};
-use crate::prepare::reversals;
+use crate::fit::motion::{masing_forms_of_runs, masing_forms_with_columns, FormFit, FormRun};
+use crate::gear::Reversals;
+use crate::prepare::{reversals, NoiseModel};
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// The loops against Masing's rule, measured and tested.
@@ -222,5 +224,220 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], known_stat
         halves,
         rejected,
         torque,
+    })
+}
+
+/// One run of [`check_runs`]: its observations, the search's weights, the effects accepted on it
+/// and the first sample whose hysteresis state is known.
+pub struct RunOfMany<'a> {
+    pub observed: &'a Observed,
+    pub weights: &'a [f64],
+    pub active: &'a [Effect],
+    pub known_state_from: usize,
+}
+
+/// Tests the loops of several runs of one gear, each from rest, against Masing's rule: the two
+/// forms of [`check`] fitted on every run at once, one spring and one hysteresis, with each run's
+/// own torque offset and accepted effects beside them. A run at each amplitude is what Masing's
+/// rule relates; runs that each run one loop, all between the same extremes, cannot show it.
+/// Named on [`check`]'s tests, with runs where it takes the recording's parts: the held-out
+/// samples are whole runs (each run but the largest held out once, fitted on the others), and
+/// the two parts are alternate runs, each of which must hold loops of more than one size.
+pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
+    let untested = |why: &str| NonMasingCheck::No { why: why.to_string() };
+    if runs.len() < 2 {
+        return untested("one run");
+    }
+    let noises: Option<Vec<NoiseModel>> = runs.iter().map(|run| run.observed.noise).collect();
+    let (Some(noises), true) = (noises, runs.iter().all(|run| run.observed.time.is_some())) else {
+        return untested("a loop table, or a run without a noise estimate, is among the runs");
+    };
+    // The coarser noise of any run: the knot rule's spacing and the narrowest slip element
+    // must hold on every run.
+    let noise = noises.iter().fold(NoiseModel { torque_nm: 0.0, deflection_rad: 0.0 }, |a, b| NoiseModel {
+        torque_nm: a.torque_nm.max(b.torque_nm),
+        deflection_rad: a.deflection_rad.max(b.deflection_rad),
+    });
+    let reversals: Vec<Reversals> = runs.iter().map(|run| reversals(&run.observed.data.theta)).collect();
+    // Each run's extent of known state: its smallest and largest deflection.
+    let extents: Vec<[f64; 2]> = runs
+        .iter()
+        .map(|run| {
+            let theta = &run.observed.data.theta[run.known_state_from.min(run.observed.data.theta.len())..];
+            theta.iter().fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], &t| [lo.min(t), hi.max(t)])
+        })
+        .collect();
+    let one_loop_over = |members: &[usize]| {
+        let (lo, hi) = members
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &k| (lo.min(extents[k][0]), hi.max(extents[k][1])));
+        let tolerance = SAME_LOOP * (hi - lo);
+        members.iter().all(|&k| {
+            let run = &runs[k];
+            one_loop(&run.observed.data.theta, &reversals[k].indices, run.known_state_from)
+                && (extents[k][0] - lo).abs() <= tolerance
+                && (hi - extents[k][1]).abs() <= tolerance
+        })
+    };
+    let all: Vec<usize> = (0..runs.len()).collect();
+    if one_loop_over(&all) {
+        return untested(
+            "every run runs one loop between the same extremes: Masing's rule relates loops of different sizes; \
+             record runs at several amplitudes",
+        );
+    }
+    // Each run's own columns: a torque offset (a sensor zeroed as each log starts) and its
+    // accepted effects, zero on the other runs.
+    let own: Vec<Vec<Vec<f64>>> = runs
+        .iter()
+        .map(|run| {
+            let constant = vec![1.0; run.observed.data.theta.len()];
+            std::iter::once(constant)
+                .chain(run.active.iter().filter_map(|&effect| torque_column(run.observed, effect)))
+                .collect()
+        })
+        .collect();
+    let known_weights: Vec<Vec<f64>> =
+        runs.iter().map(|run| weights_on(run.weights, run.known_state_from..run.weights.len())).collect();
+    // The forms with the runs `fitted` weighted and the others followed at weight 0.
+    let pair = |fitted: &[usize]| -> Option<Pair> {
+        let zeros: Vec<Vec<f64>> = runs.iter().map(|run| vec![0.0; run.weights.len()]).collect();
+        let form_runs: Vec<FormRun> = runs
+            .iter()
+            .enumerate()
+            .map(|(k, run)| FormRun {
+                theta: &run.observed.data.theta,
+                torque: &run.observed.data.torque,
+                reversals: &reversals[k],
+                weights: if fitted.contains(&k) { &known_weights[k] } else { &zeros[k] },
+                // The fitted runs' own columns only: a run followed at weight 0 gives its own none.
+                extra: fitted
+                    .iter()
+                    .flat_map(|&j| own[j].iter().map(move |c| if j == k { c.as_slice() } else { &[][..] }))
+                    .collect(),
+            })
+            .collect();
+        let [masing, free] = masing_forms_of_runs(&form_runs, Some(noise)).ok()?;
+        let count = fitted.iter().map(|&k| known_weights[k].iter().filter(|&&w| w > 0.0).count()).sum();
+        Some(Pair { masing, free, fitted: count })
+    };
+    let Some(whole) = pair(&all) else { return untested("the forms cannot be fitted to these runs") };
+    let [delta_bic, explained] = whole.evidence();
+    let free_to_noise = whole.variance().sqrt();
+    // The forms' torque runs through the runs in turn.
+    let starts: Vec<usize> = runs
+        .iter()
+        .scan(0, |start, run| {
+            let first = *start;
+            *start += run.weights.len();
+            Some(first)
+        })
+        .collect();
+    let scored = || {
+        runs.iter().enumerate().flat_map(|(k, run)| {
+            (run.known_state_from..run.weights.len()).filter(move |&i| run.weights[i] > 0.0).map(move |i| (k, i))
+        })
+    };
+    let (sum, count) = scored().fold((0.0, 0usize), |(sum, count), (k, i)| {
+        let at = starts[k] + i;
+        (sum + (whole.free.predicted[at] - whole.masing.predicted[at]).powi(2), count + 1)
+    });
+    let magnitude_nm = (sum / count.max(1) as f64).sqrt();
+    let early = if delta_bic < 0.0 {
+        Some(format!(
+            "the information criterion rises by {:.1} with the cells (it must drop by more than {MIN_BIC_DROP})",
+            -delta_bic
+        ))
+    } else if !(delta_bic > MIN_BIC_DROP) {
+        Some(format!("the information criterion drops by {delta_bic:.1} (it must drop by more than {MIN_BIC_DROP})"))
+    } else if explained < MIN_EXPLAINED {
+        Some(format!(
+            "the free form explains {:.1} % of Masing's residual, less than {:.0} %",
+            100.0 * explained,
+            100.0 * MIN_EXPLAINED
+        ))
+    } else if !(free_to_noise <= STRUCTURE_FACTOR) {
+        Some(format!(
+            "the free form leaves {free_to_noise:.1}× the noise: neither form describes the loops, and what it \
+             fits better may be a shape that neither has, not Masing's rule"
+        ))
+    } else {
+        None
+    };
+    let (held_out_rms, halves) = match early {
+        Some(_) => (None, None),
+        None => {
+            // Every run but the largest, held out once: the others do not reach its extremes.
+            let largest = (0..runs.len())
+                .max_by(|&a, &b| (extents[a][1] - extents[a][0]).total_cmp(&(extents[b][1] - extents[b][0])));
+            let held: Vec<usize> = all.iter().copied().filter(|&k| Some(k) != largest).collect();
+            let errors: Option<Vec<[f64; 3]>> = held
+                .par_iter()
+                .map(|&k| {
+                    let others: Vec<usize> = all.iter().copied().filter(|&j| j != k).collect();
+                    let trained = pair(&others)?;
+                    // The run's own torque offset is not known to the forms fitted without it:
+                    // each form's residual is taken about its mean over the run.
+                    let run = &runs[k];
+                    let at: Vec<usize> =
+                        (run.known_state_from..run.weights.len()).filter(|&i| run.weights[i] > 0.0).collect();
+                    let spread = |predicted: &[f64]| {
+                        let residual: Vec<f64> =
+                            at.iter().map(|&i| run.observed.data.torque[i] - predicted[starts[k] + i]).collect();
+                        let mean = residual.iter().sum::<f64>() / residual.len().max(1) as f64;
+                        residual.iter().map(|r| (r - mean).powi(2)).sum::<f64>()
+                    };
+                    Some([spread(&trained.masing.predicted), spread(&trained.free.predicted), at.len() as f64])
+                })
+                .collect();
+            let held_out_rms = errors.map(|errors| {
+                let [m, f, n] = errors.iter().fold([0.0; 3], |[a, b, c], [x, y, z]| [a + x, b + y, c + z]);
+                [(m / n.max(1.0)).sqrt(), (f / n.max(1.0)).sqrt()]
+            });
+            let parts: [Vec<usize>; 2] = [
+                all.iter().copied().filter(|k| k % 2 == 0).collect(),
+                all.iter().copied().filter(|k| k % 2 == 1).collect(),
+            ];
+            let halves = if parts.iter().any(|part| one_loop_over(part)) {
+                None
+            } else {
+                let evidence: Option<Vec<[f64; 2]>> =
+                    parts.iter().map(|part| pair(part).map(|p| p.evidence())).collect();
+                evidence.and_then(|e| <[[f64; 2]; 2]>::try_from(e).ok())
+            };
+            (held_out_rms, halves)
+        }
+    };
+    let rejected = early.or_else(|| match (held_out_rms, halves) {
+        (None, _) => Some("the runs held out could not be fitted without them".to_string()),
+        (Some([masing, free]), _) if !(free < masing) => Some(format!(
+            "the free form does not predict the runs held out (each fitted on the others) better ({free:.4} against \
+             {masing:.4} N·m)"
+        )),
+        (_, None) => Some(
+            "the two parts (alternate runs) cannot each show it: each must hold loops of more than one size; record \
+             each amplitude twice, in turn"
+                .to_string(),
+        ),
+        (_, Some(parts)) if parts.iter().any(|&[bic, share]| !(bic > MIN_BIC_DROP) || share < MIN_EXPLAINED) => {
+            Some(format!(
+                "not shown by each part (alternate runs) alone (ΔBIC {:.0} and {:.0}, explained {:.1} % and {:.1} %)",
+                parts[0][0],
+                parts[1][0],
+                100.0 * parts[0][1],
+                100.0 * parts[1][1]
+            ))
+        }
+        _ => None,
+    });
+    NonMasingCheck::Yes(NonMasing {
+        magnitude_nm,
+        delta_bic,
+        explained,
+        free_to_noise,
+        held_out_rms,
+        halves,
+        rejected,
+        torque: [Vec::new(), Vec::new()],
     })
 }

@@ -12,11 +12,16 @@
 //!   form describes passes the tests on its whole recording, and all of them read it with one
 //!   sign, their magnitudes within [`super::MAX_HALF_SPREAD`] of one another.
 //!
-//! Not a joint fit: each run has its own baseline and its own search, so an effect below one
-//! run's noise stays unnamed there even where pooling the runs would show it.
+//! - **Masing's rule:** tested on the runs at once, each from rest, where they hold loops of
+//!   more than one size ([`non_masing::check_runs`]): what "record several amplitudes" asks.
+//!
+//! The effects are not searched for jointly: each run has its own baseline and its own search,
+//! so an effect below one run's noise stays unnamed there even where pooling the runs would
+//! show it.
 use super::asymmetry::{Asymmetry, AsymmetryCheck, MIN_ASYMMETRY};
 use super::effects::Effect;
 use super::form::STRUCTURE_FACTOR;
+use super::non_masing::{self, NonMasingCheck, RunOfMany};
 use super::{diagnose_dataset, estimates_disagree, magnitudes_differ, DiagnoseError, DiagnoseOutcome, MIN_HALF_Z};
 use crate::input::Dataset;
 use model_core::Params;
@@ -36,6 +41,8 @@ pub struct Across {
     /// The deflection's zero each run read at rest; `None` when no run has a rest window.
     pub zero: Option<ZeroAcross>,
     pub asymmetry: AsymmetryAcross,
+    /// Masing's rule tested on the runs at once ([`non_masing::check_runs`]).
+    pub non_masing: NonMasingCheck,
 }
 
 /// An effect in one run.
@@ -119,8 +126,21 @@ pub fn diagnose_runs(
         progress(index, count);
         runs.push(diagnose_dataset(dataset, baseline, seed).map_err(|source| RunsError { index, source })?);
     }
-    let across =
-        Across { effects: effects_across(&runs), zero: zero_across(&runs), asymmetry: asymmetry_across(&runs) };
+    let many: Vec<RunOfMany> = runs
+        .iter()
+        .map(|outcome| RunOfMany {
+            observed: &outcome.observed,
+            weights: &outcome.diagnosis.weights,
+            active: &outcome.diagnosis.final_fit.active,
+            known_state_from: outcome.known_state_from,
+        })
+        .collect();
+    let across = Across {
+        effects: effects_across(&runs),
+        zero: zero_across(&runs),
+        asymmetry: asymmetry_across(&runs),
+        non_masing: non_masing::check_runs(&many),
+    };
     Ok(RunsOutcome { runs, across })
 }
 
@@ -269,7 +289,10 @@ fn asymmetry_across(runs: &[DiagnoseOutcome]) -> AsymmetryAcross {
                 .all(|(i, (_, a))| judging[i + 1..].iter().all(|(_, b)| !magnitudes_differ(a.magnitude, b.magnitude)));
             let failing: Vec<String> =
                 judging.iter().filter(|(_, a)| !a.whole_passes).map(|(k, _)| (k + 1).to_string()).collect();
-            if !agree {
+            if !(mean.abs() >= MIN_ASYMMETRY) {
+                let below = format!("below the {:.0} % named", 100.0 * MIN_ASYMMETRY);
+                (false, None, format!("{}: on average {:+.1} %, {below}{beside}", list(judging), 100.0 * mean))
+            } else if !agree {
                 (false, None, format!("the runs disagree: {}{beside}", list(judging)))
             } else if !failing.is_empty() {
                 (
@@ -280,12 +303,6 @@ fn asymmetry_across(runs: &[DiagnoseOutcome]) -> AsymmetryAcross {
                         list(judging),
                         failing.join(", ")
                     ),
-                )
-            } else if !(mean.abs() >= MIN_ASYMMETRY) {
-                (
-                    false,
-                    None,
-                    format!("{:+.1} % is below the {:.0} % named{beside}", 100.0 * mean, 100.0 * MIN_ASYMMETRY),
                 )
             } else {
                 (true, Some(mean), format!("named: {} agree, mean {:+.1} %{beside}", list(judging), 100.0 * mean))

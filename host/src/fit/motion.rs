@@ -1707,7 +1707,35 @@ pub fn masing_forms_with_columns(
     weights: &[f64],
     extra: &[&[f64]],
 ) -> Result<[FormFit; 2], FitError> {
-    let motion = Motion::training_prefix(theta, torque, reversals, theta.len(), noise);
+    masing_forms_of_runs(&[FormRun { theta, torque, reversals, weights, extra: extra.to_vec() }], noise)
+}
+
+/// One run of [`masing_forms_of_runs`]: its deflection (from its zero) and torque from rest,
+/// its reversals, each sample's weight and the free columns' values at its samples.
+pub struct FormRun<'a> {
+    pub theta: &'a [f64],
+    pub torque: &'a [f64],
+    pub reversals: &'a Reversals,
+    pub weights: &'a [f64],
+    pub extra: Vec<&'a [f64]>,
+}
+
+/// [`masing_forms_with_columns`] on several runs, each from rest, sharing one spring and one
+/// set of elements and cells; each run brings its own values of the free columns (as many for
+/// every run). The forms' torque runs through the runs in turn.
+pub fn masing_forms_of_runs(runs: &[FormRun], noise: Option<NoiseModel>) -> Result<[FormFit; 2], FitError> {
+    let extras = runs.first().map_or(0, |run| run.extra.len());
+    if runs.iter().any(|run| run.extra.len() != extras) {
+        return Err(FitError::Degenerate);
+    }
+    let motion = Motion {
+        runs: runs
+            .iter()
+            .map(|run| Run { weights: Some(run.weights), ..Run::fitted_from(run.theta, run.torque, run.reversals, 0) })
+            .collect(),
+        noise,
+        rest_jitter: 0.0,
+    };
     motion.check()?;
     let spring = motion.spring_basis();
     let elements = Elements::slipping(&motion)?;
@@ -1716,28 +1744,36 @@ pub fn masing_forms_with_columns(
     let form = |with_cells: bool| -> Result<FormFit, FitError> {
         let cells = with_cells.then_some(&cells);
         let own = FormRows::width(&elements, cells);
-        let columns = Columns { spring: &spring, own: vec![false; own], extra, scale };
-        let columns_ref = &columns;
-        let mut equations = normal_equations(Source::Full(&motion), columns.len(), Weighting::Given(weights), |run| {
-            let mut rows = FormRows::new(&elements, cells, run)?;
-            Ok(move |sample: &Sample, x: &mut [f64]| rows.fill(sample, columns_ref, x))
+        // One set of columns per run: the same spring and hysteresis, the run's own extras.
+        let of_run: Vec<Columns> = runs
+            .iter()
+            .map(|run| Columns { spring: &spring, own: vec![false; own], extra: &run.extra, scale })
+            .collect();
+        let n = spring.len() + own + extras;
+        let of_run_ref = &of_run;
+        let mut equations = normal_equations(Source::Full(&motion), n, Weighting::Carried, |k| {
+            let mut rows = FormRows::new(&elements, cells, k)?;
+            Ok(move |sample: &Sample, x: &mut [f64]| rows.fill(sample, &of_run_ref[k], x))
         })?;
         if let Some(cells) = cells {
-            smooth_density(&mut equations, columns.len(), spring.len() + elements.columns(), cells);
+            smooth_density(&mut equations, n, spring.len() + elements.columns(), cells);
         }
-        let n = columns.len();
         for j in 0..spring.len() + own {
             equations.gram[j * n + j] *= 1.0 + FORM_RIDGE;
         }
-        let solved = columns.solve_bounded(&equations, &vec![false; n])?;
-        let predicted = form_torque(&motion, &columns, &elements, cells, &solved.coef)?;
-        let chi2 = motion
-            .runs
-            .iter()
-            .flat_map(Run::samples)
-            .zip(&predicted)
-            .map(|(sample, p)| weights.get(sample.index).copied().unwrap_or(0.0) * (sample.torque - p).powi(2))
-            .sum();
+        let solved = of_run.first().ok_or(FitError::Degenerate)?.solve_bounded(&equations, &vec![false; n])?;
+        let mut predicted = Vec::with_capacity(runs.iter().map(|run| run.theta.len()).sum());
+        let mut chi2 = 0.0;
+        let mut x = vec![0.0; n];
+        for (k, run) in motion.runs.iter().enumerate() {
+            let mut rows = FormRows::new(&elements, cells, k)?;
+            for sample in run.samples() {
+                rows.fill(&sample, &of_run[k], &mut x)?;
+                let p: f64 = x.iter().zip(&solved.coef).map(|(a, b)| a * b).sum();
+                chi2 += sample.weight * (sample.torque - p).powi(2);
+                predicted.push(p);
+            }
+        }
         Ok(FormFit { predicted, chi2, parameters: n })
     };
     let (masing, free) = rayon::join(|| form(false), || form(true));
@@ -1788,26 +1824,6 @@ impl<'c> FormRows<'c> {
         );
         Ok(())
     }
-}
-
-/// The torque of a form's coefficients `coef` at every sample of `motion`, from its rows.
-fn form_torque(
-    motion: &Motion,
-    columns: &Columns,
-    elements: &Elements,
-    cells: Option<&Cells>,
-    coef: &[f64],
-) -> Result<Vec<f64>, FitError> {
-    let mut torque = Vec::with_capacity(motion.runs.iter().map(|run| run.theta.len()).sum());
-    let mut x = vec![0.0; columns.len()];
-    for (k, run) in motion.runs.iter().enumerate() {
-        let mut rows = FormRows::new(elements, cells, k)?;
-        for sample in run.samples() {
-            rows.fill(&sample, columns, &mut x)?;
-            torque.push(x.iter().zip(coef).map(|(a, b)| a * b).sum());
-        }
-    }
-    Ok(torque)
 }
 
 /// The Preisach fit's cells: the grid's reach and the groups of cells that share one weight.

@@ -126,6 +126,7 @@ impl DiagnoseReport {
             asymmetry,
             non_masing,
             ratcheting,
+            known_state_from: _,
         } = outcome;
         DiagnoseReport {
             input,

@@ -1,6 +1,7 @@
 //! The report of several runs diagnosed together: each run's report, one line each in the text,
 //! and what the runs show together.
 use super::diagnose::DiagnoseReport;
+use crate::diagnose::non_masing::NonMasingCheck;
 use crate::diagnose::runs::{Across, RunVerdict};
 use serde::Serialize;
 use std::fmt::Write;
@@ -60,6 +61,27 @@ impl RunsReport {
             let _ = writeln!(s, "  - deflection zero: {words}");
         }
         let _ = writeln!(s, "  - asymmetry: {}", across.asymmetry.words);
+        let masing = match &across.non_masing {
+            NonMasingCheck::No { why } => format!("not tested: {why}"),
+            NonMasingCheck::Yes(found) => {
+                let held = found.held_out_rms.map_or(String::new(), |[m, f]| {
+                    format!("; the runs held out, each fitted on the others: {m:.4} (Masing's) and {f:.4} N·m (free)")
+                });
+                let figures = format!(
+                    "the free form misses Masing's by {:.4} N·m RMS, ΔBIC {:.0}, explains {:.1} % of Masing's \
+                     residual, leaves {:.1}× the noise{held}",
+                    found.magnitude_nm,
+                    found.delta_bic,
+                    100.0 * found.explained,
+                    found.free_to_noise
+                );
+                match &found.rejected {
+                    None => format!("the loops of the runs do not follow Masing's rule (named): {figures}"),
+                    Some(why) => format!("not named: {why} ({figures})"),
+                }
+            }
+        };
+        let _ = writeln!(s, "  - non_masing: {masing}");
         for effect in &across.effects {
             let each: Vec<String> = effect
                 .runs
