@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Check (figures, not a test): every measured run of data/real/ loads with the release swg-host,
-# and what today's `fit --model auto` and `diagnose` make of it. Prints two markdown tables
-# (python3, stdlib only).
+# and what today's `fit --model auto` and `diagnose` make of it: two markdown tables, run by run, then
+# `diagnose` of several runs together (python3, stdlib only).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 cargo build --release --locked -q -p swg-host
@@ -56,4 +56,12 @@ energy = p.get('mean_energy_j')
 passivity = 'no closed cycle' if energy is None else ('active' if p.get('active') else 'passive') + f" ({energy:.2g} J)"
 print(f"| {name} | {zero} | {d['baseline']['rms']:.3f} | {named} | {effects} | {held} | {passivity} |")
 EOF
+done
+
+# The runs together: the 1–3 A runs (elastic, each from near its own rest), then all 15.
+for runs in 'kt-[123]-*' 'kt-*'; do
+    echo
+    echo "\`swg-host diagnose data/real/sea-spring-2/$runs.csv\`, the runs together:"
+    # shellcheck disable=SC2086 # the glob is the point
+    "$host" diagnose data/real/sea-spring-2/$runs.csv | sed -n '/^the runs together/,/^$/p' | sed '1d;/^$/d'
 done
