@@ -792,3 +792,40 @@ fn runs_at_several_amplitudes_test_masings_rule_that_no_one_of_them_can() {
     let why = once["rejected"].as_str().unwrap_or_default();
     assert!(why.contains("record each amplitude twice"), "{once:#}");
 }
+
+/// A rate effect across runs at different rates, what "record the same loop at a second rate"
+/// asks for: each run at one rate cannot tell a damping from the hysteresis, and says so; the
+/// micro-slip gear with 25 N·m·s/rad of damping run at 0.1 Hz and at 0.4 Hz names it across the
+/// runs, with its magnitude; without damping, nothing is named; two runs at one rate cannot
+/// test it, and say which runs would.
+#[test]
+fn runs_at_different_rates_tell_a_damping_that_no_one_of_them_can() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, frequency: &str, effect: &[&str]| -> String {
+        let recording = dir.path().join(name).display().to_string();
+        let noise = ["--output-bits", "20", "--input-bits", "20", "--torque-noise", "0.03", "--seed", "4"];
+        let motion = ["--physics", "micro-slip", "--cycles", "3", "--frequency", frequency];
+        ok(swg_host(&[&["simulate", "--out", &recording][..], &motion, &noise, effect].concat()));
+        recording
+    };
+    let damping = ["--effect", "viscous_damping=25"];
+    let (slow, fast) = (run("slow.csv", "0.1", &damping), run("fast.csv", "0.4", &damping));
+    let json = diagnosed_together(&[&slow, &fast]);
+    for alone in json["runs"].as_array().unwrap() {
+        let cannot = untellable(alone);
+        assert!(cannot.iter().any(|(e, why)| e == "viscous_damping" && why.contains("second rate")), "{cannot:?}");
+    }
+    let rate = &json["across"]["rate"];
+    assert_eq!((&rate["verdict"], &rate["effect"]), (&"named".into(), &"viscous_damping".into()), "{rate:#}");
+    let magnitude = rate["magnitude"].as_f64().unwrap();
+    assert!((magnitude - 25.0).abs() < 2.5, "{magnitude} N·m·s/rad of 25");
+
+    let (slow, fast) = (run("slow-none.csv", "0.1", &[]), run("fast-none.csv", "0.4", &[]));
+    let rate = diagnosed_together(&[&slow, &fast])["across"]["rate"].clone();
+    assert_eq!(rate["verdict"], "refused", "{rate:#}");
+
+    let again = run("fast-again.csv", "0.4", &damping);
+    let rate = diagnosed_together(&[&fast, &again])["across"]["rate"].clone();
+    assert_eq!(rate["verdict"], "untested", "{rate:#}");
+    assert!(rate["why"].as_str().unwrap().contains("twice the frequency"), "{rate:#}");
+}

@@ -23,6 +23,7 @@ mod observed;
 mod on_form;
 pub mod passivity;
 pub mod ratcheting;
+pub mod rates_across;
 pub mod runs;
 mod search;
 

@@ -31,6 +31,9 @@ pub struct Observed {
     pub rate_parts: Option<[Vec<usize>; 2]>,
     /// Ratio of the 90th to the 10th percentile of the motion's instantaneous frequency.
     pub rate_spread: Option<f64>,
+    /// The median of the motion's instantaneous frequency, rad/s: the rate a run of one rate is
+    /// recorded at, beside the other runs.
+    pub frequency: Option<f64>,
     /// Every sample, in order: the subset the whole-data fits run on.
     samples: Vec<usize>,
     /// Fit on [`Observed::training`], judge on [`Observed::held_out`].
@@ -134,6 +137,7 @@ impl Observed {
             parts: [Vec::new(), Vec::new()],
             rate_parts: None,
             rate_spread: None,
+            frequency: None,
             samples: (0..n).collect(),
             split: HeldOut::Spans(Vec::new()),
             cannot_reveal: Vec::new(),
@@ -186,8 +190,9 @@ impl Observed {
         let legs = prepared.segmentation.as_ref().map_or(n, |s| n / (s.turning_points.len() + 1).max(1));
         let rate = local_slope(&recording.time, &recording.deflection, (legs / 50).max(2));
         let noise = prepared.noise.map_or(0.0, |n| n.deflection_rad);
-        let (spread, rate_parts) = rate_spread(&self.data, &rate, moving(&self.data.theta, noise));
+        let (spread, median, rate_parts) = rate_spread(&self.data, &rate, moving(&self.data.theta, noise));
         self.rate_spread = Some(spread);
+        self.frequency = median;
         if spread < MIN_RATE_SPREAD {
             let why = format!(
                 "rate-dependent and rate-independent hysteresis cannot be told apart from this data: the \
@@ -349,15 +354,15 @@ fn moving(theta: &[f64], noise: f64) -> std::ops::Range<usize> {
     start..end.max(start)
 }
 
-/// How far the motion's rates at the same place on the loop spread, and the samples slower
-/// and faster than the median. At θ = A·sin φ on a leg of amplitude A the rate is
+/// How far the motion's rates at the same place on the loop spread, their median (rad/s), and
+/// the samples slower and faster than the median. At θ = A·sin φ on a leg of amplitude A the rate is
 /// A·ω·cos φ, so ω = |rate|/(A·|cos φ|) is the motion's instantaneous frequency: one value for
 /// a single-frequency excitation whatever the amplitude, many for several frequencies or a
 /// random motion. Samples with |θ/A| > 0.8 (rate near zero, ω ill-defined) are left out, and
 /// so are those outside `moving`: a rest at either end is no rate of the loop (counted, a rest
 /// before a one-frequency sine made its "slow half" and let a channel delay of 38 ms be named
 /// on a gear that has none).
-fn rate_spread(data: &FitData, rate: &[f64], moving: std::ops::Range<usize>) -> (f64, [Vec<usize>; 2]) {
+fn rate_spread(data: &FitData, rate: &[f64], moving: std::ops::Range<usize>) -> (f64, Option<f64>, [Vec<usize>; 2]) {
     // Formed twice, to sort and to split, rather than kept with its index (16 bytes a sample).
     let frequency = |i: usize| {
         if !moving.contains(&i) {
@@ -368,7 +373,7 @@ fn rate_spread(data: &FitData, rate: &[f64], moving: std::ops::Range<usize>) -> 
     };
     let mut sorted: Vec<f64> = (0..rate.len()).filter_map(frequency).collect();
     if sorted.len() < 20 {
-        return (1.0, [Vec::new(), Vec::new()]);
+        return (1.0, None, [Vec::new(), Vec::new()]);
     }
     // Equal under total_cmp is equal bit for bit: the unstable sort's order is the stable one's.
     sorted.sort_unstable_by(f64::total_cmp);
@@ -381,7 +386,7 @@ fn rate_spread(data: &FitData, rate: &[f64], moving: std::ops::Range<usize>) -> 
             parts[usize::from(w > median)].push(i);
         }
     }
-    (spread, parts)
+    (spread, Some(median), parts)
 }
 
 fn min_max(values: &[f64]) -> (f64, f64) {

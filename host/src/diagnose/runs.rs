@@ -14,6 +14,8 @@
 //!
 //! - **Masing's rule:** tested on the runs at once, each from rest, where they hold loops of
 //!   more than one size ([`non_masing::check_runs`]): what "record several amplitudes" asks.
+//! - **A rate effect** across runs at different rates, where a run at one rate cannot tell one
+//!   ([`rates_across::check`]): what "record the same loop at a second rate" asks.
 //!
 //! The effects are not searched for jointly: each run has its own baseline and its own search,
 //! so an effect below one run's noise stays unnamed there even where pooling the runs would
@@ -22,6 +24,7 @@ use super::asymmetry::{Asymmetry, AsymmetryCheck, MIN_ASYMMETRY};
 use super::effects::Effect;
 use super::form::STRUCTURE_FACTOR;
 use super::non_masing::{self, NonMasingCheck, RunOfMany};
+use super::rates_across::{self, RateAcross};
 use super::{diagnose_dataset, estimates_disagree, magnitudes_differ, DiagnoseError, DiagnoseOutcome, MIN_HALF_Z};
 use crate::input::Dataset;
 use model_core::Params;
@@ -43,6 +46,10 @@ pub struct Across {
     pub asymmetry: AsymmetryAcross,
     /// Masing's rule tested on the runs at once ([`non_masing::check_runs`]).
     pub non_masing: NonMasingCheck,
+    /// A rate effect tested across runs at different rates, where some run could not tell one
+    /// alone ([`rates_across::check`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rate: Option<RateAcross>,
 }
 
 /// An effect in one run.
@@ -140,6 +147,7 @@ pub fn diagnose_runs(
         zero: zero_across(&runs),
         asymmetry: asymmetry_across(&runs),
         non_masing: non_masing::check_runs(&many),
+        rate: rates_across::check(&many),
     };
     Ok(RunsOutcome { runs, across })
 }

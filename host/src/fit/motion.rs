@@ -1675,6 +1675,8 @@ pub struct FormFit {
     pub chi2: f64,
     /// Columns solved for: the spring's, the hysteresis' and the extras.
     pub parameters: usize,
+    /// The extra columns' coefficients, in their order.
+    pub extra: Vec<f64>,
 }
 
 /// Relative ridge on the diagonal of the spring's and hysteresis' columns of
@@ -1724,35 +1726,60 @@ pub struct FormRun<'a> {
 /// set of elements and cells; each run brings its own values of the free columns (as many for
 /// every run). The forms' torque runs through the runs in turn.
 pub fn masing_forms_of_runs(runs: &[FormRun], noise: Option<NoiseModel>) -> Result<[FormFit; 2], FitError> {
-    let extras = runs.first().map_or(0, |run| run.extra.len());
-    if runs.iter().any(|run| run.extra.len() != extras) {
-        return Err(FitError::Degenerate);
+    let setting = FormSetting::of(runs, noise)?;
+    let cells = Cells::moving(&setting.motion)?;
+    let (masing, free) = rayon::join(|| setting.form(runs, None), || setting.form(runs, Some(&cells)));
+    Ok([masing?, free?])
+}
+
+/// Masing's form of [`masing_forms_of_runs`] alone: a rate-independent hysteresis of any
+/// Masing shape, the runs' own columns beside it (a rate effect tested across runs).
+pub fn masing_form_of_runs(runs: &[FormRun], noise: Option<NoiseModel>) -> Result<FormFit, FitError> {
+    FormSetting::of(runs, noise)?.form(runs, None)
+}
+
+/// What the forms of several runs share: the runs as one motion, the spring and the elements.
+struct FormSetting<'a> {
+    motion: Motion<'a>,
+    spring: SpringBasis,
+    elements: Elements,
+    extras: usize,
+}
+
+impl<'a> FormSetting<'a> {
+    fn of(runs: &[FormRun<'a>], noise: Option<NoiseModel>) -> Result<Self, FitError> {
+        let extras = runs.first().map_or(0, |run| run.extra.len());
+        if runs.iter().any(|run| run.extra.len() != extras) {
+            return Err(FitError::Degenerate);
+        }
+        let motion = Motion {
+            runs: runs
+                .iter()
+                .map(|run| Run {
+                    weights: Some(run.weights),
+                    ..Run::fitted_from(run.theta, run.torque, run.reversals, 0)
+                })
+                .collect(),
+            noise,
+            rest_jitter: 0.0,
+        };
+        motion.check()?;
+        let spring = motion.spring_basis();
+        let elements = Elements::slipping(&motion)?;
+        Ok(FormSetting { motion, spring, elements, extras })
     }
-    let motion = Motion {
-        runs: runs
-            .iter()
-            .map(|run| Run { weights: Some(run.weights), ..Run::fitted_from(run.theta, run.torque, run.reversals, 0) })
-            .collect(),
-        noise,
-        rest_jitter: 0.0,
-    };
-    motion.check()?;
-    let spring = motion.spring_basis();
-    let elements = Elements::slipping(&motion)?;
-    let cells = Cells::moving(&motion)?;
-    let scale = motion.scale();
-    let form = |with_cells: bool| -> Result<FormFit, FitError> {
-        let cells = with_cells.then_some(&cells);
-        let own = FormRows::width(&elements, cells);
+
+    /// The form with `cells` beside the elements (the free form) or without (Masing's).
+    fn form(&self, runs: &[FormRun], cells: Option<&Cells>) -> Result<FormFit, FitError> {
+        let (spring, elements, scale) = (&self.spring, &self.elements, self.motion.scale());
+        let own = FormRows::width(elements, cells);
         // One set of columns per run: the same spring and hysteresis, the run's own extras.
-        let of_run: Vec<Columns> = runs
-            .iter()
-            .map(|run| Columns { spring: &spring, own: vec![false; own], extra: &run.extra, scale })
-            .collect();
-        let n = spring.len() + own + extras;
+        let of_run: Vec<Columns> =
+            runs.iter().map(|run| Columns { spring, own: vec![false; own], extra: &run.extra, scale }).collect();
+        let n = spring.len() + own + self.extras;
         let of_run_ref = &of_run;
-        let mut equations = normal_equations(Source::Full(&motion), n, Weighting::Carried, |k| {
-            let mut rows = FormRows::new(&elements, cells, k)?;
+        let mut equations = normal_equations(Source::Full(&self.motion), n, Weighting::Carried, |k| {
+            let mut rows = FormRows::new(elements, cells, k)?;
             Ok(move |sample: &Sample, x: &mut [f64]| rows.fill(sample, &of_run_ref[k], x))
         })?;
         if let Some(cells) = cells {
@@ -1765,8 +1792,8 @@ pub fn masing_forms_of_runs(runs: &[FormRun], noise: Option<NoiseModel>) -> Resu
         let mut predicted = Vec::with_capacity(runs.iter().map(|run| run.theta.len()).sum());
         let mut chi2 = 0.0;
         let mut x = vec![0.0; n];
-        for (k, run) in motion.runs.iter().enumerate() {
-            let mut rows = FormRows::new(&elements, cells, k)?;
+        for (k, run) in self.motion.runs.iter().enumerate() {
+            let mut rows = FormRows::new(elements, cells, k)?;
             for sample in run.samples() {
                 rows.fill(&sample, &of_run[k], &mut x)?;
                 let p: f64 = x.iter().zip(&solved.coef).map(|(a, b)| a * b).sum();
@@ -1774,10 +1801,9 @@ pub fn masing_forms_of_runs(runs: &[FormRun], noise: Option<NoiseModel>) -> Resu
                 predicted.push(p);
             }
         }
-        Ok(FormFit { predicted, chi2, parameters: n })
-    };
-    let (masing, free) = rayon::join(|| form(false), || form(true));
-    Ok([masing?, free?])
+        let extra = solved.coef[spring.len() + own..].to_vec();
+        Ok(FormFit { predicted, chi2, parameters: n, extra })
+    }
 }
 
 /// The hysteresis columns of a form of [`masing_forms_with_columns`] along one run: the slip

@@ -2,6 +2,7 @@
 //! and what the runs show together.
 use super::diagnose::DiagnoseReport;
 use crate::diagnose::non_masing::NonMasingCheck;
+use crate::diagnose::rates_across::RateVerdict;
 use crate::diagnose::runs::{Across, RunVerdict};
 use serde::Serialize;
 use std::fmt::Write;
@@ -82,6 +83,40 @@ impl RunsReport {
             }
         };
         let _ = writeln!(s, "  - non_masing: {masing}");
+        if let Some(rate) = &across.rate {
+            let hz: Vec<String> = rate
+                .frequencies
+                .iter()
+                .map(|f| f.map_or("?".to_string(), |w| format!("{:.3}", w / std::f64::consts::TAU)))
+                .collect();
+            let at = format!("the runs at {} Hz", hz.join(", "));
+            let words = match &rate.verdict {
+                RateVerdict::Named { effect, magnitude, error, delta_bic, explained, slow_fast: [slow, fast] } => {
+                    format!(
+                        "{effect} named across {at}: {magnitude:.4e} ± {error:.1e} {unit} (ΔBIC {delta_bic:.0}, \
+                         explains {:.0} % of the rate-independent form's residual; the slower runs {slow:.4e}, the \
+                         faster {fast:.4e})",
+                        100.0 * explained,
+                        unit = effect.unit()
+                    )
+                }
+                RateVerdict::Undecided { effects, magnitudes, .. } => format!(
+                    "{at} open their loops with the rate, but {} ({:.4e} {}) and {} ({:.4e} {}) fit alike: the \
+                     mechanism cannot be told",
+                    effects[0],
+                    magnitudes[0],
+                    effects[0].unit(),
+                    effects[1],
+                    magnitudes[1],
+                    effects[1].unit()
+                ),
+                RateVerdict::Refused { effect, magnitude, why } => {
+                    format!("none named across {at}: the best, {effect} ({magnitude:.4e} {}), {why}", effect.unit())
+                }
+                RateVerdict::Untested { why } => format!("not tested: {why}"),
+            };
+            let _ = writeln!(s, "  - rate effects: {words}");
+        }
         for effect in &across.effects {
             let each: Vec<String> = effect
                 .runs
