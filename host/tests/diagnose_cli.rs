@@ -208,14 +208,19 @@ fn effects_are_checked_before_anything_is_written() {
 
 /// A `--motion` file in `dir`: 2 s at rest, then three cycles of a 0.25 Hz sine of `amplitude`.
 fn rest_then_sine(dir: &std::path::Path, amplitude: f64) -> std::path::PathBuf {
-    let rows: String = (0..=14_000)
+    rest_then_cycles(dir, amplitude, 3)
+}
+
+/// A `--motion` file in `dir`: 2 s at rest, then `cycles` cycles of a 0.25 Hz sine of `amplitude`.
+fn rest_then_cycles(dir: &std::path::Path, amplitude: f64, cycles: u32) -> std::path::PathBuf {
+    let rows: String = (0..=2_000 + 4_000 * cycles)
         .map(|k| {
-            let t = k as f64 / 1000.0;
+            let t = f64::from(k) / 1000.0;
             let x = if t < 2.0 { 0.0 } else { amplitude * (std::f64::consts::TAU * 0.25 * (t - 2.0)).sin() };
             format!("{t:.3},{x:.9e}\n")
         })
         .collect();
-    let motion = dir.join("motion.csv");
+    let motion = dir.join(format!("motion-{cycles}.csv"));
     std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
     motion
 }
@@ -687,20 +692,6 @@ fn an_effect_named_in_several_runs_is_pooled_where_they_agree_and_not_where_they
     assert!(all["pooled"].is_null(), "{all:#}");
 }
 
-/// A `--motion` file in `dir`: 2 s at rest, then one cycle of a 0.25 Hz sine of `amplitude`.
-fn rest_then_one_cycle(dir: &std::path::Path, amplitude: f64) -> std::path::PathBuf {
-    let rows: String = (0..=6_000)
-        .map(|k| {
-            let t = k as f64 / 1000.0;
-            let x = if t < 2.0 { 0.0 } else { amplitude * (std::f64::consts::TAU * 0.25 * (t - 2.0)).sin() };
-            format!("{t:.3},{x:.9e}\n")
-        })
-        .collect();
-    let motion = dir.join("one-cycle.csv");
-    std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
-    motion
-}
-
 /// A run of one cycle cannot check an asymmetry on its own parts (each a leg, one side of the
 /// loop), as the measured spring's runs are recorded: two such runs are the parts. The gear
 /// whose + side is 15 % softer is named asymmetric across two runs of independent noise, with
@@ -708,7 +699,7 @@ fn rest_then_one_cycle(dir: &std::path::Path, amplitude: f64) -> std::path::Path
 #[test]
 fn runs_of_one_cycle_each_check_an_asymmetry_that_no_one_of_them_can() {
     let dir = tempfile::tempdir().unwrap();
-    let motion = rest_then_one_cycle(dir.path(), 1.168e-3);
+    let motion = rest_then_cycles(dir.path(), 1.168e-3, 1);
     let pair = |gear: &str, name: &str| -> serde_json::Value {
         let runs: Vec<String> = ["1", "2"]
             .iter()

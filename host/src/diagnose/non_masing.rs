@@ -108,6 +108,36 @@ impl Pair {
         self.free.chi2 / (self.fitted as f64 - self.free.parameters as f64).max(1.0)
     }
 
+    /// Why the forms fitted on every sample do not name it, on the tests of the whole data
+    /// (before the held-out samples and the parts); `None` when they pass.
+    fn refusal(&self) -> Option<String> {
+        let [delta_bic, explained] = self.evidence();
+        let free_to_noise = self.variance().sqrt();
+        if delta_bic < 0.0 {
+            Some(format!(
+                "the information criterion rises by {:.1} with the cells (it must drop by more than {MIN_BIC_DROP})",
+                -delta_bic
+            ))
+        } else if !(delta_bic > MIN_BIC_DROP) {
+            Some(format!(
+                "the information criterion drops by {delta_bic:.1} (it must drop by more than {MIN_BIC_DROP})"
+            ))
+        } else if explained < MIN_EXPLAINED {
+            Some(format!(
+                "the free form explains {:.1} % of Masing's residual, less than {:.0} %",
+                100.0 * explained,
+                100.0 * MIN_EXPLAINED
+            ))
+        } else if !(free_to_noise <= STRUCTURE_FACTOR) {
+            Some(format!(
+                "the free form leaves {free_to_noise:.1}× the noise: neither form describes the loops, and what it \
+                 fits better may be a shape that neither has, not Masing's rule"
+            ))
+        } else {
+            None
+        }
+    }
+
     /// Drop of the information criterion from Masing's form to the free one, and the share of
     /// Masing's weighted residual it explains.
     fn evidence(&self) -> [f64; 2] {
@@ -159,28 +189,8 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], known_stat
         (sum + (whole.free.predicted[i] - whole.masing.predicted[i]).powi(2), count + 1)
     });
     let magnitude_nm = (sum / count.max(1) as f64).sqrt();
+    let early = whole.refusal();
     let torque = [whole.masing.predicted, whole.free.predicted];
-    let early = if delta_bic < 0.0 {
-        Some(format!(
-            "the information criterion rises by {:.1} with the cells (it must drop by more than {MIN_BIC_DROP})",
-            -delta_bic
-        ))
-    } else if !(delta_bic > MIN_BIC_DROP) {
-        Some(format!("the information criterion drops by {delta_bic:.1} (it must drop by more than {MIN_BIC_DROP})"))
-    } else if explained < MIN_EXPLAINED {
-        Some(format!(
-            "the free form explains {:.1} % of Masing's residual, less than {:.0} %",
-            100.0 * explained,
-            100.0 * MIN_EXPLAINED
-        ))
-    } else if !(free_to_noise <= STRUCTURE_FACTOR) {
-        Some(format!(
-            "the free form leaves {free_to_noise:.1}× the noise: neither form describes the loops, and what it \
-             fits better may be a shape that neither has, not Masing's rule"
-        ))
-    } else {
-        None
-    };
     // The held-out cycles and the parts are fitted only where the rest passes: four more pairs.
     let (held_out_rms, halves) = match early {
         Some(_) => (None, None),
@@ -204,16 +214,7 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], known_stat
             "the free form does not predict the held-out cycles better ({free:.4} against {masing:.4} N·m)"
         )),
         (_, None) => Some("the two parts of the recording cannot each be fitted alone".to_string()),
-        (_, Some(parts)) if parts.iter().any(|&[bic, share]| !(bic > MIN_BIC_DROP) || share < MIN_EXPLAINED) => {
-            Some(format!(
-                "not shown by each part of the recording alone (ΔBIC {:.0} and {:.0}, explained {:.1} % and {:.1} %)",
-                parts[0][0],
-                parts[1][0],
-                100.0 * parts[0][1],
-                100.0 * parts[1][1]
-            ))
-        }
-        _ => None,
+        (_, Some(parts)) => not_in_each(parts, "of the recording"),
     });
     NonMasingCheck::Yes(NonMasing {
         magnitude_nm,
@@ -224,6 +225,20 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], known_stat
         halves,
         rejected,
         torque,
+    })
+}
+
+/// Why the two parts (`which`) do not each show it, by the evidence of each: `None` when each
+/// drops the information criterion by more than [`MIN_BIC_DROP`] and explains [`MIN_EXPLAINED`].
+fn not_in_each(parts: [[f64; 2]; 2], which: &str) -> Option<String> {
+    parts.iter().any(|&[bic, share]| !(bic > MIN_BIC_DROP) || share < MIN_EXPLAINED).then(|| {
+        format!(
+            "not shown by each part {which} alone (ΔBIC {:.0} and {:.0}, explained {:.1} % and {:.1} %)",
+            parts[0][0],
+            parts[1][0],
+            100.0 * parts[0][1],
+            100.0 * parts[1][1]
+        )
     })
 }
 
@@ -343,27 +358,7 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
         (sum + (whole.free.predicted[at] - whole.masing.predicted[at]).powi(2), count + 1)
     });
     let magnitude_nm = (sum / count.max(1) as f64).sqrt();
-    let early = if delta_bic < 0.0 {
-        Some(format!(
-            "the information criterion rises by {:.1} with the cells (it must drop by more than {MIN_BIC_DROP})",
-            -delta_bic
-        ))
-    } else if !(delta_bic > MIN_BIC_DROP) {
-        Some(format!("the information criterion drops by {delta_bic:.1} (it must drop by more than {MIN_BIC_DROP})"))
-    } else if explained < MIN_EXPLAINED {
-        Some(format!(
-            "the free form explains {:.1} % of Masing's residual, less than {:.0} %",
-            100.0 * explained,
-            100.0 * MIN_EXPLAINED
-        ))
-    } else if !(free_to_noise <= STRUCTURE_FACTOR) {
-        Some(format!(
-            "the free form leaves {free_to_noise:.1}× the noise: neither form describes the loops, and what it \
-             fits better may be a shape that neither has, not Masing's rule"
-        ))
-    } else {
-        None
-    };
+    let early = whole.refusal();
     let (held_out_rms, halves) = match early {
         Some(_) => (None, None),
         None => {
@@ -419,16 +414,7 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
              each amplitude twice, in turn"
                 .to_string(),
         ),
-        (_, Some(parts)) if parts.iter().any(|&[bic, share]| !(bic > MIN_BIC_DROP) || share < MIN_EXPLAINED) => {
-            Some(format!(
-                "not shown by each part (alternate runs) alone (ΔBIC {:.0} and {:.0}, explained {:.1} % and {:.1} %)",
-                parts[0][0],
-                parts[1][0],
-                100.0 * parts[0][1],
-                100.0 * parts[1][1]
-            ))
-        }
-        _ => None,
+        (_, Some(parts)) => not_in_each(parts, "(alternate runs)"),
     });
     NonMasingCheck::Yes(NonMasing {
         magnitude_nm,
