@@ -724,8 +724,8 @@ fn runs_of_one_cycle_each_check_an_asymmetry_that_no_one_of_them_can() {
     assert_eq!(symmetric["across"]["asymmetry"]["named"], false, "{:#}", symmetric["across"]["asymmetry"]);
 }
 
-/// Runs are diagnosed together only where they can be: a loop table is one loop, and a run that
-/// cannot be read is named; either way nothing is written.
+/// Runs are diagnosed together only where they can be: a loop table is one loop, a run given
+/// twice would agree with itself, and a run that cannot be read is named; nothing is written.
 #[test]
 fn several_runs_are_checked_before_anything_is_written() {
     let dir = tempfile::tempdir().unwrap();
@@ -735,7 +735,12 @@ fn several_runs_are_checked_before_anything_is_written() {
     let table = repo("data/seed/lht-20-50.csv");
     let broken = dir.path().join("broken.csv");
     std::fs::write(&broken, "# swg-recording v1\ntime_s,deflection_rad,torque_nm\n0,0,0\n0.01,x,0\n").unwrap();
-    for (second, expected) in [(table.as_str(), "a loop table is one loop"), (broken.to_str().unwrap(), "broken.csv")] {
+    let cases = [
+        (table.as_str(), "a loop table is one loop"),
+        (broken.to_str().unwrap(), "broken.csv"),
+        (recording.as_str(), "given twice (runs 1 and 2)"),
+    ];
+    for (second, expected) in cases {
         let output = swg_host(&["diagnose", &recording, second, "--plot", plot]);
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(!output.status.success() && stderr.contains(expected), "{stderr}");

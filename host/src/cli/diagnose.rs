@@ -53,6 +53,16 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
     };
     let pictures: Vec<PathBuf> = picture_dirs.iter().flat_map(|dir| PICTURES.map(|name| dir.join(name))).collect();
     outputs.refuse_inputs(pictures.iter().map(PathBuf::as_path))?;
+    // A run given twice would agree with itself and weigh twice in what the runs show together.
+    for (k, path) in args.inputs.iter().enumerate() {
+        let same = |other: &PathBuf| match (path.canonicalize(), other.canonicalize()) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => path == other,
+        };
+        if let Some(first) = args.inputs[..k].iter().position(same) {
+            anyhow::bail!("{}: given twice (runs {} and {}): give each run once", path.display(), first + 1, k + 1);
+        }
+    }
     let mut datasets = Vec::with_capacity(args.inputs.len());
     for path in &args.inputs {
         let dataset = read(&args.input_options, path)?;
