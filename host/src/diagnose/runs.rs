@@ -56,12 +56,13 @@ pub struct Across {
 #[derive(Clone, Copy, Debug, Serialize)]
 #[serde(tag = "verdict", rename_all = "snake_case")]
 pub enum RunVerdict {
-    /// Named, with its magnitude and standard error (from its z), in the effect's unit.
-    Named { magnitude: f64, error: f64 },
+    /// Named, with its magnitude and standard error (from its z; `None` where z is 0), in the
+    /// effect's unit.
+    Named { magnitude: f64, error: Option<f64> },
     /// Kept as either of two, with its magnitude in its own place.
     Undecided { magnitude: f64 },
-    /// Tried and refused, with its estimate there and its standard error.
-    Refused { magnitude: f64, error: f64 },
+    /// Tried and refused, with its estimate there and its standard error (`None` where z is 0).
+    Refused { magnitude: f64, error: Option<f64> },
     /// Not searched for: the run cannot reveal it, or its form cannot tell it.
     CannotTell,
 }
@@ -152,13 +153,9 @@ pub fn diagnose_runs(
     Ok(RunsOutcome { runs, across })
 }
 
-/// The standard error of an estimate from its z.
-fn error_from_z(magnitude: f64, z: f64) -> f64 {
-    if z != 0.0 {
-        (magnitude / z).abs()
-    } else {
-        f64::INFINITY
-    }
+/// The standard error of an estimate from its z, where it is finite.
+fn error_from_z(magnitude: f64, z: f64) -> Option<f64> {
+    Some((magnitude / z).abs()).filter(|error| error.is_finite())
 }
 
 /// The verdict of `effect` in one run.
@@ -210,7 +207,7 @@ fn effects_across(runs: &[DiagnoseOutcome]) -> Vec<EffectAcross> {
             let named: Vec<[f64; 2]> = verdicts
                 .iter()
                 .filter_map(|v| match *v {
-                    RunVerdict::Named { magnitude, error } => Some([magnitude, error]),
+                    RunVerdict::Named { magnitude, error } => Some([magnitude, error.unwrap_or(f64::INFINITY)]),
                     _ => None,
                 })
                 .collect();
@@ -318,4 +315,17 @@ fn asymmetry_across(runs: &[DiagnoseOutcome]) -> AsymmetryAcross {
         }
     };
     AsymmetryAcross { runs: magnitudes, named, magnitude, words }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A refusal with z = 0 has no standard error: reported without one, not as an infinite one
+    /// (which no report prints, so the whole report of the runs would fail).
+    #[test]
+    fn an_estimate_without_significance_has_no_standard_error() {
+        assert_eq!(error_from_z(0.1, 0.0), None);
+        assert_eq!(error_from_z(-0.1, 2.0), Some(0.05));
+    }
 }

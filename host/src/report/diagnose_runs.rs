@@ -124,7 +124,10 @@ impl RunsReport {
                 .enumerate()
                 .map(|(k, v)| {
                     let what = match *v {
-                        RunVerdict::Named { magnitude, error } => format!("named {magnitude:.4e} ± {error:.1e}"),
+                        RunVerdict::Named { magnitude, error: Some(error) } => {
+                            format!("named {magnitude:.4e} ± {error:.1e}")
+                        }
+                        RunVerdict::Named { magnitude, error: None } => format!("named {magnitude:.4e}"),
                         RunVerdict::Undecided { magnitude } => format!("either of two, {magnitude:.4e}"),
                         RunVerdict::Refused { magnitude, .. } => format!("refused ({magnitude:.4e})"),
                         RunVerdict::CannotTell => "cannot tell".to_string(),
