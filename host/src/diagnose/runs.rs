@@ -182,11 +182,21 @@ fn all_agree(estimates: &[[f64; 2]], disagree: impl Fn([f64; 2], [f64; 2]) -> bo
 }
 
 /// The inverse-variance mean of `estimates` and its standard error; `None` without a finite one.
+/// Where the estimates scatter more than their errors say (Birge's ratio R = √(χ²/(k − 1)) above
+/// 1), the error is scaled by R: runs that pass as one magnitude (within 50 % of one another)
+/// may still be many of their errors apart, and the pooled error must cover that scatter, not
+/// shrink with the number of runs (0.20, 0.20 and 0.26 N·m, each ± 0.002, pooled to ± 0.001).
 fn pooled(estimates: &[[f64; 2]]) -> Option<[f64; 2]> {
-    let weights: Vec<f64> = estimates.iter().map(|[_, e]| 1.0 / (e * e)).collect();
-    let total: f64 = weights.iter().filter(|w| w.is_finite()).sum();
-    let mean = estimates.iter().zip(&weights).filter(|(_, w)| w.is_finite()).map(|([m, _], w)| m * w).sum::<f64>();
-    (total > 0.0 && total.is_finite()).then(|| [mean / total, total.sqrt().recip()])
+    let finite: Vec<([f64; 2], f64)> =
+        estimates.iter().map(|&[m, e]| ([m, e], 1.0 / (e * e))).filter(|(_, w)| w.is_finite()).collect();
+    let total: f64 = finite.iter().map(|(_, w)| w).sum();
+    if !(total > 0.0 && total.is_finite()) {
+        return None;
+    }
+    let mean = finite.iter().map(|([m, _], w)| m * w).sum::<f64>() / total;
+    let chi2: f64 = finite.iter().map(|([m, _], w)| w * (m - mean).powi(2)).sum();
+    let birge = if finite.len() > 1 { (chi2 / (finite.len() - 1) as f64).sqrt().max(1.0) } else { 1.0 };
+    Some([mean, birge * total.sqrt().recip()])
 }
 
 fn effects_across(runs: &[DiagnoseOutcome]) -> Vec<EffectAcross> {
@@ -336,5 +346,18 @@ mod tests {
     fn an_estimate_without_significance_has_no_standard_error() {
         assert_eq!(error_from_z(0.1, 0.0), None);
         assert_eq!(error_from_z(-0.1, 2.0), Some(0.05));
+    }
+
+    /// Estimates that scatter within their errors pool to the inverse-variance error; ones that
+    /// scatter beyond it pool to an error that covers the scatter.
+    #[test]
+    fn a_pooled_error_covers_the_estimates_scatter() {
+        let [mean, error] = pooled(&[[0.20, 0.002], [0.202, 0.002], [0.199, 0.002]]).unwrap();
+        assert!((mean - 0.2003).abs() < 1e-4 && (error - 0.002 / 3f64.sqrt()).abs() < 1e-9, "{mean} ± {error}");
+        let [mean, error] = pooled(&[[0.20, 0.002], [0.20, 0.002], [0.26, 0.002]]).unwrap();
+        // The scatter's own standard error of the mean: sd 0.035 over √3.
+        assert!((mean - 0.22).abs() < 1e-9 && error > 0.019, "{mean} ± {error}");
+        assert_eq!(pooled(&[[0.3, 0.01]]), Some([0.3, 0.01]));
+        assert_eq!(pooled(&[[0.3, f64::INFINITY]]), None);
     }
 }
