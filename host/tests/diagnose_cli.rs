@@ -790,6 +790,11 @@ fn several_runs_are_checked_before_anything_is_written() {
         assert!(!output.status.success() && stderr.contains(expected), "{stderr}");
         assert!(!plots.exists());
     }
+    // A file given as the pictures' directory is refused before the diagnosis, untouched.
+    let output = swg_host(&["diagnose", &recording, "--plot", broken.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success() && stderr.contains("--plot takes a directory"), "{stderr}");
+    assert!(std::fs::read_to_string(&broken).unwrap().ends_with("0.01,x,0\n"));
 }
 
 /// Masing's rule across runs, what "record several amplitudes" asks for: the Preisach gear

@@ -51,6 +51,10 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
         Some(dir) if several => (1..=args.inputs.len()).map(|k| dir.join(format!("run-{k}"))).collect(),
         Some(dir) => vec![dir.clone()],
     };
+    // Checked before the diagnosis, which takes seconds a run: the pictures could not be written.
+    if let Some(dir) = args.plot.as_deref().filter(|dir| dir.exists() && !dir.is_dir()) {
+        anyhow::bail!("{}: --plot takes a directory to write the pictures into, and this is a file", dir.display());
+    }
     let pictures: Vec<PathBuf> = picture_dirs.iter().flat_map(|dir| PICTURES.map(|name| dir.join(name))).collect();
     outputs.refuse_inputs(pictures.iter().map(PathBuf::as_path))?;
     // A run given twice would agree with itself and weigh twice in what the runs show together.
