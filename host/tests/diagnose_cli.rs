@@ -730,6 +730,10 @@ fn an_effect_named_in_several_runs_is_pooled_where_they_agree_and_not_where_they
     assert_eq!((both["named_in"].as_u64(), &both["agree"]), (Some(2), &serde_json::json!(true)), "{both:#}");
     let pooled = both["pooled"][0].as_f64().unwrap();
     assert!((pooled - 0.2).abs() < 0.02, "pooled {pooled} N·m of 0.2");
+    // The text gives the unit once, after the pooled figure.
+    let text = ok(swg_host(&["diagnose", &a, &b]));
+    let line = text.lines().find(|l| l.contains("torque_offset: named in 2 of 2")).unwrap_or_default();
+    assert!(line.contains(" N·m (run 1: named") && line.matches("N·m").count() == 1, "{text}");
 
     let all = offset(&diagnosed_together(&[&a, &b, &c]));
     assert_eq!((all["named_in"].as_u64(), &all["agree"]), (Some(3), &serde_json::json!(false)), "{all:#}");

@@ -148,7 +148,10 @@ impl RunsReport {
                 (n, None) if effect.agree => format!("named in {n} of {of} runs{others}; the {n} agree"),
                 (n, None) => format!("named in {n} of {of} runs{others}; the {n} disagree on its magnitude"),
             };
-            let _ = writeln!(s, "  - {}: {verdict} ({}; {})", effect.effect, effect.unit, each.join(", "));
+            // The unit once: after the pooled figure, or before the runs' figures without one.
+            let pooled_shown = effect.named_in > 1 && effect.pooled.is_some();
+            let unit = if pooled_shown { String::new() } else { format!("{}; ", effect.unit) };
+            let _ = writeln!(s, "  - {}: {verdict} ({unit}{})", effect.effect, each.join(", "));
         }
         let _ = writeln!(s, "\neach run's full report: `swg-host diagnose RUN`, or `--json` (its `runs`)");
         s
