@@ -206,6 +206,27 @@ fn effects_are_checked_before_anything_is_written() {
     }
 }
 
+/// `diagnose --params` starts from the paper's genetic model. The file `fit` writes holds the
+/// genetic kind on a free-form spring, which it cannot take: the error says so and what to give
+/// instead (it said "takes the genetic-hysteresis model; the file holds genetic-hysteresis"),
+/// and the file of `fit --model genetic-loop` is taken.
+#[test]
+fn a_baseline_on_a_free_form_spring_is_refused_with_what_to_give_instead() {
+    let dir = tempfile::tempdir().unwrap();
+    let recording = simulated(dir.path(), "rec.csv", GEAR, &["--cycles", "2", "--torque-noise", "0.03"]);
+    let params = |model: &str| {
+        let path = dir.path().join(format!("{model}.json")).display().to_string();
+        ok(swg_host(&["fit", &recording, "--model", model, "--out", &path]));
+        path
+    };
+    let free = params("genetic");
+    let output = swg_host(&["diagnose", &recording, "--params", &free]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success() && stderr.contains("free-form spring of"), "{stderr}");
+    assert!(stderr.contains("fit --model genetic-loop"), "{stderr}");
+    ok(swg_host(&["diagnose", &recording, "--params", &params("genetic-loop")]));
+}
+
 /// A `--motion` file in `dir`: 2 s at rest, then three cycles of a 0.25 Hz sine of `amplitude`.
 fn rest_then_sine(dir: &std::path::Path, amplitude: f64) -> std::path::PathBuf {
     rest_then_cycles(dir, amplitude, 3)

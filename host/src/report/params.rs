@@ -24,6 +24,13 @@ pub enum ParamsFileError {
     UnknownModel { path: PathBuf, found: String },
     #[error("{path}: this command takes the {:?} model; the file holds {found:?}", Kind::Genetic.name())]
     WrongModel { path: PathBuf, found: &'static str },
+    #[error(
+        "{path}: this command takes the {:?} model on the paper's spring (c1·θ + c2·θ³ + c3·θ⁵ about θ = 0); the \
+         file holds it {how}, as `swg-host fit` writes it: run without the file (the baseline is then fitted), or \
+         give the file of `swg-host fit --model genetic-loop`",
+        Kind::Genetic.name()
+    )]
+    NotThePapersSpring { path: PathBuf, how: String },
     #[error("{path}: {source}")]
     Invalid { path: PathBuf, source: model_core::Error },
     #[error(
@@ -71,7 +78,16 @@ pub fn read_params(path: &Path) -> Result<Params<f64>, ParamsFileError> {
 /// [`read_params`] of a text already read.
 pub fn parse_params(path: &Path, text: &str) -> Result<Params<f64>, ParamsFileError> {
     let model = parse_model(path, text)?;
-    model.paper_params().ok_or(ParamsFileError::WrongModel { path: path.to_owned(), found: model.kind().name() })
+    if model.kind() != Kind::Genetic {
+        return Err(ParamsFileError::WrongModel { path: path.to_owned(), found: model.kind().name() });
+    }
+    model.paper_params().ok_or_else(|| {
+        let knots = model.spring.knots().len();
+        let spring = (knots > 0).then(|| format!("on a free-form spring of {knots} knots"));
+        let zero = (model.zero != 0.0).then(|| format!("about θ0 = {:.4} mrad", 1e3 * model.zero));
+        let how = spring.into_iter().chain(zero).collect::<Vec<_>>().join(" and ");
+        ParamsFileError::NotThePapersSpring { path: path.to_owned(), how }
+    })
 }
 
 /// [`read_model`] of a text already read.
