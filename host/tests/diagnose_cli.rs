@@ -714,6 +714,33 @@ fn runs_that_read_one_zero_pool_it_no_finer_than_their_encoders_round_it() {
     assert!((mean - 3e-6).abs() <= 3.0 * error, "pooled {mean} ± {error} rad against 3e-6");
 }
 
+/// Runs that start mid-motion read no zero: the text says so and what to record, rather than
+/// leaving the zero out of what the runs show together.
+#[test]
+fn runs_without_a_rest_say_that_no_zero_was_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows: String = (0..=12_000)
+        .map(|k| {
+            let t = f64::from(k) / 1000.0;
+            format!("{t:.3},{:.9e}\n", 1e-3 * (std::f64::consts::TAU * 0.25 * t + 1.0).sin())
+        })
+        .collect();
+    let motion = dir.path().join("mid-motion.csv");
+    std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
+    let runs: Vec<String> = ["3", "4"]
+        .iter()
+        .map(|seed| {
+            let recording = dir.path().join(format!("run-{seed}.csv")).display().to_string();
+            let gear = ["--physics", "micro-slip", "--motion", motion.to_str().unwrap(), "--seed", seed];
+            ok(swg_host(&[&["simulate", "--out", &recording, "--torque-noise", "0.03"][..], &gear].concat()));
+            recording
+        })
+        .collect();
+    let text = ok(swg_host(&["diagnose", &runs[0], &runs[1]]));
+    assert!(text.contains("deflection zero: not read: no run starts at rest"), "{text}");
+    assert!(diagnosed_together(&[&runs[0], &runs[1]])["across"]["zero"].is_null());
+}
+
 /// Simulates `gear` (JSON) along `args` into `dir/name`; the recording's path.
 fn simulated(dir: &std::path::Path, name: &str, gear: &str, args: &[&str]) -> String {
     let params = dir.join(format!("{name}.json"));

@@ -60,6 +60,12 @@ impl RunsReport {
                 ),
             };
             let _ = writeln!(s, "  - deflection zero: {words}");
+        } else {
+            let _ = writeln!(
+                s,
+                "  - deflection zero: not read: no run starts at rest, so each is measured from the encoders' zero; \
+                 record the gear standing still before the motion to read it"
+            );
         }
         let _ = writeln!(s, "  - asymmetry: {}", across.asymmetry.words);
         let masing = match &across.non_masing {
