@@ -440,19 +440,19 @@ fn error_of(magnitude: f64, z: f64) -> f64 {
 /// A rate effect's slower and faster estimates (the recording's `rate_parts`) agree within
 /// their errors: less than [`MIN_HALF_Z`] standard errors of their difference apart (a rate too
 /// slow to show the effect agrees with anything). The two are the coefficients of the effect's
-/// column split by rate (and a third for the samples in neither part) beside one form fitted on
-/// every rate, since the hysteresis is rate-independent. A form fitted on one rate alone takes
-/// a damping's opening at that rate as its own: OpenSees' asymmetric spring with a damping of 40
-/// N·m·s/rad read 4.8 ± 11 at the slower rate so and 39.6 ± 0.7 at the faster, 38.8 ± 1.5 and
-/// 39.2 ± 0.6 on one form. On one form nothing but the rate differs between the two, so they
-/// must agree within their errors, without the genetic search's allowance for magnitudes within
-/// [`super::MAX_HALF_SPREAD`] of each other: a Bouc–Wen gear under nested loops, with no
-/// damping, read −9.2 ± 0.4 and −13.2 ± 0.3 (`tests/diagnose_corpus.rs`, seed 48). Each error is
-/// its likelihood ratio's: the fit without that part's column. `None` when they agree, or when
-/// the effect is not a rate effect or the recording has one rate.
+/// column split by rate beside one form fitted on every rate, since the hysteresis is
+/// rate-independent. A form fitted on one rate alone takes a damping's opening at that rate as
+/// its own: OpenSees' asymmetric spring with a damping of 40 N·m·s/rad read 4.8 ± 11 at the
+/// slower rate so and 39.6 ± 0.7 at the faster, 39.2 ± 1.5 and 39.4 ± 0.6 on one form. On one
+/// form nothing but the rate differs between the two, so they must agree within their errors,
+/// without the genetic search's allowance for magnitudes within [`super::MAX_HALF_SPREAD`] of
+/// each other: a Bouc–Wen gear under nested loops, with no damping, read −9.9 ± 0.4 and
+/// −13.1 ± 0.3 (`tests/diagnose_corpus.rs`, seed 48). Each error is its likelihood ratio's: the
+/// fit without that part's column. `None` when they agree, or when the effect is not a rate
+/// effect or the recording has one rate.
 fn rate_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
     let parts = form.observed.rate_parts.as_ref().filter(|_| effect.is_rate_dependent())?;
-    let ((ms, es), (mf, ef)) = match split_by_rate(form, with, parts) {
+    let ((ms, es), (mf, ef)) = match split_by_rate(form, with, &parts[0]) {
         Some(estimates) => estimates,
         None => return Some("on the micro-slip form it could not be fitted with one column at each rate".into()),
     };
@@ -465,24 +465,20 @@ fn rate_check(form: &Form, with: &[&[f64]], effect: Effect) -> Option<String> {
     })
 }
 
-/// The last of `with` split into its slower and faster `parts` (and the samples in neither),
-/// fitted beside the others on one form: the slower and the faster coefficient, each with its
-/// standard error.
-fn split_by_rate(form: &Form, with: &[&[f64]], parts: &[Vec<usize>; 2]) -> Option<((f64, f64), (f64, f64))> {
+/// The last of `with` split into its slower part and the rest (the faster part, and the loop's
+/// tips and rests outside both, where the rate and so a rate effect's column is near 0), fitted
+/// beside the others on one form: the slower and the faster coefficient, each with its standard
+/// error. Two columns, not three: at 2 M samples each is 16 MB.
+fn split_by_rate(form: &Form, with: &[&[f64]], slower_part: &[usize]) -> Option<((f64, f64), (f64, f64))> {
     let (column, others) = with.split_last()?;
-    let on = |part: &[usize]| {
-        let mut alone = vec![0.0; column.len()];
-        for &i in part {
-            alone[i] = column[i];
-        }
-        alone
-    };
-    let (slower, faster) = (on(&parts[0]), on(&parts[1]));
-    let neither: Vec<f64> = column.iter().zip(slower.iter().zip(&faster)).map(|(c, (s, f))| c - s - f).collect();
-    let base: Vec<&[f64]> = others.iter().copied().chain(std::iter::once(neither.as_slice())).collect();
-    let both = form.solve(&[base.as_slice(), &[&slower, &faster]].concat(), None)?;
-    let without_slower = form.solve(&[base.as_slice(), &[&faster]].concat(), None)?;
-    let without_faster = form.solve(&[base.as_slice(), &[&slower]].concat(), None)?;
+    let mut slower = vec![0.0; column.len()];
+    for &i in slower_part {
+        slower[i] = column[i];
+    }
+    let faster: Vec<f64> = column.iter().zip(&slower).map(|(c, s)| c - s).collect();
+    let both = form.solve(&[others, &[&slower, &faster]].concat(), None)?;
+    let without_slower = form.solve(&[others, &[&faster]].concat(), None)?;
+    let without_faster = form.solve(&[others, &[&slower]].concat(), None)?;
     let n = form.observed.data.theta.len() as f64;
     let variance = both.chi2 / (n - both.parameters as f64).max(1.0);
     let &[.., slower_magnitude, faster_magnitude] = both.coefficients.as_slice() else { return None };
