@@ -270,6 +270,20 @@ fn the_deflection_is_measured_from_the_zero_read_at_rest() {
     assert_eq!(off["findings"], right["findings"]);
 }
 
+/// A recording declared at rest that moves from its second sample reads θ0 at its first
+/// sample and no torque: the report says so, rather than a torque of 0 "read at rest".
+#[test]
+fn a_rest_too_short_to_read_the_torque_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let recording = dir.path().join("rec.csv").display().to_string();
+    let gear = ["--physics", "micro-slip", "--cycles", "2", "--output-bits", "20", "--input-bits", "20"];
+    ok(swg_host(&[&["simulate", "--out", &recording, "--effect", "torque_offset=-0.3"][..], &gear].concat()));
+    let text = ok(swg_host(&["diagnose", &recording]));
+    assert!(text.contains("too soon to read the torque there"), "{text}");
+    let json: serde_json::Value = serde_json::from_str(&ok(swg_host(&["diagnose", &recording, "--json"]))).unwrap();
+    assert!(json["origin"].is_object() && json["rest_torque_nm"].is_null(), "{:#}", json["origin"]);
+}
+
 /// A micro-slip gear whose spring's + side is `plus` times and − side `minus` times a spring
 /// that stiffens from 12000 N·m/rad (three slip elements; model version 2).
 fn sided_gear(plus: f64, minus: f64) -> String {

@@ -32,6 +32,7 @@ use serde::Serialize;
 #[derive(Clone, Debug, Serialize)]
 pub struct RateAcross {
     /// Each run's rate: the median of its motion's instantaneous frequency, rad/s.
+    #[serde(rename = "frequencies_rad_per_s")]
     pub frequencies: Vec<Option<f64>>,
     #[serde(flatten)]
     pub verdict: RateVerdict,

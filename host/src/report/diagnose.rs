@@ -24,6 +24,10 @@ pub struct DiagnoseReport {
     /// measured from, and the torque read there; absent without a rest window.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub origin: Option<RunOrigin>,
+    /// The torque read at rest, N·m, where the rest lasts long enough to read it (a declared
+    /// rest that the motion leaves at once gives θ0 from its first sample and no torque).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rest_torque_nm: Option<f64>,
     pub locate: Vec<Observation>,
     /// The effects the data can reveal: searched for, and each named or refused.
     pub revealable: Vec<Effect>,
@@ -134,6 +138,7 @@ impl DiagnoseReport {
             baseline: ModelSummary::new(&diagnosis.baseline, before, None),
             noise: observed.noise,
             origin: *origin,
+            rest_torque_nm: observed.rest_torque.map(|(torque, _)| torque),
             locate: locate.clone(),
             revealable: observed
                 .revealable()
@@ -208,7 +213,7 @@ impl DiagnoseReport {
             );
         }
         if report.kind == "recording" {
-            let _ = writeln!(s, "{}", origin_words(report.origin.as_ref()));
+            let _ = writeln!(s, "{}", origin_words(report.origin.as_ref(), report.rest_torque_nm));
         }
         let _ = writeln!(s, "baseline model: RSS {:.5} (N·m)², RMS {:.4} N·m", b.rss, b.rms);
         let _ = writeln!(s, "\nwhere the residual concentrates");
@@ -471,15 +476,18 @@ fn ratcheting_words(r: &Ratcheting) -> String {
     )
 }
 
-/// The recording's deflection zero, in words.
-fn origin_words(origin: Option<&RunOrigin>) -> String {
+/// The recording's deflection zero, in words, and the torque read at rest where it was.
+fn origin_words(origin: Option<&RunOrigin>, rest_torque: Option<f64>) -> String {
+    let torque = match rest_torque {
+        Some(torque) => format!("the torque there, {torque:.4} N·m, is left to the torque_offset test"),
+        None => "the motion leaves rest at once, too soon to read the torque there".into(),
+    };
     match origin {
         Some(origin) => format!(
             "deflection zero θ0: {:.4} ± {:.4} mrad, read at rest before the motion; the deflection is measured from it \
-             (the torque there, {:.4} N·m, is left to the torque_offset test)",
+             ({torque})",
             1e3 * origin.zero_rad,
             1e3 * origin.zero_se_rad.unwrap_or(0.0),
-            origin.torque_offset_nm
         ),
         None => "deflection zero: no rest at the start to read it, so the encoders' zero is taken for the gear's".into(),
     }

@@ -37,22 +37,23 @@ impl RunsReport {
         let across = &self.across;
         let _ = writeln!(s, "\nthe runs together");
         if let Some(zero) = &across.zero {
-            let read = zero.runs.iter().filter(|z| z.is_some()).count();
+            let count = zero.runs.iter().filter(|z| z.is_some()).count();
+            let read = if count == 1 { "1 run".to_string() } else { format!("{count} runs") };
             let words = match zero.pooled {
                 Some([mean, error]) if mean.abs() > 3.0 * error => format!(
-                    "the encoder's zero is off the gear's (deflection_offset), one zero in the {read} runs read at \
+                    "the encoder's zero is off the gear's (deflection_offset), one zero in the {read} read at \
                      rest: {:+.4} ± {:.4} mrad",
                     1e3 * mean,
                     1e3 * error
                 ),
                 Some([mean, error]) => format!(
-                    "one zero in the {read} runs read at rest, at the encoder's within its error: {:+.4} ± {:.4} mrad",
+                    "one zero in the {read} read at rest, at the encoder's within its error: {:+.4} ± {:.4} mrad",
                     1e3 * mean,
                     1e3 * error
                 ),
-                None if zero.one_zero => format!("one zero in the {read} runs read at rest"),
+                None if zero.one_zero => format!("one zero in the {read} read at rest"),
                 None => format!(
-                    "moves between the {read} runs read at rest, over {:+.4} … {:+.4} mrad, beyond the error of \
+                    "moves between the {read} read at rest, over {:+.4} … {:+.4} mrad, beyond the error of \
                      each reading: each run is measured from its own (the remanence of the loops before it, or a \
                      zero that moves), as `fit` places each run",
                     1e3 * zero.range[0],

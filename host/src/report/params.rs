@@ -22,7 +22,11 @@ pub enum ParamsFileError {
     Syntax { path: PathBuf, line: usize, column: usize, message: String },
     #[error("{path}: model {found:?} is not one this tool knows ({})", known_kinds())]
     UnknownModel { path: PathBuf, found: String },
-    #[error("{path}: this command takes the {:?} model; the file holds {found:?}", Kind::Genetic.name())]
+    #[error(
+        "{path}: this command takes the {:?} model on the paper's spring, as `swg-host fit --model genetic-loop` \
+         writes it; the file holds {found:?}",
+        Kind::Genetic.name()
+    )]
     WrongModel { path: PathBuf, found: &'static str },
     #[error(
         "{path}: this command takes the {:?} model on the paper's spring (c1·θ + c2·θ³ + c3·θ⁵ about θ = 0); the \
