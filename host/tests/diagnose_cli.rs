@@ -728,19 +728,44 @@ fn runs_that_read_one_zero_pool_it_no_finer_than_their_encoders_round_it() {
     assert!((mean - 3e-6).abs() <= 3.0 * error, "pooled {mean} ± {error} rad against 3e-6");
 }
 
-/// Runs that start mid-motion read no zero: the text says so and what to record, rather than
-/// leaving the zero out of what the runs show together.
-#[test]
-fn runs_without_a_rest_say_that_no_zero_was_read() {
-    let dir = tempfile::tempdir().unwrap();
+/// A `--motion` file in `dir`: three cycles of a 0.25 Hz sine of 1 mrad that starts mid-motion.
+fn mid_motion(dir: &std::path::Path) -> std::path::PathBuf {
     let rows: String = (0..=12_000)
         .map(|k| {
             let t = f64::from(k) / 1000.0;
             format!("{t:.3},{:.9e}\n", 1e-3 * (std::f64::consts::TAU * 0.25 * t + 1.0).sin())
         })
         .collect();
-    let motion = dir.path().join("mid-motion.csv");
+    let motion = dir.join("mid-motion.csv");
     std::fs::write(&motion, format!("time_s,deflection_rad\n{rows}")).unwrap();
+    motion
+}
+
+/// A recording that starts mid-motion, its encoders zeroed 0.5 mrad off a 1 mrad loop of the
+/// micro-slip gear: the symmetric baseline was fitted about the encoders' zero, and a damping of
+/// −1846 N·m·s/rad was named that the gear does not have. Its zero is now fitted, as `fit`
+/// places such a run, and nothing is named.
+#[test]
+fn a_recording_off_its_zero_without_a_rest_is_measured_from_a_fitted_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion = mid_motion(dir.path());
+    let recording = dir.path().join("off.csv").display().to_string();
+    let gear = ["--physics", "micro-slip", "--motion", motion.to_str().unwrap(), "--seed", "8"];
+    ok(swg_host(&[&["simulate", "--out", &recording, "--deflection-zero", "5e-4"][..], &gear].concat()));
+    let json: serde_json::Value = serde_json::from_str(&ok(swg_host(&["diagnose", &recording, "--json"]))).unwrap();
+    let origin = &json["origin"];
+    assert_eq!(origin["source"], "fitted", "{origin:#}");
+    let (zero, error) = (origin["zero_rad"].as_f64().unwrap(), origin["zero_se_rad"].as_f64().unwrap());
+    assert!((zero - 5e-4).abs() <= error.max(1e-5), "θ0 {zero} ± {error} rad of 5e-4");
+    assert!(effects_named(&json).is_empty(), "{:#}", json["findings"]);
+}
+
+/// Runs that start mid-motion read no zero: the text says so and what to record, rather than
+/// leaving the zero out of what the runs show together.
+#[test]
+fn runs_without_a_rest_say_that_no_zero_was_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion = mid_motion(dir.path());
     let runs: Vec<String> = ["3", "4"]
         .iter()
         .map(|seed| {

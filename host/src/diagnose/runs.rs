@@ -27,6 +27,7 @@ use super::non_masing::{self, NonMasingCheck, RunOfMany};
 use super::rates_across::{self, RateAcross};
 use super::{diagnose_dataset, estimates_disagree, magnitudes_differ, DiagnoseError, DiagnoseOutcome, MIN_HALF_Z};
 use crate::input::Dataset;
+use crate::prepare::OriginSource;
 use model_core::Params;
 use serde::Serialize;
 
@@ -236,8 +237,14 @@ fn effects_across(runs: &[DiagnoseOutcome]) -> Vec<EffectAcross> {
 }
 
 fn zero_across(runs: &[DiagnoseOutcome]) -> Option<ZeroAcross> {
-    let zeros: Vec<Option<[f64; 2]>> =
-        runs.iter().map(|outcome| outcome.origin.and_then(|o| o.zero_se_rad.map(|se| [o.zero_rad, se]))).collect();
+    let zeros: Vec<Option<[f64; 2]>> = runs
+        .iter()
+        .map(|outcome| {
+            // A zero fitted where a run has no rest is the form's, not a reading.
+            let read = outcome.origin.filter(|o| o.source == OriginSource::RestWindow);
+            read.and_then(|o| o.zero_se_rad.map(|se| [o.zero_rad, se]))
+        })
+        .collect();
     let read: Vec<[f64; 2]> = zeros.iter().flatten().copied().collect();
     if read.is_empty() {
         return None;

@@ -8,7 +8,7 @@ use crate::diagnose::{
     DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, Undecided, MAX_HALF_SPREAD, MIN_BIC_DROP,
     MIN_EXPLAINED, MIN_HALF_Z,
 };
-use crate::prepare::{NoiseModel, RunOrigin};
+use crate::prepare::{NoiseModel, OriginSource, RunOrigin};
 use model_core::Params;
 use serde::Serialize;
 use std::fmt::Write;
@@ -20,8 +20,8 @@ pub struct DiagnoseReport {
     pub baseline: ModelSummary,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseModel>,
-    /// The deflection's zero θ0 read in the recording's rest window, which the deflection was
-    /// measured from, and the torque read there; absent without a rest window.
+    /// The deflection's zero θ0 which the deflection was measured from: read in the recording's
+    /// rest window (`source` "rest_window"), or fitted where it has none ("fitted").
     #[serde(skip_serializing_if = "Option::is_none")]
     pub origin: Option<RunOrigin>,
     /// The torque read at rest, N·m, where the rest lasts long enough to read it (a declared
@@ -483,6 +483,13 @@ fn origin_words(origin: Option<&RunOrigin>, rest_torque: Option<f64>) -> String 
         None => "the motion leaves rest at once, too soon to read the torque there".into(),
     };
     match origin {
+        Some(origin) if origin.source == OriginSource::Fitted => format!(
+            "deflection zero θ0: {:.4} ± {:.4} mrad, fitted, as `fit` places a run without a rest (where the \
+             better fitting of the genetic and the micro-slip kind fits best, the encoders' zero unless another is \
+             clearly better); the deflection is measured from it",
+            1e3 * origin.zero_rad,
+            1e3 * origin.zero_se_rad.unwrap_or(0.0),
+        ),
         Some(origin) => format!(
             "deflection zero θ0: {:.4} ± {:.4} mrad, read at rest before the motion; the deflection is measured from it \
              ({torque})",
