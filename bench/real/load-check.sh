@@ -47,7 +47,9 @@ d = json.load(open(path))
 origin = d.get('origin')
 zero = f"{1e3 * origin['zero_rad']:.3f}" if origin else 'no rest'
 form = d.get('model_form')
-named = f"{form['model']} ({form['rms_after']:.3f})" if form else 'no'
+unexplained = d.get('unexplained')
+named = f"{form['model']} ({form['rms_after']:.3f})" if form else (
+    f"no; structure remains ({unexplained['rms'] / unexplained['noise_rms']:.0f}× the noise)" if unexplained else 'no')
 effects = ', '.join(f"{f['effect']} {f['magnitude']:.3g} {f['unit']}" for f in d['findings']) or 'none'
 held = d.get('held_out')
 held = f"{held['rms_before']:.3g} → {held['rms_after']:.3g}" if held else '—'
