@@ -885,10 +885,13 @@ fn several_runs_are_checked_before_anything_is_written() {
     let table = repo("data/seed/lht-20-50.csv");
     let broken = dir.path().join("broken.csv");
     std::fs::write(&broken, "# swg-recording v1\ntime_s,deflection_rad,torque_nm\n0,0,0\n0.01,x,0\n").unwrap();
+    let copy = dir.path().join("copy.csv");
+    std::fs::copy(&recording, &copy).unwrap();
     let cases = [
         (table.as_str(), "a loop table is one loop"),
         (broken.to_str().unwrap(), "broken.csv"),
         (recording.as_str(), "given twice (runs 1 and 2)"),
+        (copy.to_str().unwrap(), "the same recording as"),
     ];
     for (second, expected) in cases {
         let output = swg_host(&["diagnose", &recording, second, "--plot", plot]);
