@@ -209,7 +209,8 @@ pub struct DiagnoseOutcome {
 }
 
 /// `dataset` with its deflection measured from its zero θ0 where it is a recording that starts
-/// at rest: θ0 is what it reads there, as `fit` and `predict` place each run. The genetic
+/// at rest: θ0 is what it reads there, as `fit` and `predict` place each run (without a rest,
+/// the fitted zero of a recording centred off the encoders' zero, [`fitted_zero`]). The genetic
 /// baseline is symmetric about θ = 0 and measures its loop's amplitude from there: on the
 /// measured spring (θ0 = −8.4 mrad), unzeroed, the baseline left RMS 6.3 N·m on run 5-1 (6.5× what
 /// the noise would), called the deflection 5.6 mrad from zero at its closest, and held out
