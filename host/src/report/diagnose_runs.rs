@@ -64,8 +64,9 @@ impl RunsReport {
         } else {
             let _ = writeln!(
                 s,
-                "  - deflection zero: not read: no run starts at rest, so each is measured from the encoders' zero; \
-                 record the gear standing still before the motion to read it"
+                "  - deflection zero: not read: no run starts at rest, so each is measured from the encoders' zero \
+                 (or from a zero fitted where its motion is centred off it); record the gear standing still before the \
+                 motion to read it"
             );
         }
         let _ = writeln!(s, "  - asymmetry: {}", across.asymmetry.words);
