@@ -12,7 +12,7 @@ use swg_host::input::{Dataset, Recording};
 use swg_host::report::diagnose::DiagnoseReport;
 use swg_host::report::diagnose_runs::RunsReport;
 use swg_host::report::finite::to_json;
-use swg_host::report::output::Outputs;
+use swg_host::report::output::{same_file, Outputs};
 use swg_host::report::params::read_params;
 use swg_host::report::plot::{diagnosis_loop_svg, drift_svg, masing_svg, residuals_svg};
 
@@ -57,26 +57,19 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
     }
     let pictures: Vec<PathBuf> = picture_dirs.iter().flat_map(|dir| PICTURES.map(|name| dir.join(name))).collect();
     outputs.refuse_inputs(pictures.iter().map(PathBuf::as_path))?;
-    // A run given twice would agree with itself and weigh twice in what the runs show together.
-    for (k, path) in args.inputs.iter().enumerate() {
-        let same = |other: &PathBuf| match (path.canonicalize(), other.canonicalize()) {
-            (Ok(a), Ok(b)) => a == b,
-            _ => path == other,
-        };
-        if let Some(first) = args.inputs[..k].iter().position(same) {
-            anyhow::bail!("{}: given twice (runs {} and {}): give each run once", path.display(), first + 1, k + 1);
-        }
-    }
-    // A copy under another name would agree with itself as surely; only files of one size are
-    // read to compare.
+    // A run given twice, by its path or as a copy, would agree with itself and weigh twice in what
+    // the runs show together. Only files of one size are read to compare.
     let sizes: Vec<Option<u64>> = args.inputs.iter().map(|p| std::fs::metadata(p).ok().map(|m| m.len())).collect();
-    for k in 1..args.inputs.len() {
-        for first in (0..k).filter(|&j| sizes[j].is_some() && sizes[j] == sizes[k]) {
-            if same_bytes(&args.inputs[first], &args.inputs[k]) {
+    for (k, path) in args.inputs.iter().enumerate() {
+        for (first, other) in args.inputs[..k].iter().enumerate() {
+            if same_file(path, other) {
+                anyhow::bail!("{}: given twice (runs {} and {}): give each run once", path.display(), first + 1, k + 1);
+            }
+            if sizes[first].is_some() && sizes[first] == sizes[k] && same_bytes(other, path) {
                 anyhow::bail!(
                     "{}: the same recording as {} (runs {} and {}): give each run once",
-                    args.inputs[k].display(),
-                    args.inputs[first].display(),
+                    path.display(),
+                    other.display(),
                     first + 1,
                     k + 1
                 );

@@ -132,6 +132,18 @@ pub(super) fn delay_on_the_form(
     Some(along.iter().zip(rate).map(|(e, r)| -e.stiffness * r).collect())
 }
 
+/// Each sample's total-noise weight (σT² + K²σθ², inverted) by `model`'s tangent stiffness K
+/// followed along `theta`; `None` where the model cannot be run.
+pub(super) fn noise_weights_along(
+    model: &model_core::GearModel<f64>,
+    theta: &[f64],
+    reversals: &crate::gear::Reversals,
+    noise: crate::prepare::NoiseModel,
+) -> Option<Vec<f64>> {
+    let along = run_offline(model, theta, reversals).ok()?;
+    Some(along.iter().map(|e| noise.weight(e.stiffness)).collect())
+}
+
 /// Judges the final residual (`final_residuals`, every sample) against the noise that the
 /// weights stand for (1/w is each sample's variance).
 pub fn judge(
@@ -164,9 +176,7 @@ pub fn judge(
     // stiffness, not the genetic loop's, which is infinite at its tips. There it made the
     // noise of the measured spring's run 5-3 3.50 N·m RMS, and a genetic misfit of 0.95 N·m
     // (the form's 0.20) passed for noise: "no missing physics found".
-    let form_weights = run_offline(&with_all.3, &data.theta, &reversals)
-        .ok()
-        .map(|along| along.iter().map(|e| noise.weight(e.stiffness)).collect::<Vec<f64>>());
+    let form_weights = noise_weights_along(&with_all.3, &data.theta, &reversals, noise);
     let noise_rms = (form_weights.as_deref().unwrap_or(weights).iter().map(|w| 1.0 / w).sum::<f64>() / n as f64).sqrt();
     let form_chi2 = with_all.1;
     let on_the_form =

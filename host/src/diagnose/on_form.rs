@@ -35,12 +35,11 @@
 //! z is the likelihood ratio's, √(Δχ²/s²), with the sign of the magnitude: the bounded solve
 //! gives no covariance.
 use super::effects::Effect;
-use super::form::{columns_of, delay_on_the_form, torque_column, Untold, STRUCTURE_FACTOR};
+use super::form::{columns_of, delay_on_the_form, noise_weights_along, torque_column, Untold, STRUCTURE_FACTOR};
 use super::observed::Observed;
 use super::{estimates_disagree, magnitudes_differ, weights_on};
 use super::{Evidence, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use crate::fit::motion::{micro_slip_with_columns, SpringShape};
-use crate::gear::run_offline;
 use crate::gear::Reversals;
 use crate::prepare::NoiseModel;
 use rayon::prelude::*;
@@ -339,8 +338,7 @@ fn form_weights(
     let fit =
         micro_slip_with_columns(&data.theta, &data.torque, reversals, Some(noise), weights, &extra, SpringShape::Free)
             .ok()?;
-    let along = run_offline(&fit.model, &data.theta, reversals).ok()?;
-    Some(along.iter().map(|e| noise.weight(e.stiffness)).collect())
+    noise_weights_along(&fit.model, &data.theta, reversals, noise)
 }
 
 fn unweighted_rss(torque: &[f64], predicted: &[f64]) -> f64 {
