@@ -11,6 +11,15 @@ cd "$(dirname "$0")/../.."
 cargo build --release -p swg-host
 swg="${CARGO_TARGET_DIR:-target}/release/swg-host"
 
+# openseespy's Linux build links the system's BLAS and LAPACK ("Failed to import openseespy on
+# Linux" without them).
+if command -v dpkg >/dev/null && ! dpkg -s libblas3 liblapack3 >/dev/null 2>&1; then
+    sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo=sudo
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libblas3 liblapack3 >/dev/null
+fi
+
 venv=bench/opensees/.venv
 if [ ! -x "$venv/bin/python" ]; then
     "$(command -v python3.11 || command -v python3)" -m venv "$venv"

@@ -19,7 +19,8 @@ pub enum Effect {
     TorqueOffset,
     /// The torque channel sampled τ later than the angles (τ < 0: earlier), from a sensor
     /// filter or a separate clock: the torque seen at t is the gear's at t − τ, which to first
-    /// order is T − τ·K·dθ/dt. It opens (τ < 0) or closes (τ > 0) the loop with the rate.
+    /// order is T − τ·dT/dt = T − τ·K·dθ/dt (K the stiffness along the loop). It opens (τ < 0)
+    /// or closes (τ > 0) the loop with the rate.
     ChannelDelay,
 }
 

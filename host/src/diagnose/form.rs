@@ -123,13 +123,13 @@ pub(super) fn delay_on_the_form(
     columns: &[(Effect, Vec<f64>)],
 ) -> Option<Vec<f64>> {
     let data = &observed.data;
-    let rate = observed.rate.as_ref()?;
     let extra: Vec<&[f64]> = columns.iter().map(|(_, c)| c.as_slice()).collect();
     let form =
         micro_slip_with_columns(&data.theta, &data.torque, reversals, Some(noise), weights, &extra, SpringShape::Free)
             .ok()?;
     let along = run_offline(&form.model, &data.theta, reversals).ok()?;
-    Some(along.iter().zip(rate).map(|(e, r)| -e.stiffness * r).collect())
+    let torque: Vec<f64> = along.iter().map(|e| e.torque).collect();
+    Some(observed.time_derivative(&torque)?.iter().map(|rate| -rate).collect())
 }
 
 /// Each sample's total-noise weight (σT² + K²σθ², inverted) by `model`'s tangent stiffness K

@@ -18,6 +18,8 @@ pub struct Observed {
     pub time: Option<Vec<f64>>,
     /// Deflection rate, rad/s (local slope).
     pub rate: Option<Vec<f64>>,
+    /// Half the window of the local slope that forms `rate`, samples.
+    rate_window: usize,
     /// Input (wave generator) angle, rad, when the input turns at least once.
     pub input_angle: Option<Vec<f64>>,
     /// Temperature minus the temperature at the start, K, when it changes.
@@ -115,6 +117,12 @@ impl Observed {
         }
     }
 
+    /// The time derivative of `values` (one per sample) by the local slope that forms the
+    /// deflection rate; `None` without time.
+    pub(super) fn time_derivative(&self, values: &[f64]) -> Option<Vec<f64>> {
+        Some(local_slope(self.time.as_ref()?, values, self.rate_window))
+    }
+
     /// A recording's samples in order as spans, each fitted or held out (empty for a table).
     pub fn held_out_spans(&self) -> &[Span] {
         match &self.split {
@@ -132,6 +140,7 @@ impl Observed {
             noise: prepared.noise,
             time: None,
             rate: None,
+            rate_window: 0,
             input_angle: None,
             warming: None,
             parts: [Vec::new(), Vec::new()],
@@ -188,7 +197,8 @@ impl Observed {
             }
         }
         let legs = prepared.segmentation.as_ref().map_or(n, |s| n / (s.turning_points.len() + 1).max(1));
-        let rate = local_slope(&recording.time, &recording.deflection, (legs / 50).max(2));
+        self.rate_window = (legs / 50).max(2);
+        let rate = local_slope(&recording.time, &recording.deflection, self.rate_window);
         let noise = prepared.noise.map_or(0.0, |n| n.deflection_rad);
         let (spread, median, rate_parts) = rate_spread(&self.data, &rate, moving(&self.data.theta, noise));
         self.rate_spread = Some(spread);

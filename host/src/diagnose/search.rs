@@ -1,7 +1,7 @@
 //! The greedy search: try every revealable effect, accept the one that explains most if the
 //! evidence is strong, repeat.
 use super::effects::Effect;
-use super::extended::{columns, direction_sign, fit_extended, EffectState, ExtendedFit, ExtendedFitError};
+use super::extended::{columns, direction_sign, fit_extended, torque_rate, EffectState, ExtendedFit, ExtendedFitError};
 use super::form::{self, Structure, Unexplained, Untold};
 use super::locate::{locate, torque, Observation};
 use super::observed::Observed;
@@ -484,12 +484,15 @@ fn rate_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit, effect: E
         return None;
     };
     let sign = |i: usize| direction_sign(observed.data.direction[i]);
-    let model = Model::new(fit.params).ok()?;
+    let delay_column = match effect {
+        Effect::ChannelDelay => torque_rate(observed, &Model::new(fit.params).ok()?, &fit.state)?,
+        _ => Vec::new(),
+    };
     // The effect's own column and the other rate effect's, per sample.
     let columns = |i: usize| -> Result<[f64; 2], model_core::Error> {
         Ok(match effect {
             Effect::CoulombFriction => [sign(i), rate[i]],
-            Effect::ChannelDelay => [-fit.stiffness(observed, &model, i)? * rate[i], sign(i)],
+            Effect::ChannelDelay => [-delay_column[i], sign(i)],
             _ => [rate[i], sign(i)],
         })
     };
@@ -606,9 +609,13 @@ fn along_stiffness(
 ) -> Option<AlongStiffness> {
     let rate = observed.rate.as_ref()?;
     let sign = |i: usize| direction_sign(observed.data.direction[i]);
+    let delay_column = match effect {
+        Effect::ChannelDelay => torque_rate(observed, &Model::new(fit.params).ok()?, &fit.state)?,
+        _ => Vec::new(),
+    };
     let columns = |i: usize| -> Result<[f64; 2], model_core::Error> {
         Ok(match effect {
-            Effect::ChannelDelay => [-split.stiffness[i] * rate[i], sign(i)],
+            Effect::ChannelDelay => [-delay_column[i], sign(i)],
             _ => [rate[i], sign(i)],
         })
     };
@@ -624,13 +631,12 @@ fn along_stiffness(
 }
 
 /// The samples of a recording split at the median stiffness K, each sample weighted by its
-/// rate squared (each part holds half of what the rate columns can learn), the ratio of the
-/// parts' mean K, and K at every sample.
+/// rate squared (each part holds half of what the rate columns can learn), and the ratio of the
+/// parts' mean K.
 struct StiffnessSplit {
     /// Stiff, then soft.
     parts: [Vec<usize>; 2],
     spread: f64,
-    stiffness: Vec<f64>,
 }
 
 fn stiffness_split(observed: &Observed, fit: &ExtendedFit) -> Option<StiffnessSplit> {
@@ -655,7 +661,7 @@ fn stiffness_split(observed: &Observed, fit: &ExtendedFit) -> Option<StiffnessSp
         part.iter().map(|&i| rate[i] * rate[i] * stiffness[i]).sum::<f64>() / w
     };
     let spread = mean(stiff) / mean(soft);
-    Some(StiffnessSplit { parts: [stiff.to_vec(), soft.to_vec()], spread, stiffness })
+    Some(StiffnessSplit { parts: [stiff.to_vec(), soft.to_vec()], spread })
 }
 
 /// The record of a rate-dependent torque kept in the model without naming its mechanism:
@@ -781,11 +787,11 @@ fn unweighted_rise(
 
 fn unweighted_rss(observed: &Observed, fit: &ExtendedFit, subset: &[usize]) -> Result<f64, model_core::Error> {
     // Summed in order as they come: the sum over [`ExtendedFit::residuals`], without the vector.
-    let model = Model::new(fit.params)?;
+    let prediction = fit.prediction(observed)?;
     subset
         .iter()
         .map(|&i| {
-            let r = observed.data.torque[i] - fit.predict(observed, &model, i)?;
+            let r = observed.data.torque[i] - prediction.at(i)?;
             Ok(r * r)
         })
         .sum()
