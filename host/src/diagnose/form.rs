@@ -83,7 +83,7 @@ pub(super) fn torque_column(observed: &Observed, effect: Effect) -> Option<Vec<f
         Effect::CoulombFriction => Some(d.direction.iter().map(|&dir| direction_sign(dir)).collect()),
         Effect::ViscousDamping => observed.rate.clone(),
         Effect::ThermalDrift => observed.warming.as_ref().map(|w| w.iter().zip(&d.theta).map(|(w, t)| w * t).collect()),
-        // A delay's torque −τ·K·dθ/dt follows the model's own stiffness: its column on the
+        // A delay's torque −τ·dT/dt follows the model's own torque: its column on the
         // micro-slip form is the form's (`judge`), on the genetic model the model's.
         Effect::Backlash | Effect::KinematicError | Effect::ChannelDelay => None,
     }
@@ -108,9 +108,10 @@ pub fn columns_of(
     columns
 }
 
-/// A channel delay's column on the micro-slip form, −K·dθ/dt with K the form's own tangent
-/// stiffness along the recording (fitted with the other torque effects' `columns`), so that the
-/// delay is tested on top of the form as a torque effect is. Kept untested, as the deflection
+/// A channel delay's column on the micro-slip form, −dT/dt with T the form's own torque along
+/// the recording (fitted with the other torque effects' `columns`), differentiated in time as
+/// the genetic model's is ([`super::extended::torque_rate`]), so that the delay is tested on top
+/// of the form as a torque effect is. Kept untested, as the deflection
 /// effects are, a delay of 1.6–2.7 ms stood in for the shape of OpenSees materials: Bouc–Wen's
 /// with nothing, damping or backlash concealed, Iwan's with friction, Menegotto–Pinto's and the
 /// peak-oriented one's with damping (`bash bench/opensees/run.sh`, its diagnosis corpus: 6
@@ -182,7 +183,7 @@ pub fn judge(
     let on_the_form =
         |effect: Effect| columns.iter().position(|(e, _)| *e == effect).map_or(f64::NAN, |k| with_all.2[k]);
     // Each torque effect must still pass on top of the form, and a rate effect must fit better
-    // there than its rival in its place (damping dθ/dt against a delay's −K·dθ/dt, K the form's):
+    // there than its rival in its place (damping dθ/dt against a delay's −dT/dt, T the form's):
     // the genetic model's stiffness told them apart, and where its shape is wrong so may be
     // that verdict (damping concealed in OpenSees' Menegotto–Pinto and peak-oriented materials
     // was named a channel delay).

@@ -6,8 +6,8 @@
 //! The test form is Masing's of [`super::non_masing::check_runs`] (every slip element of the
 //! grid, either sign: any rate-independent Masing hysteresis), on every run at once, each from
 //! rest, each with its own torque offset and its accepted effects. A rate effect is one column
-//! with one coefficient for all the runs: the deflection rate (damping, N·m·s/rad), or −K·dθ/dt
-//! with K each run's own micro-slip tangent stiffness (a channel delay, s). The one that explains
+//! with one coefficient for all the runs: the deflection rate (damping, N·m·s/rad), or −dT/dt,
+//! each run's own micro-slip torque differentiated in time (a channel delay, s). The one that explains
 //! more is named on the tests of one run's search, with runs in the place of samples:
 //! - the information criterion drops by more than [`MIN_BIC_DROP`], it explains at least
 //!   [`MIN_EXPLAINED`] of the form's weighted residual, and the form with it leaves at most
