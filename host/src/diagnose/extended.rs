@@ -234,26 +234,17 @@ pub(super) fn direction_sign(direction: Direction) -> f64 {
 }
 
 pub(super) fn kinematic_at(state: &EffectState, observed: &Observed, i: usize) -> f64 {
-    match &observed.input_angle {
-        Some(angle) if state.kinematic != [0.0; 4] => kinematic_of(state, harmonics(angle[i])),
-        _ => 0.0,
+    if state.kinematic == [0.0; 4] {
+        return 0.0;
     }
+    observed.input_harmonics(i).map_or(0.0, |harmonics| kinematic_of(state, harmonics))
 }
 
-/// The kinematic error at an input angle of `harmonics` ([`harmonics`]).
+/// The kinematic error at an input angle of `harmonics` ([`Observed::input_harmonics`]).
 pub(super) fn kinematic_of(state: &EffectState, harmonics: [f64; 4]) -> f64 {
     let [a, b, c, d] = state.kinematic;
     let [cos2, sin2, cos4, sin4] = harmonics;
     a * cos2 + b * sin2 + c * cos4 + d * sin4
-}
-
-/// cos 2ψ, sin 2ψ, cos 4ψ and sin 4ψ of the input angle ψ, the 4th from the 2nd by the double
-/// angle: the kinematic error's columns and value are formed for every sample of every
-/// Gauss–Newton step and check, and its sines and cosines were a quarter of `diagnose`'s time
-/// (perf, 60 k samples of bench/diagnose.sh).
-pub(super) fn harmonics(psi: f64) -> [f64; 4] {
-    let (sin2, cos2) = (2.0 * psi).sin_cos();
-    [cos2, sin2, (cos2 - sin2) * (cos2 + sin2), 2.0 * sin2 * cos2]
 }
 
 /// Fits the model with the `active` effects on `subset` by Gauss–Newton on the nonlinear
@@ -297,8 +288,8 @@ pub fn fit_extended(
     let mut iteration = 0;
     let mut previous_chi2 = f64::INFINITY;
     // Only the kinematic error reads the input angle's harmonics (its state is cleared when it is
-    // not active): the other trials skip their sines and cosines.
-    let input_angle = observed.input_angle.as_ref().filter(|_| active.contains(&Effect::KinematicError));
+    // not active).
+    let kinematic = observed.input_angle.is_some() && active.contains(&Effect::KinematicError);
     loop {
         iteration += 1;
         let model = Model::new(params)?;
@@ -318,7 +309,7 @@ pub fn fit_extended(
         let mut on_loop: Option<(f64, Option<model_core::Loop<f64>>)> = None;
         for &i in subset {
             // Formed once a sample: the kinematic error's value and its columns use them both.
-            let input_harmonics = input_angle.map(|angle| harmonics(angle[i]));
+            let input_harmonics = if kinematic { observed.input_harmonics(i) } else { None };
             let x = d.theta[i] + input_harmonics.map_or(0.0, |h| kinematic_of(&state, h));
             let elastic = backlash(x, state.backlash);
             let amplitude = amplitudes.at(i);
@@ -350,7 +341,7 @@ pub fn fit_extended(
                         push(shift - by_amplitude / 2.0);
                     }
                     Effect::KinematicError => {
-                        for value in input_harmonics.unwrap_or_else(|| harmonics(0.0)) {
+                        for value in input_harmonics.unwrap_or([1.0, 0.0, 1.0, 0.0]) {
                             push(stiffness * value);
                         }
                     }
@@ -415,8 +406,8 @@ pub fn fit_extended(
         r = (r + step).clamp(-R_LIMIT, R_LIMIT);
         // A kinematic error's steps creep on without settling (each moves the legs' amplitudes,
         // which its column leaves out), so its fit stops once χ² has settled instead.
-        let settled = input_angle.is_some()
-            && (previous_chi2 - solution.weighted_rss).abs() <= CHI2_SETTLED * solution.weighted_rss;
+        let settled =
+            kinematic && (previous_chi2 - solution.weighted_rss).abs() <= CHI2_SETTLED * solution.weighted_rss;
         previous_chi2 = solution.weighted_rss;
         if converged || settled || iteration == GAUSS_NEWTON_ITERATIONS {
             return best.ok_or(ExtendedFitError::Degenerate);

@@ -1,7 +1,7 @@
 //! What a recording offers the diagnosis, sample by sample: rate, input angle, warming, the
 //! parts for the consistency check and the held-out samples, and what it cannot reveal.
 use super::effects::Effect;
-use super::extended::{harmonics, kinematic_of, EffectState};
+use super::extended::{kinematic_of, EffectState};
 use crate::fit::held_out::{hold_out, RunShape};
 use crate::fit::motion::Span;
 use crate::input::{Dataset, Recording};
@@ -22,6 +22,12 @@ pub struct Observed {
     rate_window: usize,
     /// Input (wave generator) angle, rad, when the input turns at least once.
     pub input_angle: Option<Vec<f64>>,
+    /// cos 2ψ and sin 2ψ of the input angle ψ, with [`Observed::input_angle`]: the kinematic
+    /// error's harmonics, formed for every sample of every Gauss–Newton step of every trial
+    /// where it is active, where their sine and cosine were 12 % of `diagnose`'s time (perf,
+    /// 60 k samples of `bench/diagnose.sh`). Kept in f32, 8 bytes a sample as the angle is:
+    /// their rounding, 6·10⁻⁸, moves a kinematic error of micro-radians by 10⁻¹³ rad.
+    input_harmonics: Option<Vec<[f32; 2]>>,
     /// Temperature minus the temperature at the start, K, when it changes.
     pub warming: Option<Vec<f64>>,
     /// Two independent parts of the data, for the consistency check: alternate cycles
@@ -117,6 +123,13 @@ impl Observed {
         }
     }
 
+    /// cos 2ψ, sin 2ψ, cos 4ψ and sin 4ψ of the input angle ψ at sample `i` (the 4th from the
+    /// 2nd by the double angle), when the input turns.
+    pub(super) fn input_harmonics(&self, i: usize) -> Option<[f64; 4]> {
+        let [cos2, sin2] = self.input_harmonics.as_ref()?[i].map(f64::from);
+        Some([cos2, sin2, (cos2 - sin2) * (cos2 + sin2), 2.0 * sin2 * cos2])
+    }
+
     /// The time derivative of `values` (one per sample) by the local slope that forms the
     /// deflection rate; `None` without time.
     pub(super) fn time_derivative(&self, values: &[f64]) -> Option<Vec<f64>> {
@@ -142,6 +155,7 @@ impl Observed {
             rate: None,
             rate_window: 0,
             input_angle: None,
+            input_harmonics: None,
             warming: None,
             parts: [Vec::new(), Vec::new()],
             rate_parts: None,
@@ -227,6 +241,16 @@ impl Observed {
             Some(angles) => {
                 let (lo, hi) = min_max(&angles.input);
                 if hi - lo >= std::f64::consts::TAU {
+                    self.input_harmonics = Some(
+                        angles
+                            .input
+                            .iter()
+                            .map(|psi| {
+                                let (sin2, cos2) = (2.0 * psi).sin_cos();
+                                [cos2 as f32, sin2 as f32]
+                            })
+                            .collect(),
+                    );
                     self.input_angle = Some(angles.input);
                 } else {
                     self.cannot_reveal.push((
@@ -241,7 +265,7 @@ impl Observed {
             let theta = &recording.deflection;
             let end = |deflection: f64, index: usize| LegEnd {
                 deflection,
-                harmonics: self.input_angle.as_ref().map_or([0.0; 4], |angle| harmonics(angle[index])),
+                harmonics: self.input_harmonics(index).unwrap_or([0.0; 4]),
                 index,
             };
             let mut ends = Vec::with_capacity(segmentation.turning_points.len() + 2);
