@@ -13,7 +13,7 @@ use super::observed::Observed;
 use super::{MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::fit::motion::{fit_micro_slip, micro_slip_with_columns, Motion, SpringShape};
 use crate::fit::FitOptions;
-use crate::gear::run_offline;
+use crate::gear::{run_offline, step_offline};
 use crate::prepare::reversals;
 use serde::Serialize;
 
@@ -141,8 +141,43 @@ pub(super) fn noise_weights_along(
     reversals: &crate::gear::Reversals,
     noise: crate::prepare::NoiseModel,
 ) -> Option<Vec<f64>> {
-    let along = run_offline(model, theta, reversals).ok()?;
-    Some(along.iter().map(|e| noise.weight(e.stiffness)).collect())
+    let mut weights = Vec::with_capacity(theta.len());
+    each_stiffness_along(model, theta, reversals, |stiffness| weights.push(noise.weight(stiffness)))?;
+    Some(weights)
+}
+
+/// The RMS of the total noise √(σT² + K²σθ²) along `theta`, K as in [`noise_weights_along`],
+/// summed as the model steps: a vector of the weights, kept to the end of [`judge`], was 16 MB
+/// of `diagnose`'s peak at 2 M samples (`bash bench/scale.sh 2000000`).
+fn noise_rms_along(
+    model: &model_core::GearModel<f64>,
+    theta: &[f64],
+    reversals: &crate::gear::Reversals,
+    noise: crate::prepare::NoiseModel,
+) -> Option<f64> {
+    let mut variance = 0.0;
+    each_stiffness_along(model, theta, reversals, |stiffness| variance += 1.0 / noise.weight(stiffness))?;
+    Some((variance / theta.len().max(1) as f64).sqrt())
+}
+
+/// `visit`s `model`'s tangent stiffness at each sample of `theta`, followed offline from rest;
+/// `None` where the model cannot be run.
+fn each_stiffness_along(
+    model: &model_core::GearModel<f64>,
+    theta: &[f64],
+    reversals: &crate::gear::Reversals,
+    mut visit: impl FnMut(f64),
+) -> Option<()> {
+    let mut evaluator = model.evaluator(0.0).ok()?;
+    for sample in reversals.project(theta) {
+        visit(step_offline(&mut evaluator, sample).ok()?.stiffness);
+    }
+    Some(())
+}
+
+/// Σ (torque − predicted)².
+fn rss_of(predicted: &[f64], torque: &[f64]) -> f64 {
+    predicted.iter().zip(torque).map(|(p, t)| (t - p).powi(2)).sum()
 }
 
 /// Judges the final residual (`final_residuals`, every sample) against the noise that the
@@ -170,15 +205,15 @@ pub fn judge(
         let extra: Vec<&[f64]> = columns.iter().filter(|(e, _)| Some(*e) != skip).map(|(_, c)| c.as_slice()).collect();
         micro_slip_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &extra, SpringShape::Free)
             .ok()
-            .map(|fit| (fit.predicted, fit.chi2, fit.extra, fit.model))
+            .map(|fit| (rss_of(&fit.predicted, &data.torque), fit.chi2, fit.extra, fit.model))
     };
     let Some(with_all) = with(None) else { return Structure::Noise };
     // The noise the residual is judged against, in torque: σT² + K²σθ² with K the form's
     // stiffness, not the genetic loop's, which is infinite at its tips. There it made the
     // noise of the measured spring's run 5-3 3.50 N·m RMS, and a genetic misfit of 0.95 N·m
     // (the form's 0.20) passed for noise: "no missing physics found".
-    let form_weights = noise_weights_along(&with_all.3, &data.theta, &reversals, noise);
-    let noise_rms = (form_weights.as_deref().unwrap_or(weights).iter().map(|w| 1.0 / w).sum::<f64>() / n as f64).sqrt();
+    let noise_rms = noise_rms_along(&with_all.3, &data.theta, &reversals, noise)
+        .unwrap_or_else(|| (weights.iter().map(|w| 1.0 / w).sum::<f64>() / n as f64).sqrt());
     let form_chi2 = with_all.1;
     let on_the_form =
         |effect: Effect| columns.iter().position(|(e, _)| *e == effect).map_or(f64::NAN, |k| with_all.2[k]);
@@ -254,7 +289,8 @@ pub fn judge(
         .map(|(_, c)| c.as_slice())
         .collect();
     // Every torque effect kept: the solve with all of them is the form's.
-    let (form_torque, form_chi2) = if kept_columns.len() == columns.len() {
+    // RSS, not the torque: each vector kept to the end was 16 MB at 2 M samples.
+    let (form_rss, form_chi2) = if kept_columns.len() == columns.len() {
         (with_all.0, with_all.1)
     } else {
         match micro_slip_with_columns(
@@ -266,11 +302,10 @@ pub fn judge(
             &kept_columns,
             SpringShape::Free,
         ) {
-            Ok(form) => (form.predicted, form.chi2),
+            Ok(form) => (rss_of(&form.predicted, &data.torque), form.chi2),
             Err(_) => return Structure::Noise,
         }
     };
-    let form_rss: f64 = form_torque.iter().zip(&data.torque).map(|(p, t)| (t - p).powi(2)).sum();
     let form_rms = (form_rss / n as f64).sqrt();
     let held_out = (observed.held_out_count() > 0)
         .then(|| {

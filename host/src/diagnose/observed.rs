@@ -397,7 +397,8 @@ fn moving(theta: &[f64], noise: f64) -> std::ops::Range<usize> {
 /// before a one-frequency sine made its "slow half" and let a channel delay of 38 ms be named
 /// on a gear that has none).
 fn rate_spread(data: &FitData, rate: &[f64], moving: std::ops::Range<usize>) -> (f64, Option<f64>, [Vec<usize>; 2]) {
-    // Formed twice, to sort and to split, rather than kept with its index (16 bytes a sample).
+    // Formed three times, to count, to sort and to split, rather than kept with its index (16
+    // bytes a sample).
     let frequency = |i: usize| {
         if !moving.contains(&i) {
             return None;
@@ -405,7 +406,9 @@ fn rate_spread(data: &FitData, rate: &[f64], moving: std::ops::Range<usize>) -> 
         let x = data.theta[i] / data.amplitude[i];
         (x.abs() <= 0.8).then(|| rate[i].abs() / (data.amplitude[i] * (1.0 - x * x).sqrt())).filter(|w| w.is_finite())
     };
-    let mut sorted: Vec<f64> = (0..rate.len()).filter_map(frequency).collect();
+    // Counted first: collected, the vector grew by doubling to 1.7× its room.
+    let mut sorted = Vec::with_capacity((0..rate.len()).filter(|&i| frequency(i).is_some()).count());
+    sorted.extend((0..rate.len()).filter_map(frequency));
     if sorted.len() < 20 {
         return (1.0, None, [Vec::new(), Vec::new()]);
     }
@@ -414,7 +417,12 @@ fn rate_spread(data: &FitData, rate: &[f64], moving: std::ops::Range<usize>) -> 
     let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q) as usize];
     let spread = at(0.9) / at(0.1).max(f64::MIN_POSITIVE);
     let median = at(0.5);
-    let mut parts = [Vec::new(), Vec::new()];
+    // The parts sized exactly and the sorted frequencies let go before they fill: both together,
+    // and the parts grown by doubling, made `diagnose`'s peak at 2 M samples (`bash
+    // bench/scale.sh 2000000`).
+    let slower = sorted.partition_point(|&w| w <= median);
+    let mut parts = [Vec::with_capacity(slower), Vec::with_capacity(sorted.len() - slower)];
+    drop(sorted);
     for i in 0..rate.len() {
         if let Some(w) = frequency(i) {
             parts[usize::from(w > median)].push(i);
