@@ -10,9 +10,8 @@
 use super::effects::Effect;
 use super::extended::{direction_sign, ExtendedFit};
 use super::observed::Observed;
-use super::{MIN_BIC_DROP, MIN_EXPLAINED};
-use crate::fit::motion::{fit_micro_slip, micro_slip_with_columns, Motion, SpringShape};
-use crate::fit::FitOptions;
+use super::{weights_on, MIN_BIC_DROP, MIN_EXPLAINED};
+use crate::fit::motion::{micro_slip_with_columns, SpringShape};
 use crate::gear::{run_offline, step_offline};
 use crate::prepare::reversals;
 use serde::Serialize;
@@ -175,6 +174,39 @@ fn each_stiffness_along(
     Some(())
 }
 
+/// RMS on the held-out samples ([`Observed::held_out`]) of the micro-slip form with the torque
+/// `columns` beside it, fitted on the training samples alone (the others weigh 0), N·m: the
+/// held-out error of the genetic model it is compared with is the model's with its effects, so
+/// the form's is the form's with them. Fitted without them, the form of a micro-slip gear with a
+/// 2 ms delay held out 0.193 N·m against the genetic model's 0.143 with the delay, was not
+/// named, and on the genetic form an offset of 0.27 N·m that the gear lacks leaned on the
+/// misfit. `None` when nothing is held out or the form cannot be fitted.
+pub(super) fn held_out_rms_of_form(
+    observed: &Observed,
+    reversals: &crate::gear::Reversals,
+    noise: crate::prepare::NoiseModel,
+    weights: &[f64],
+    columns: &[&[f64]],
+) -> Option<f64> {
+    let held = observed.held_out();
+    if held.is_empty() {
+        return None;
+    }
+    let data = &observed.data;
+    let training = weights_on(weights, observed.training().iter().copied());
+    let fit = micro_slip_with_columns(
+        &data.theta,
+        &data.torque,
+        reversals,
+        Some(noise),
+        &training,
+        columns,
+        SpringShape::Free,
+    )
+    .ok()?;
+    Some((held.iter().map(|&i| (data.torque[i] - fit.predicted[i]).powi(2)).sum::<f64>() / held.len() as f64).sqrt())
+}
+
 /// Σ (torque − predicted)².
 fn rss_of(predicted: &[f64], torque: &[f64]) -> f64 {
     predicted.iter().zip(torque).map(|(p, t)| (t - p).powi(2)).sum()
@@ -307,13 +339,7 @@ pub fn judge(
         }
     };
     let form_rms = (form_rss / n as f64).sqrt();
-    let held_out = (observed.held_out_count() > 0)
-        .then(|| {
-            let spans = observed.held_out_spans().to_vec();
-            let motion = Motion::with_spans(&data.theta, &data.torque, &reversals, spans, Some(noise));
-            fit_micro_slip(&motion, &FitOptions::default()).ok().and_then(|f| f.held_out_rms)
-        })
-        .flatten();
+    let held_out = held_out_rms_of_form(observed, &reversals, noise, weights, &kept_columns);
     let extra_parameters =
         (3 + model_core::SLIP_ELEMENTS + kept_columns.len()).saturating_sub(final_fit.degrees_of_freedom()) as f64;
     let delta_bic = (chi2 - form_chi2) / variance - extra_parameters * ln_n;

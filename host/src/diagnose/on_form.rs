@@ -35,7 +35,9 @@
 //! z is the likelihood ratio's, √(Δχ²/s²), with the sign of the magnitude: the bounded solve
 //! gives no covariance.
 use super::effects::Effect;
-use super::form::{columns_of, delay_on_the_form, noise_weights_along, torque_column, Untold, STRUCTURE_FACTOR};
+use super::form::{
+    columns_of, delay_on_the_form, held_out_rms_of_form, noise_weights_along, torque_column, Untold, STRUCTURE_FACTOR,
+};
 use super::observed::Observed;
 use super::{estimates_disagree, magnitudes_differ, weights_on};
 use super::{Evidence, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
@@ -314,13 +316,7 @@ fn in_its_unit(effect: Effect, coefficient: f64, c1: f64) -> f64 {
 /// RMS on the held-out samples of the form with `columns`, fitted without them, N·m; `None`
 /// when nothing is held out.
 fn held_out_rms(form: &Form, columns: &[&[f64]]) -> Option<f64> {
-    let held = form.observed.held_out();
-    if held.is_empty() {
-        return None;
-    }
-    let fit = form.solve(columns, Some(&form.observed.training()))?;
-    let torque = &form.observed.data.torque;
-    Some((held.iter().map(|&i| (torque[i] - fit.predicted[i]).powi(2)).sum::<f64>() / held.len() as f64).sqrt())
+    held_out_rms_of_form(form.observed, form.reversals, form.noise, form.weights, columns)
 }
 
 /// Each sample's total-noise weight by the stiffness of the form fitted with `weights` and the
