@@ -781,17 +781,23 @@ fn runs_without_a_rest_say_that_no_zero_was_read() {
 }
 
 /// The measured spring's run 5-3: the genetic baseline misses by 0.95 N·m, and the micro-slip
-/// form fits it to 0.20 but predicts its held-out leg worse. Judged against the noise the
-/// genetic loop's stiffness implies (infinite at its tips: 3.50 N·m RMS) that passed for noise
-/// and the report said "no missing physics found"; against the form's (0.067 N·m) it says
-/// structure remains.
+/// form fits it to 0.20. Judged against the noise the genetic loop's stiffness implies (infinite
+/// at its tips: 3.50 N·m RMS) that passed for noise and the report said "no missing physics
+/// found"; against the form's (0.067 N·m) the misfit is 14× the noise, and the form, which
+/// predicts the held-out leg better, is named. On 4-6 the form fits better but predicts the
+/// held-out leg worse: structure remains, and the report says why.
 #[test]
 fn a_misfit_far_beyond_the_noise_is_not_taken_for_noise() {
-    let run = repo("data/real/sea-spring-2/kt-5-3-27-2-27022023-173634.csv");
-    let json: serde_json::Value = serde_json::from_str(&ok(swg_host(&["diagnose", &run, "--json"]))).unwrap();
-    let unexplained = &json["unexplained"];
+    let diagnosed = |run: &str| -> serde_json::Value {
+        let run = repo(&format!("data/real/sea-spring-2/{run}"));
+        serde_json::from_str(&ok(swg_host(&["diagnose", &run, "--json"]))).unwrap()
+    };
+    let form = &diagnosed("kt-5-3-27-2-27022023-173634.csv")["model_form"];
+    let (misfit, noise) = (form["rms_before"].as_f64().unwrap_or(0.0), form["noise_rms"].as_f64().unwrap_or(1.0));
+    assert!(misfit > 10.0 * noise && noise < 0.1, "{form:#}");
+    let unexplained = &diagnosed("kt-4-6-24-2-27022023-173150.csv")["unexplained"];
     let (rms, noise) = (unexplained["rms"].as_f64().unwrap_or(0.0), unexplained["noise_rms"].as_f64().unwrap_or(1.0));
-    assert!(rms > 10.0 * noise && noise < 0.1, "{unexplained:#}");
+    assert!(rms > 4.0 * noise && noise < 0.1, "{unexplained:#}");
     assert!(unexplained["words"].as_str().unwrap().contains("predicts the held-out samples worse"), "{unexplained:#}");
 }
 
