@@ -1008,3 +1008,24 @@ fn the_form_is_held_out_with_the_effects_the_genetic_model_is_held_out_with() {
     let delay = json["findings"][0]["magnitude"].as_f64().unwrap();
     assert!((delay - 2e-3).abs() <= 0.1 * 2e-3, "delay {delay} s against 2 ms");
 }
+
+/// A deflection effect found on the genetic form is tested on the micro-slip form too: on a
+/// catalogue gear (three stiffness segments, the softest about zero) a backlash of 73 µrad stood
+/// in for the soft segment that the form's free spring takes, and was named beside the form.
+#[test]
+fn a_soft_first_segment_is_not_taken_for_backlash() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = simulated_and_diagnosed(
+        dir.path(),
+        "catalogue.csv",
+        &["--physics", "catalogue", "--frequency", "0.25,1", "--amplitude", "2e-3"],
+    );
+    assert_eq!(json["model_form"]["model"], "micro-slip", "{:#}", json["model_form"]);
+    assert!(effects_named(&json).is_empty(), "{:#}", json["findings"]);
+    let withdrawn = json["rejected"].as_array().unwrap().iter().find(|r| r["effect"] == "backlash");
+    assert!(
+        withdrawn.is_some_and(|r| r["reason"].as_str().unwrap().contains("stands in for the loop's shape")),
+        "{:#}",
+        json["rejected"]
+    );
+}
