@@ -217,3 +217,36 @@ fn a_bad_params_file_names_its_line_and_column() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains(&format!("{}:2:", params.display())), "{stderr}");
 }
+
+/// A report that cannot be written fails the command before its outputs are written, as any
+/// other failure does (`println!` panicked there, after the outputs were written); a reader
+/// that stops early is a normal end, and the outputs are written.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_report_that_cannot_be_written_fails_the_command_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (recording, params) = (dir.path().join("rec.csv"), dir.path().join("fit.json"));
+    let (recording, params) = (recording.to_str().unwrap(), params.to_str().unwrap());
+    common::ok(swg_host(&["simulate", "--out", recording]));
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_swg-host"))
+        .args(["fit", recording, "--out", params])
+        .stdout(full)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cannot write the report to standard output") && !stderr.contains("panicked"), "{stderr}");
+    assert!(!std::path::Path::new(params).exists(), "fit.json was written");
+
+    let mut fit = std::process::Command::new(env!("CARGO_BIN_EXE_swg-host"))
+        .args(["fit", recording, "--out", params])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(fit.stdout.take());
+    let output = fit.wait_with_output().unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(std::path::Path::new(params).exists(), "fit.json was not written");
+}

@@ -122,17 +122,18 @@ pub fn run(args: DiagnoseArgs) -> Result<()> {
     for (outcome, dir) in outcomes.iter().zip(&picture_dirs) {
         stage_pictures(&mut outputs, outcome, dir)?;
     }
-    outputs.commit()?;
-    if args.json {
-        println!("{json}");
+    let report = if args.json {
+        format!("{json}\n")
     } else {
-        print!("{text}");
+        let mut report = text;
         if let Some(dir) = &args.plot {
             let within = if several { format!("{}/run-K", dir.display()) } else { dir.display().to_string() };
             let each: Vec<String> = PICTURES.iter().map(|name| format!("{within}/{name}")).collect();
-            println!("pictures: {}", each.join(", "));
+            report.push_str(&format!("pictures: {}\n", each.join(", ")));
         }
-    }
+        report
+    };
+    super::print_then_commit(&report, outputs)?;
     Ok(())
 }
 

@@ -211,19 +211,16 @@ pub fn run(args: FitArgs) -> Result<()> {
     if let (Some(path), Some(svg)) = (&args.plot, svg) {
         outputs.stage(path, svg.as_bytes())?;
     }
-    outputs.commit()?;
-    if args.json {
-        println!("{json}");
+    let text = if args.json {
+        format!("{json}\n")
     } else {
-        print!("{}", report.human());
-        if let Some(out) = &args.out {
-            println!("wrote {}", out.display());
+        let mut text = report.human();
+        for written in args.out.iter().chain(&args.plot) {
+            text.push_str(&format!("wrote {}\n", written.display()));
         }
-        if let Some(plot) = &args.plot {
-            println!("wrote {}", plot.display());
-        }
-    }
-    Ok(())
+        text
+    };
+    super::print_then_commit(&text, outputs)
 }
 
 fn file_name(path: &Path) -> String {

@@ -46,8 +46,11 @@ fn flash_with(probes: Vec<probe_rs::probe::DebugProbeInfo>, args: &FlashArgs) ->
     download_file(&mut session, &args.elf, ElfLoader(ElfOptions::default()))
         .with_context(|| format!("flashing {} failed", args.elf.display()))?;
     session.core(0)?.reset().context("reset after flashing failed")?;
-    println!("flashed {} to {}; restore its parameters with `swg-host push`", args.elf.display(), args.chip);
-    Ok(())
+    super::print_report(&format!(
+        "flashed {} to {}; restore its parameters with `swg-host push`\n",
+        args.elf.display(),
+        args.chip
+    ))
 }
 
 #[cfg(all(test, feature = "probe"))]

@@ -129,15 +129,17 @@ pub fn run(args: HilArgs) -> Result<()> {
             outputs.stage(&dir.join(file), svg.as_bytes())?;
         }
     }
-    outputs.commit()?;
-    if args.json {
-        println!("{json}");
+    let text = if args.json {
+        format!("{json}\n")
     } else {
-        println!("{}", report.human());
+        let mut text = format!("{}\n", report.human());
         if !pictures.is_empty() {
-            println!("pictures: {}", pictures.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
+            let each: Vec<String> = pictures.iter().map(|p| p.display().to_string()).collect();
+            text.push_str(&format!("pictures: {}\n", each.join(", ")));
         }
-    }
+        text
+    };
+    super::print_then_commit(&text, outputs)?;
     Ok(())
 }
 

@@ -52,6 +52,29 @@ impl Cli {
     }
 }
 
+/// Writes the command's `report` to standard output, then commits its `outputs`. A report that
+/// cannot be written (`> /dev/full`: no space) fails the command before any output is written,
+/// as any other failure does; `println!` panicked there, after the outputs were written. A reader
+/// that stops early (`| head`) is a normal end: the rest of the report is dropped and the
+/// outputs are written.
+pub fn print_then_commit(report: &str, outputs: swg_host::report::output::Outputs) -> anyhow::Result<()> {
+    print_report(report)?;
+    outputs.commit()?;
+    Ok(())
+}
+
+/// Writes `report` to standard output; a closed pipe ends it quietly ([`print_then_commit`]).
+pub fn print_report(report: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    match stdout.write_all(report.as_bytes()).and_then(|()| stdout.flush()) {
+        Err(error) if error.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(anyhow::Error::new(error).context("cannot write the report to standard output"))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// The message of `error` and each of its causes, once: `a: b: c`. Library errors write their
 /// cause into their own message (so `to_string` alone is whole) and also give it as their
 /// `source`; a cause whose text the message above it already holds is not repeated.

@@ -3,6 +3,7 @@
 use super::InputOptions;
 use anyhow::{Context, Result};
 use clap::Args;
+use std::fmt::Write as _;
 use std::path::PathBuf;
 use swg_host::input::read_recording;
 use swg_host::predict::{predict, Zeroing};
@@ -52,45 +53,51 @@ pub fn run(args: PredictArgs) -> Result<()> {
         ensure_finite("prediction", &prediction.stiffness).with_context(name)?;
         outputs.stage(out, &prediction_csv(&prediction)?)?;
     }
-    outputs.commit()?;
+    let mut text = String::new();
     if args.json {
-        println!("{json}");
+        let _ = writeln!(text, "{json}");
     } else {
         let reversals = match summary.band_rad {
             Some(band) => format!("reversals followed causally, band {band:.3e} rad"),
             None => "reversals found offline over the whole recording".to_string(),
         };
-        println!(
+        let _ = writeln!(
+            text,
             "{}: {} samples predicted from rest with {} ({reversals})",
             args.recording.display(),
             summary.n,
             args.params.display(),
         );
-        match &summary.origin {
-            Some(origin) => println!(
+        let _ = match &summary.origin {
+            Some(origin) => writeln!(
+                text,
                 "  zeroed on the recording's rest window: θ0 = {:.4} mrad (params file {:.4} mrad), torque offset {:+.4} N·m",
                 origin.zero_rad * 1e3,
                 model.zero * 1e3,
                 origin.torque_offset_nm
             ),
-            None => println!("  θ0 = {:.4} mrad from the params file, no torque offset", model.zero * 1e3),
-        }
+            None => writeln!(text, "  θ0 = {:.4} mrad from the params file, no torque offset", model.zero * 1e3),
+        };
         if summary.start_state_samples > 0 {
-            println!(
+            let _ = writeln!(
+                text,
                 "  {} samples before the motion's extremes wiped out the unknown start state: run through, not scored \
                  (the recording does not say `# start: rest`)",
                 summary.start_state_samples
             );
         }
-        println!(
+        let _ = writeln!(
+            text,
             "  against the recorded torque ({} samples): RSS {:.5} (N·m)², RMS {:.4} N·m",
             summary.n - summary.start_state_samples,
             summary.rss,
             summary.rms
         );
-        println!("  largest change of the predicted torque between samples: {:.4} N·m", summary.max_step_nm);
+        let _ =
+            writeln!(text, "  largest change of the predicted torque between samples: {:.4} N·m", summary.max_step_nm);
         if summary.beyond_range_samples > 0 {
-            println!(
+            let _ = writeln!(
+                text,
                 "  {} samples beyond the spring's identified range (θ {:.4} … {:.4} mrad), by up to {:.4} mrad: there \
                  it continues with its edge's stiffness",
                 summary.beyond_range_samples,
@@ -99,12 +106,12 @@ pub fn run(args: PredictArgs) -> Result<()> {
                 summary.max_excess_rad * 1e3
             );
             if let Some(rms) = summary.within_range_rms {
-                println!("  RMS over the scored samples within the range: {rms:.4} N·m");
+                let _ = writeln!(text, "  RMS over the scored samples within the range: {rms:.4} N·m");
             }
         }
         if let Some(out) = &args.out {
-            println!("wrote {}", out.display());
+            let _ = writeln!(text, "wrote {}", out.display());
         }
     }
-    Ok(())
+    super::print_then_commit(&text, outputs)
 }

@@ -52,22 +52,23 @@ pub fn run(args: PushArgs) -> Result<()> {
     let mut link = args.port.open()?;
     let report = push(&mut link, &joint).with_context(|| format!("push to {} failed", args.port.port))?;
     let device = report.device;
-    println!(
-        "device on {}: firmware {}, protocol {}, model {}",
-        args.port.port, device.firmware_version, device.protocol_version, device.model_version
-    );
-    match report.previous {
-        Some(previous) => println!("replaced: {}", previous.model),
-        None => println!("replaced: nothing (the device had no parameters)"),
-    }
-    println!(
-        "wrote and read back: {}, ratio {}, torque limit {} N·m, direction band {:e} rad",
-        joint.model, joint.gear_ratio, joint.torque_limit, joint.direction_band
-    );
-    println!(
-        "committed to flash as record {} in {:.1} ms (version check, write, read-back, commit)",
+    let replaced = match report.previous {
+        Some(previous) => previous.model.to_string(),
+        None => "nothing (the device had no parameters)".to_string(),
+    };
+    super::print_report(&format!(
+        "device on {}: firmware {}, protocol {}, model {}\nreplaced: {replaced}\nwrote and read back: {}, ratio {}, \
+         torque limit {} N·m, direction band {:e} rad\ncommitted to flash as record {} in {:.1} ms (version check, \
+         write, read-back, commit)\n",
+        args.port.port,
+        device.firmware_version,
+        device.protocol_version,
+        device.model_version,
+        joint.model,
+        joint.gear_ratio,
+        joint.torque_limit,
+        joint.direction_band,
         report.sequence,
         report.elapsed.as_secs_f64() * 1e3
-    );
-    Ok(())
+    ))
 }

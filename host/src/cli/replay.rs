@@ -49,8 +49,12 @@ pub fn run(args: ReplayArgs) -> Result<()> {
         Path::Fast => EvalPath::Fast,
     };
     let report = replay(&mut link, &joint, &model, &samples, path)?;
-    println!("replayed {} through the firmware's {:?} path on {}", args.recording.display(), path, args.port.port);
-    println!("{report}");
+    super::print_report(&format!(
+        "replayed {} through the firmware's {:?} path on {}\n{report}\n",
+        args.recording.display(),
+        path,
+        args.port.port
+    ))?;
     if !report.passed() {
         bail!("the firmware's feed-forward differs from the host model beyond the f32 tolerance");
     }

@@ -255,10 +255,11 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     let mut text = Vec::new();
     recording.write(&mut text)?;
     outputs.stage(&args.out, &text)?;
-    outputs.commit()?;
     let duration = recording.time.last().copied().unwrap_or(0.0);
-    println!("wrote {}: {} samples, {duration} s", args.out.display(), recording.time.len());
-    Ok(())
+    super::print_then_commit(
+        &format!("wrote {}: {} samples, {duration} s\n", args.out.display(), recording.time.len()),
+        outputs,
+    )
 }
 
 impl PhysicsArg {
