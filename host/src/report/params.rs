@@ -103,6 +103,23 @@ pub fn parse_model(path: &Path, text: &str) -> Result<GearModel<f64>, ParamsFile
         message: e.to_string().split(" at line ").next().unwrap_or_default().to_owned(),
     };
     let invalid = |source| ParamsFileError::Invalid { path: path.to_owned(), source };
+    // A recording or a table given for the parameters: say what was expected, not serde's
+    // "expected value".
+    let body = text.trim_start_matches('\u{feff}');
+    let start = body.len() - body.trim_start().len();
+    if !body[start..].starts_with('{') {
+        let before = &body[..start];
+        let first: String = body[start..].lines().next().unwrap_or_default().chars().take(40).collect();
+        let found = if first.is_empty() { "nothing".to_owned() } else { format!("{first:?}") };
+        return Err(ParamsFileError::Syntax {
+            path: path.to_owned(),
+            line: before.matches('\n').count() + 1,
+            column: before.rsplit('\n').next().unwrap_or_default().chars().count() + 1,
+            message: format!(
+                "expected a parameter file, a JSON object as `swg-host fit --out` writes it; found {found}"
+            ),
+        });
+    }
     let header: Header = serde_json::from_str(text).map_err(syntax)?;
     // A file without model_version is of version 1, unless it names a kind version 1 did not
     // have: then it can only be of this one (and its errors are this version's).
@@ -141,6 +158,20 @@ mod tests {
     fn a_file_without_version_naming_a_newer_kind_is_read_as_this_version() {
         let err = parse_model(Path::new("p.json"), r#"{"model": "bouc-wen"}"#).unwrap_err().to_string();
         assert!(err.contains("missing field `params`"), "{err}");
+    }
+
+    /// A recording given for the parameters says what was expected, where (it was serde's
+    /// "expected value").
+    #[test]
+    fn a_recording_or_nothing_given_for_the_parameters_says_a_json_file_was_expected() {
+        for (text, at, found) in [
+            ("# swg-recording v1\ntime_s,theta_in_rad", "r.csv:1:1:", "found \"# swg-recording v1\""),
+            ("\n  [1, 2]", "r.csv:2:3:", "found \"[1, 2]\""),
+            ("", "r.csv:1:1:", "found nothing"),
+        ] {
+            let err = parse_model(Path::new("r.csv"), text).unwrap_err().to_string();
+            assert!(err.starts_with(at) && err.contains("expected a parameter file") && err.ends_with(found), "{err}");
+        }
     }
 
     #[test]
