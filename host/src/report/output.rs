@@ -132,21 +132,20 @@ impl Outputs {
         Ok(())
     }
 
-    /// Creates `dir` (and its parents) for outputs; removed again if the set is not committed
-    /// and the directory is still empty.
+    /// Creates `dir` for outputs, in a directory that exists (as `mkdir`, not `mkdir -p`: a
+    /// mistyped path is an error, not a tree of new directories); removed again if the set is not
+    /// committed and the directory is still empty.
     pub fn create_dir(&mut self, dir: &Path) -> Result<(), OutputError> {
-        if dir.exists() && !dir.is_dir() {
-            return Err(OutputError::NotADirectory { path: dir.to_owned() });
+        if dir.exists() {
+            return if dir.is_dir() { Ok(()) } else { Err(OutputError::NotADirectory { path: dir.to_owned() }) };
         }
-        let mut missing = Vec::new();
-        let mut at = Some(dir);
-        while let Some(path) = at.filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
-            missing.push(path.to_owned());
-            at = path.parent();
+        let parent = directory_of(dir);
+        if !parent.is_dir() {
+            return Err(OutputError::NoDirectory { path: dir.to_owned(), dir: parent.to_owned() });
         }
-        std::fs::create_dir_all(dir).map_err(|e| OutputError::write(dir, e))?;
+        std::fs::create_dir(dir).map_err(|e| OutputError::write(dir, e))?;
         // Innermost first, so that removing them in order empties each parent.
-        self.created_dirs.extend(missing);
+        self.created_dirs.insert(0, dir.to_owned());
         Ok(())
     }
 
@@ -330,10 +329,21 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let plots = dir.path().join("plots/deep");
         let mut outputs = Outputs::new([]);
+        outputs.create_dir(&dir.path().join("plots")).unwrap();
         outputs.create_dir(&plots).unwrap();
         outputs.stage(&plots.join("a.svg"), b"x").unwrap();
         drop(outputs);
         assert!(!dir.path().join("plots").exists());
+    }
+
+    /// A directory in one that does not exist is refused, not made with its parents: a
+    /// mistyped `--plot` left a tree of new directories behind.
+    #[test]
+    fn a_directory_is_made_only_in_one_that_exists() {
+        let dir = tempfile::tempdir().unwrap();
+        let error = Outputs::new([]).create_dir(&dir.path().join("typo/plots")).unwrap_err();
+        assert!(matches!(error, OutputError::NoDirectory { .. }), "{error}");
+        assert!(!dir.path().join("typo").exists());
     }
 
     #[test]
