@@ -1029,3 +1029,25 @@ fn a_soft_first_segment_is_not_taken_for_backlash() {
         json["rejected"]
     );
 }
+
+/// `simulate`'s default gear, the paper's published parameters, runs its loop the active way:
+/// the report names that cause beside a bench's (it read "the measurement, not the gear"), and a
+/// diagnosis of several runs says which run is active (its summary line said only "no effect
+/// named").
+#[test]
+fn an_active_loop_is_said_with_its_causes_alone_and_among_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (active, passive) = (dir.path().join("seed.csv"), dir.path().join("slip.csv"));
+    let (active, passive) = (active.to_str().unwrap(), passive.to_str().unwrap());
+    ok(swg_host(&["simulate", "--out", active]));
+    ok(swg_host(&["simulate", "--physics", "micro-slip", "--out", passive]));
+    let alone = ok(swg_host(&["diagnose", active]));
+    assert!(alone.contains("active loop") && alone.contains("the paper's published parameters"), "{alone}");
+    let together = ok(swg_host(&["diagnose", passive, active]));
+    let lines: Vec<&str> = together.lines().filter(|l| l.contains("active loop")).collect();
+    assert_eq!(lines.len(), 1, "{together}");
+    assert!(
+        together.lines().skip_while(|l| !l.starts_with("run 2")).nth(1).is_some_and(|l| l.contains("active loop")),
+        "{together}"
+    );
+}

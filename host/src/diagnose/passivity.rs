@@ -93,7 +93,8 @@ pub fn of_recording(recording: &Recording, turning_points: &[TurningPoint], nois
         format!(
             "the loop runs the active way: ∮T dθ = {mean:.4e} J per cycle over {} cycles (±{uncertainty:.1e} J), \
              energy no passive gear gives back. Likely causes: the torque channel lags or leads the angles{}, or \
-             the torque's sign or the deflection's is swapped",
+             the torque's sign or the deflection's is swapped; or, in a simulated recording, a model whose loop \
+             runs the active way (the paper's published parameters, `swg-host simulate`'s default, do: h > 0)",
             energies.len(),
             passive_delay_s.map_or(String::new(), |d| format!(" (a delay of {d:.3e} s would make it passive)"))
         )

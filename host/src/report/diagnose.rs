@@ -221,7 +221,7 @@ impl DiagnoseReport {
             let _ = writeln!(s, "  - {}", o.words);
         }
         if let Some(p) = report.passivity.as_ref().filter(|p| p.active) {
-            let _ = writeln!(s, "\nactive loop: the measurement, not the gear");
+            let _ = writeln!(s, "\nactive loop: energy no passive gear gives back");
             let _ = writeln!(s, "  {}", p.words);
         }
         if let Some(form) = &report.model_form {

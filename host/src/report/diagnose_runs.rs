@@ -32,7 +32,12 @@ impl RunsReport {
                 .as_ref()
                 .map_or(String::new(), |h| format!("; held-out RMS {:.4} → {:.4} N·m", h.rms_before, h.rms_after));
             let _ = writeln!(s, "run {}: {} ({} samples)", k + 1, run.input, run.baseline.n);
-            let _ = writeln!(s, "  {zero}{form}; {named}{held}");
+            let active = if run.passivity.as_ref().is_some_and(|p| p.active) {
+                "; active loop: energy no passive gear gives back (see its full report)"
+            } else {
+                ""
+            };
+            let _ = writeln!(s, "  {zero}{form}; {named}{held}{active}");
         }
         let across = &self.across;
         let _ = writeln!(s, "\nthe runs together");
