@@ -1051,3 +1051,24 @@ fn an_active_loop_is_said_with_its_causes_alone_and_among_runs() {
         "{together}"
     );
 }
+
+/// An effect named on the genetic form that a later finding on the form makes redundant is
+/// withdrawn: on random motion of a micro-slip gear with a 2 ms delay, a Coulomb friction took
+/// the delay's torque on the genetic form, and stayed named at 7.5·10⁻⁴ N·m beside the delay
+/// the search on the form then found.
+#[test]
+fn an_effect_a_later_finding_on_the_form_makes_redundant_is_withdrawn() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = simulated_and_diagnosed(
+        dir.path(),
+        "random.csv",
+        &["--physics", "micro-slip", "--motion", "random", "--effect", "channel_delay=2e-3"],
+    );
+    assert_eq!(effects_named(&json), ["channel_delay"], "{:#}", json["findings"]);
+    let friction = json["rejected"].as_array().unwrap().iter().find(|r| r["effect"] == "coulomb_friction");
+    assert!(
+        friction.is_some_and(|r| r["reason"].as_str().unwrap().contains("stands in for channel_delay")),
+        "{:#}",
+        json["rejected"]
+    );
+}

@@ -305,6 +305,15 @@ fn merge(
         rejected.retain(|r| r.effect != effect.effect);
     }
     untellable.extend(found.untellable);
+    // Named on the genetic form, made redundant on the form by what the search named there.
+    for (effect, reason) in found.displaced {
+        in_model.retain(|&e| e != effect);
+        untold.retain(|u| u.effect != effect);
+        if let Some(at) = findings.iter().position(|f| f.effect == effect) {
+            let finding = findings.remove(at);
+            rejected.push(Rejection { effect, reason, magnitude: finding.magnitude, evidence: finding.evidence });
+        }
+    }
     // Refused on both forms: both reasons, the genetic one's figures.
     for (effect, magnitude, evidence, reason) in found.refused {
         match rejected.iter_mut().find(|r| r.effect == effect) {
