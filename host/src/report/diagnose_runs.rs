@@ -107,8 +107,9 @@ impl RunsReport {
                 RateVerdict::Named { effect, magnitude, error, delta_bic, explained, slow_fast: [slow, fast] } => {
                     format!(
                         "{effect} named across {at}: {magnitude:.4e} ± {error:.1e} {unit} (ΔBIC {delta_bic:.0}, \
-                         explains {:.0} % of the rate-independent form's residual; the slower runs {slow:.4e}, the \
-                         faster {fast:.4e})",
+                         explains {:.0} % of the rate-independent form's residual; fitted on the slower runs alone \
+                         {slow:.4e} and on the faster alone {fast:.4e}, which agree: at one rate the form takes part \
+                         of the opening as its own, so these read low)",
                         100.0 * explained,
                         unit = effect.unit()
                     )
