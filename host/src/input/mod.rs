@@ -363,6 +363,9 @@ fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Re
     if rec.time.is_empty() {
         return Err(no_rows(table));
     }
+    if let Some(k) = rec.metadata.iter().position(|(key, value)| key == START_KEY && value == START_AT_REST) {
+        check_starts_unloaded(&rec.torque).map_err(|why| InputError::at_line(path, key_lines[k], why))?;
+    }
     // The columns grew by doubling: up to 1.7× the samples' room (16.8 M for 10 M samples).
     // Large blocks are remapped in place, so giving the rest back copies nothing.
     for column in [&mut rec.time, &mut rec.deflection, &mut rec.torque]
@@ -373,6 +376,30 @@ fn recording_from_table(table: &Table, ratio_override: Option<f64>) -> Result<Re
         column.shrink_to_fit();
     }
     Ok(rec)
+}
+
+/// The share of the torque's reach beyond which a first sample is loaded ([`check_starts_unloaded`]).
+const LOADED_START: f64 = 0.25;
+
+/// A recording that says `# start: rest` begins unloaded: its first torque is at most
+/// [`LOADED_START`] of the largest |torque| away from zero, or at most that share of the
+/// torque's range away from the range's middle (a sensor's offset on a small loop). Cut after it started and keeping the line, a
+/// recording that began at −18 N·m on a ±28 N·m loop had its zero and its start state read there
+/// ("θ0 read at rest"), and `predict` missed it by 4.5 N·m RMS.
+fn check_starts_unloaded(torque: &[f64]) -> Result<(), String> {
+    let first = torque[0];
+    let (lo, hi) = torque.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| (lo.min(t), hi.max(t)));
+    let peak = lo.abs().max(hi.abs());
+    let middle = (lo + hi) / 2.0;
+    if first.abs() > LOADED_START * peak && (first - middle).abs() > LOADED_START * (hi - lo) {
+        return Err(format!(
+            "`# {START_KEY}: {START_AT_REST}`, but the first sample carries {first:.4} N·m, {:.0} % of the recording's \
+             largest torque: was it cut after the motion began? Remove this line, and the start state is estimated \
+             from the motion",
+            100.0 * first.abs() / peak
+        ));
+    }
+    Ok(())
 }
 
 /// A table whose header no data row follows: every command would have nothing to work on
@@ -479,6 +506,17 @@ mod tests {
         let table = "branch,torque_nm,deflection_rad\n";
         let error = parse(Path::new("t.csv"), table.as_bytes(), None).unwrap_err().to_string();
         assert!(error.contains("t.csv:1: no data rows after the header"), "{error}");
+    }
+
+    /// A recording cut after it started, keeping `# start: rest`, is refused at that line; one
+    /// that starts unloaded (or at a sensor's offset on a small loop, or from rest onto a held
+    /// load) reads.
+    #[test]
+    fn a_recording_that_says_it_starts_at_rest_starts_unloaded() {
+        assert!(check_starts_unloaded(&[-18.0, -10.0, 0.0, 28.0, -28.0]).unwrap_err().contains("cut after"));
+        for torque in [[0.01, 10.0, -10.0, 0.0], [0.3, 0.5, 0.1, 0.3], [0.0, 9.0, 11.0, 10.0]] {
+            assert!(check_starts_unloaded(&torque).is_ok(), "{torque:?}");
+        }
     }
 
     #[test]
