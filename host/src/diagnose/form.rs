@@ -326,14 +326,14 @@ pub fn judge(
             _ => None,
         }
     };
-    let deflection_kept = deflection_effects_on_the_form(observed, final_fit, &columns, noise, weights, variance);
     let mut untold: Vec<Untold> = Vec::new();
     let kept: Vec<Effect> = final_fit
         .active
         .iter()
         .copied()
         .filter(|&effect| match columns.iter().find(|(e, _)| *e == effect) {
-            None => deflection_kept.contains(&effect),
+            // A deflection effect has no column; it is tested on the form where the form is named.
+            None => true,
             Some(_) => {
                 let passes = with(Some(effect)).is_some_and(|(_, without, _, _)| {
                     let drop = without - form_chi2;
@@ -414,6 +414,11 @@ pub fn judge(
         format!("the genetic model with {}", final_fit.active.iter().map(|e| e.name()).collect::<Vec<_>>().join(" + "))
     };
     if delta_bic > MIN_BIC_DROP && explained >= MIN_EXPLAINED && held_out_better {
+        // Formed here only: two fits of the form for each, which a form not named does not need.
+        let deflection_kept = deflection_effects_on_the_form(observed, final_fit, &columns, noise, weights, variance);
+        let moves_deflection = |e: &Effect| matches!(e, Effect::Backlash | Effect::KinematicError);
+        let kept: Vec<Effect> =
+            kept.into_iter().filter(|e| !moves_deflection(e) || deflection_kept.contains(e)).collect();
         let in_form: Vec<String> = kept
             .iter()
             .map(|e| e.name().to_string())
