@@ -332,16 +332,16 @@ impl DiagnoseReport {
         }
         let fm = &report.final_model;
         let effects = if fm.effects.is_empty() {
-            "no effects".to_string()
+            " alone".to_string()
         } else {
             let words = |e: &Effect| match report.undecided.iter().find(|u| u.effects[0] == *e) {
                 Some(u) => format!("{} (or {}: undecided)", u.effects[0], u.effects[1]),
                 None => e.name().to_owned(),
             };
-            fm.effects.iter().map(words).collect::<Vec<_>>().join(" + ")
+            format!(" + {}", fm.effects.iter().map(words).collect::<Vec<_>>().join(" + "))
         };
         let base = fm.form.map_or("baseline".to_string(), |form| format!("the {form} model"));
-        let _ = writeln!(s, "\nfinal model ({base} + {effects}): RSS {:.5} (N·m)², RMS {:.4} N·m", fm.rss, fm.rms);
+        let _ = writeln!(s, "\nfinal model ({base}{effects}): RSS {:.5} (N·m)², RMS {:.4} N·m", fm.rss, fm.rms);
         if let Some(h) = &report.held_out {
             let _ = writeln!(
                 s,
