@@ -42,6 +42,13 @@ impl Effect {
         matches!(self, Effect::ViscousDamping | Effect::CoulombFriction | Effect::ChannelDelay)
     }
 
+    /// Whether the effect moves the deflection the model runs on (backlash, the kinematic
+    /// error) rather than adding torque: it has no torque column, and the micro-slip form takes
+    /// it only through the deflection.
+    pub fn moves_deflection(self) -> bool {
+        matches!(self, Effect::Backlash | Effect::KinematicError)
+    }
+
     /// The effect whose torque has the same form to within the loop's change of stiffness:
     /// damping c·dθ/dt and a channel delay −τ·K·dθ/dt. One is named only when it explains the
     /// recording clearly better than the other ([`crate::diagnose`]'s rival check).

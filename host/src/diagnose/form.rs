@@ -226,8 +226,7 @@ fn deflection_effects_on_the_form(
     weights: &[f64],
     variance: f64,
 ) -> Vec<Effect> {
-    let moved: Vec<Effect> =
-        final_fit.active.iter().copied().filter(|e| matches!(e, Effect::Backlash | Effect::KinematicError)).collect();
+    let moved: Vec<Effect> = final_fit.active.iter().copied().filter(|e| e.moves_deflection()).collect();
     if moved.is_empty() {
         return moved;
     }
@@ -416,9 +415,8 @@ pub fn judge(
     if delta_bic > MIN_BIC_DROP && explained >= MIN_EXPLAINED && held_out_better {
         // Formed here only: two fits of the form for each, which a form not named does not need.
         let deflection_kept = deflection_effects_on_the_form(observed, final_fit, &columns, noise, weights, variance);
-        let moves_deflection = |e: &Effect| matches!(e, Effect::Backlash | Effect::KinematicError);
         let kept: Vec<Effect> =
-            kept.into_iter().filter(|e| !moves_deflection(e) || deflection_kept.contains(e)).collect();
+            kept.into_iter().filter(|e| !e.moves_deflection() || deflection_kept.contains(e)).collect();
         let in_form: Vec<String> = kept
             .iter()
             .map(|e| e.name().to_string())

@@ -242,7 +242,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             }
             // The final model is the form with its torque effects, where no deflection effect
             // (which the form cannot take) is in the model.
-            let deflection = in_model.iter().any(|e| matches!(e, Effect::Backlash | Effect::KinematicError));
+            let deflection = in_model.iter().any(|e| e.moves_deflection());
             let on_the_form = on_the_form.filter(|_| !deflection);
             let final_fit = fit_extended(observed, all, &weights, &in_model, &baseline)
                 .map_err(|source| refit_error(&in_model, source))?;
@@ -493,10 +493,7 @@ fn rate_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit, effect: E
         return None;
     };
     let sign = |i: usize| direction_sign(observed.data.direction[i]);
-    let delay_column = match effect {
-        Effect::ChannelDelay => torque_rate(observed, &Model::new(fit.params).ok()?, &fit.state)?,
-        _ => Vec::new(),
-    };
+    let delay_column = delay_rate(observed, fit, effect)?;
     // The effect's own column and the other rate effect's, per sample.
     let columns = |i: usize| -> Result<[f64; 2], model_core::Error> {
         Ok(match effect {
@@ -524,6 +521,16 @@ fn rate_check(observed: &Observed, weights: &[f64], fit: &ExtendedFit, effect: E
         ))
     } else {
         None
+    }
+}
+
+/// The model torque's time derivative along the recording ([`torque_rate`]), whose negative is a
+/// channel delay's column, when `effect` is the delay; empty for the other effects. `None` where
+/// the fit's model or the time is missing.
+fn delay_rate(observed: &Observed, fit: &ExtendedFit, effect: Effect) -> Option<Vec<f64>> {
+    match effect {
+        Effect::ChannelDelay => torque_rate(observed, &Model::new(fit.params).ok()?, &fit.state),
+        _ => Some(Vec::new()),
     }
 }
 
@@ -618,10 +625,7 @@ fn along_stiffness(
 ) -> Option<AlongStiffness> {
     let rate = observed.rate.as_ref()?;
     let sign = |i: usize| direction_sign(observed.data.direction[i]);
-    let delay_column = match effect {
-        Effect::ChannelDelay => torque_rate(observed, &Model::new(fit.params).ok()?, &fit.state)?,
-        _ => Vec::new(),
-    };
+    let delay_column = delay_rate(observed, fit, effect)?;
     let columns = |i: usize| -> Result<[f64; 2], model_core::Error> {
         Ok(match effect {
             Effect::ChannelDelay => [-delay_column[i], sign(i)],
