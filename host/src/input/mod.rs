@@ -513,6 +513,11 @@ mod tests {
     /// load) reads.
     #[test]
     fn a_recording_that_says_it_starts_at_rest_starts_unloaded() {
+        let cut = format!(
+            "# {RECORDING_MAGIC}\n# ratio: 50\n# start: rest\ntime_s,deflection_rad,torque_nm\n0,-1e-3,-18\n1,0,0\n2,1e-3,28\n"
+        );
+        let error = parse(Path::new("r.csv"), cut.as_bytes(), None).unwrap_err().to_string();
+        assert!(error.starts_with("r.csv:3:") && error.contains("cut after the motion began"), "{error}");
         assert!(check_starts_unloaded(&[-18.0, -10.0, 0.0, 28.0, -28.0]).unwrap_err().contains("cut after"));
         for torque in [[0.01, 10.0, -10.0, 0.0], [0.3, 0.5, 0.1, 0.3], [0.0, 9.0, 11.0, 10.0]] {
             assert!(check_starts_unloaded(&torque).is_ok(), "{torque:?}");
