@@ -203,6 +203,8 @@ struct Outcome {
     form: bool,
     /// The diagnosis named an asymmetric spring (no gear of the corpus has one).
     asymmetry: bool,
+    /// The diagnosis named kinks of the spring (every gear of the corpus has a smooth one).
+    kinks: bool,
     /// The diagnosis named loops that do not follow Masing's rule on a gear whose loops do (the
     /// micro-slip gears; the genetic gears, which run one loop under a sine).
     non_masing_on_masing: bool,
@@ -385,6 +387,7 @@ fn run(case: &Case) -> Outcome {
         println!("    passivity of {}: {:?}", case.name, outcome.passivity.as_ref().map(|p| &p.words));
     }
     let asymmetry = outcome.asymmetry.named().is_some();
+    let kinks = outcome.kinks.named().is_some();
     let with_memory = matches!(case.physics, Physics::Model | Physics::MicroSlip(_));
     let non_masing_on_masing = outcome.non_masing.named().is_some() && with_memory;
     let ratcheting_with_memory = outcome.ratcheting.named().is_some() && with_memory;
@@ -411,6 +414,7 @@ fn run(case: &Case) -> Outcome {
         other_physics,
         form: diagnosis.model_form.is_some(),
         asymmetry,
+        kinks,
         non_masing_on_masing,
         ratcheting_with_memory,
         passivity_right: flagged_active == active || ambiguous,
@@ -467,6 +471,10 @@ fn names_exactly_the_missing_physics_with_its_magnitude() {
         if o.asymmetry {
             wrong_physics += 1;
             println!("    an asymmetric spring named on {}, whose spring is symmetric", o.name);
+        }
+        if o.kinks {
+            wrong_physics += 1;
+            println!("    kinks of the spring named on {}, whose spring is smooth", o.name);
         }
         if o.non_masing_on_masing {
             wrong_physics += 1;

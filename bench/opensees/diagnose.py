@@ -20,8 +20,9 @@ Scored as the corpus scores its gears of other physics: right when exactly the t
 (or kept undecided between it and its rival, nothing else named); an effect named that is not
 there stands in for the material's shape: wrong physics; a rate effect named for its rival:
 wrong physics. A finding of form counts as wrong physics where the material cannot have it
-(asymmetry but on `asymmetric`; non_masing on `iwan`, `catalogue`, `asymmetric`, whose elements
-are elastic-perfectly-plastic, Masing's; ratcheting but on `bouc-wen`). A miss whose effect the
+(asymmetry but on `asymmetric`; stiffness_kinks but on `catalogue`, the only spring that steps
+away from zero; non_masing on `iwan`, `catalogue`, `asymmetric`, whose elements are
+elastic-perfectly-plastic, Masing's; ratcheting but on `bouc-wen`). A miss whose effect the
 report lists as one that cannot be told from this data (`not_revealable`) is counted apart: an
 honest "cannot tell", not a right answer. Prints a markdown table
 and the counts; writes the recordings and each diagnosis (JSON) to OUT_DIR.
@@ -55,6 +56,7 @@ RIVAL = {"viscous_damping": "channel_delay", "channel_delay": "viscous_damping"}
 # Findings of form each material may show.
 MAY_SHOW = {
     "asymmetry": {"asymmetric"},
+    "stiffness_kinks": {"catalogue"},
     "non_masing": {"steel02", "bouc-wen", "hysteretic"},
     "ratcheting": {"bouc-wen"},
 }

@@ -170,7 +170,9 @@ fn read(options: &InputOptions, path: &Path) -> Result<Dataset> {
 fn stage_pictures(outputs: &mut Outputs, outcome: &DiagnoseOutcome, dir: &Path) -> Result<()> {
     let residual_svg = residuals_svg(&outcome.observed, &outcome.before, &outcome.after)?;
     let mirrored = matches!(outcome.asymmetry, AsymmetryCheck::Yes(_));
-    let loop_svg = diagnosis_loop_svg(&outcome.observed, &outcome.diagnosis, mirrored)?;
+    let kinks: Vec<f64> =
+        outcome.kinks.named().map_or(Vec::new(), |k| k.kinks.iter().map(|kink| kink.at_rad).collect());
+    let loop_svg = diagnosis_loop_svg(&outcome.observed, &outcome.diagnosis, mirrored, &kinks)?;
     outputs.create_dir(dir)?;
     let [residuals, loops, masing, drift] = PICTURES.map(|name| dir.join(name));
     outputs.stage(&residuals, residual_svg.as_bytes())?;

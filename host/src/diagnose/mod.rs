@@ -17,6 +17,7 @@ pub mod asymmetry;
 pub mod effects;
 mod extended;
 pub mod form;
+pub mod kinks;
 mod locate;
 pub mod non_masing;
 mod observed;
@@ -200,6 +201,8 @@ pub struct DiagnoseOutcome {
     pub origin: Option<RunOrigin>,
     /// Whether the spring's two sides differ, about that zero.
     pub asymmetry: asymmetry::AsymmetryCheck,
+    /// Whether the spring's stiffness steps at some deflections.
+    pub kinks: kinks::KinksCheck,
     /// Whether the loops follow Masing's rule.
     pub non_masing: non_masing::NonMasingCheck,
     /// Whether loops run over and over drift.
@@ -317,7 +320,11 @@ pub fn diagnose_dataset(
         &diagnosis.final_fit.active,
         origin.map(|o| o.zero_se_rad.unwrap_or(0.0)),
     );
-    let non_masing = non_masing::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active, known_state_from);
+    // Side by side: the kinks' scan runs on one core (one run's normal equations).
+    let (kinks, non_masing) = rayon::join(
+        || kinks::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active),
+        || non_masing::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active, known_state_from),
+    );
     let ratcheting = match (&observed.time, &observed.noise) {
         // A torque that drifts with the temperature drifts at the turning points too: where the
         // recording warms and no thermal drift is in the model, the two cannot be told apart (a
@@ -346,6 +353,7 @@ pub fn diagnose_dataset(
         passivity,
         origin,
         asymmetry,
+        kinks,
         non_masing,
         ratcheting,
         known_state_from,

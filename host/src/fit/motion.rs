@@ -46,6 +46,9 @@ use model_core::{
 use rayon::prelude::*;
 use std::ops::Range;
 
+mod kinks;
+pub use kinks::{scan_kinks, Kink, KinkScan, KINK_PARAMETERS, MAX_KINKS, WIDE};
+
 /// The swarm runs the genetic kind on a subsample of at most this many samples of the motion.
 const SWARM_SAMPLES: usize = 4096;
 /// The searches that only set weights or pick r (the genetic kind's polish, the micro-slip
@@ -226,6 +229,7 @@ impl Iterator for RunSamples<'_> {
 
 /// A strided subsample of every run (turning points kept, stepped but not counted), each
 /// sample with its weight ([`Subsample::reweigh`]).
+#[derive(Clone)]
 struct Subsample {
     runs: Vec<Vec<Sample>>,
     /// Whether it holds every sample.
@@ -1057,18 +1061,7 @@ impl Columns<'_> {
 
     /// Solves `equations` with the coefficients `nonnegative` flags ≥ 0, the others free.
     fn solve_bounded(&self, equations: &Equations, nonnegative: &[bool]) -> Result<Solved, FitError> {
-        let Equations { gram, rhs, tt } = equations;
-        let tt = *tt;
-        let n = self.len();
-        let coef = nnls_normal(gram, rhs, nonnegative).ok_or(FitError::Degenerate)?;
-        if !coef.iter().all(|c| c.is_finite()) {
-            return Err(FitError::Degenerate);
-        }
-        // ‖Ac − y‖² = yᵀy − 2cᵀAᵀy + cᵀAᵀAc, which holds at a bound as well.
-        let quadratic: f64 = (0..n).map(|a| coef[a] * (0..n).map(|b| gram[a * n + b] * coef[b]).sum::<f64>()).sum();
-        let linear: f64 = coef.iter().zip(rhs).map(|(c, r)| c * r).sum();
-        let rss = (tt - 2.0 * linear + quadratic).max(0.0);
-        Ok(Solved { rss, coef })
+        equations.solve(nonnegative)
     }
 
     /// The spring of a solve's coefficients.
@@ -2214,17 +2207,7 @@ const EDGE_SEGMENT: f64 = 0.5;
 /// trial's equations are the fine ones mapped onto its knots, Mᵀ·G·M with M the trial's hats at
 /// the grid points: a solve of ≤ 47 unknowns, not a pass over the samples.
 fn placed_knots(motion: &Motion, sub: &Subsample, rule: SpringBasis) -> Result<SpringBasis, FitError> {
-    let [lo, hi] = rule.range();
-    let mut fine: Vec<f64> = rule.knots().to_vec();
-    for step in 1..=KNOT_GRID {
-        for extent in [lo, hi] {
-            if extent != 0.0 {
-                fine.push(extent * step as f64 / KNOT_GRID as f64);
-            }
-        }
-    }
-    fine.sort_by(f64::total_cmp);
-    fine.dedup();
+    let fine = fine_grid(&rule, KNOT_GRID);
     let fine_basis = rule.with_knots(fine.clone());
     let elements = Elements::slipping(motion)?;
     fn columns<'a>(spring: &'a SpringBasis, motion: &Motion, elements: &Elements) -> Columns<'a> {
@@ -2270,7 +2253,38 @@ fn placed_knots(motion: &Motion, sub: &Subsample, rule: SpringBasis) -> Result<S
     Ok(rule.with_knots(knots))
 }
 
+/// The knots of `rule` and the points of a grid of `steps` a side over its range, increasing.
+fn fine_grid(rule: &SpringBasis, steps: usize) -> Vec<f64> {
+    let mut fine: Vec<f64> = rule.knots().to_vec();
+    for step in 1..=steps {
+        for extent in rule.range() {
+            if extent != 0.0 {
+                fine.push(extent * step as f64 / steps as f64);
+            }
+        }
+    }
+    fine.sort_by(f64::total_cmp);
+    fine.dedup();
+    fine
+}
+
 impl Equations {
+    /// The least-squares coefficients, those `nonnegative` flags ≥ 0 and the others free, and
+    /// their weighted RSS.
+    fn solve(&self, nonnegative: &[bool]) -> Result<Solved, FitError> {
+        let Equations { gram, rhs, tt } = self;
+        let n = rhs.len();
+        let coef = nnls_normal(gram, rhs, nonnegative).ok_or(FitError::Degenerate)?;
+        if !coef.iter().all(|c| c.is_finite()) {
+            return Err(FitError::Degenerate);
+        }
+        // ‖Ac − y‖² = yᵀy − 2cᵀAᵀy + cᵀAᵀAc, which holds at a bound as well.
+        let quadratic: f64 = (0..n).map(|a| coef[a] * (0..n).map(|b| gram[a * n + b] * coef[b]).sum::<f64>()).sum();
+        let linear: f64 = coef.iter().zip(rhs).map(|(c, r)| c * r).sum();
+        let rss = (tt - 2.0 * linear + quadratic).max(0.0);
+        Ok(Solved { rss, coef })
+    }
+
     /// These equations on the columns `keep` (indices, increasing) alone.
     fn selected(&self, keep: &[usize]) -> Equations {
         let n = self.rhs.len();

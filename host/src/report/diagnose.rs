@@ -1,6 +1,7 @@
 //! What `diagnose` reports: the JSON document and the text for a person.
 use crate::diagnose::asymmetry::{Asymmetry, AsymmetryCheck, MIN_ASYMMETRY};
 use crate::diagnose::form::{ModelForm, Unexplained};
+use crate::diagnose::kinks::{KinksCheck, StiffnessKinks, MIN_STEP};
 use crate::diagnose::non_masing::{NonMasing, NonMasingCheck};
 use crate::diagnose::passivity::Passivity;
 use crate::diagnose::ratcheting::{Ratcheting, RatchetingCheck};
@@ -46,6 +47,9 @@ pub struct DiagnoseReport {
     pub unexplained: Option<Unexplained>,
     /// Whether the spring's two sides differ (a finding of form), or why it was not tested.
     pub asymmetry: AsymmetryCheck,
+    /// Whether the spring's stiffness steps at some deflections (a finding of form), or why it
+    /// was not tested.
+    pub stiffness_kinks: KinksCheck,
     /// Whether the small loops are what the large loop implies under Masing's rule (a finding of
     /// form), or why it was not tested.
     pub non_masing: NonMasingCheck,
@@ -100,6 +104,8 @@ pub struct Criteria {
     pub max_half_spread: f64,
     /// The smallest asymmetry named, (k₊ − k₋) over their mean.
     pub min_asymmetry: f64,
+    /// The smallest step of stiffness named, over the loop's secant stiffness.
+    pub min_kink_step: f64,
 }
 
 impl ModelSummary {
@@ -128,6 +134,7 @@ impl DiagnoseReport {
             passivity,
             origin,
             asymmetry,
+            kinks,
             non_masing,
             ratcheting,
             known_state_from: _,
@@ -156,6 +163,7 @@ impl DiagnoseReport {
             model_form: diagnosis.model_form.clone(),
             unexplained: diagnosis.unexplained.clone(),
             asymmetry: asymmetry.clone(),
+            stiffness_kinks: kinks.clone(),
             non_masing: non_masing.clone(),
             ratcheting: ratcheting.clone(),
             passivity: passivity.clone(),
@@ -172,6 +180,7 @@ impl DiagnoseReport {
                 min_half_z: MIN_HALF_Z,
                 max_half_spread: MAX_HALF_SPREAD,
                 min_asymmetry: MIN_ASYMMETRY,
+                min_kink_step: MIN_STEP,
             },
         }
     }
@@ -294,6 +303,17 @@ impl DiagnoseReport {
                 100.0 * a.explained
             );
         }
+        if let Some(k) = report.stiffness_kinks.named() {
+            let _ = writeln!(s, "\nthe spring's stiffness steps (stiffness_kinks, a finding of form)");
+            let _ = writeln!(s, "  {}", kinks_words(k));
+            let _ = writeln!(
+                s,
+                "  ΔBIC {:.0}, explains {:.0} % of the smooth spring's residual; the micro-slip kind of `fit` places a \
+                 pair of knots around each step, the other kinds' springs smear it over a segment",
+                k.delta_bic,
+                100.0 * k.explained
+            );
+        }
         if let Some(m) = report.non_masing.named() {
             let _ = writeln!(
                 s,
@@ -353,6 +373,10 @@ impl DiagnoseReport {
             AsymmetryCheck::Yes(a) => a.rejected.as_ref().map(|why| (a, why)),
             AsymmetryCheck::No { .. } => None,
         };
+        let kinks_rejected = match &report.stiffness_kinks {
+            KinksCheck::Yes(k) => k.rejected.as_ref().map(|why| (k, why)),
+            KinksCheck::No { .. } => None,
+        };
         let non_masing_rejected = match &report.non_masing {
             NonMasingCheck::Yes(m) => m.rejected.as_ref().map(|why| (m, why)),
             NonMasingCheck::No { .. } => None,
@@ -363,6 +387,7 @@ impl DiagnoseReport {
         };
         if !report.rejected.is_empty()
             || asymmetry_rejected.is_some()
+            || kinks_rejected.is_some()
             || non_masing_rejected.is_some()
             || ratcheting_rejected.is_some()
         {
@@ -372,6 +397,10 @@ impl DiagnoseReport {
             }
             if let Some((a, why)) = asymmetry_rejected {
                 let _ = writeln!(s, "  - asymmetry ({}): {why}", asymmetry_words(a));
+            }
+            if let Some((k, why)) = kinks_rejected {
+                let found = if k.kinks.is_empty() { String::new() } else { format!(" ({})", kinks_words(k)) };
+                let _ = writeln!(s, "  - stiffness_kinks{found}: {why}");
             }
             if let Some((m, why)) = non_masing_rejected {
                 let _ = writeln!(s, "  - non_masing ({}): {why}", non_masing_words(m));
@@ -384,6 +413,10 @@ impl DiagnoseReport {
             AsymmetryCheck::No { why } => Some(why),
             AsymmetryCheck::Yes(_) => None,
         };
+        let kinks_untested = match &report.stiffness_kinks {
+            KinksCheck::No { why } => Some(why),
+            KinksCheck::Yes(_) => None,
+        };
         let non_masing_untested = match &report.non_masing {
             NonMasingCheck::No { why } => Some(why),
             NonMasingCheck::Yes(_) => None,
@@ -394,12 +427,16 @@ impl DiagnoseReport {
         };
         if !report.not_revealable.is_empty()
             || asymmetry_untested.is_some()
+            || kinks_untested.is_some()
             || non_masing_untested.is_some()
             || ratcheting_untested.is_some()
         {
             let _ = writeln!(s, "\ncannot be told from this data");
             if let Some(why) = asymmetry_untested {
                 let _ = writeln!(s, "  - asymmetry: {why}");
+            }
+            if let Some(why) = kinks_untested {
+                let _ = writeln!(s, "  - stiffness_kinks: {why}");
             }
             if let Some(why) = non_masing_untested {
                 let _ = writeln!(s, "  - non_masing: {why}");
@@ -438,6 +475,31 @@ fn asymmetry_words(a: &Asymmetry) -> String {
         1e3 * a.extent_rad,
         100.0 * a.magnitude
     )
+}
+
+/// The spring's kinks, in words.
+fn kinks_words(k: &StiffnessKinks) -> String {
+    let mut kinks: Vec<_> = k.kinks.iter().zip(&k.torque_nm).enumerate().collect();
+    kinks.sort_by(|(_, (a, _)), (_, (b, _))| a.at_rad.total_cmp(&b.at_rad));
+    let each: Vec<String> = kinks
+        .iter()
+        .map(|(j, (kink, torque))| {
+            let parts = k
+                .halves
+                .as_ref()
+                .map_or(String::new(), |[p, q]| format!("; each part alone {:+.0}, {:+.0}", p[*j], q[*j]));
+            format!(
+                "at {:+.3} mrad ({torque:+.2} N·m) by {:+.0} N·m/rad outwards ({:+.0} % of the loop's secant; the \
+                 spring's share {:.0} → {:.0}{parts})",
+                1e3 * kink.at_rad,
+                kink.step_nm_per_rad(),
+                100.0 * kink.step_nm_per_rad() / k.secant_nm_per_rad,
+                kink.inner_nm_per_rad,
+                kink.outer_nm_per_rad,
+            )
+        })
+        .collect();
+    format!("{} step{}: {}", each.len(), if each.len() == 1 { "" } else { "s" }, each.join("; "))
 }
 
 /// The loops against Masing's rule, in words.

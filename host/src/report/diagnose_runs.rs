@@ -1,6 +1,7 @@
 //! The report of several runs diagnosed together: each run's report, one line each in the text,
 //! and what the runs show together.
 use super::diagnose::DiagnoseReport;
+use crate::diagnose::kinks::KinksCheck;
 use crate::diagnose::non_masing::NonMasingCheck;
 use crate::diagnose::rates_across::RateVerdict;
 use crate::diagnose::runs::{Across, RunVerdict};
@@ -75,6 +76,25 @@ impl RunsReport {
             );
         }
         let _ = writeln!(s, "  - asymmetry: {}", across.asymmetry.words);
+        let tested = self.runs.iter().filter(|run| matches!(run.stiffness_kinks, KinksCheck::Yes(_))).count();
+        let kinked: Vec<String> = self
+            .runs
+            .iter()
+            .enumerate()
+            .filter_map(|(k, run)| {
+                let found = run.stiffness_kinks.named()?;
+                let mut at: Vec<f64> = found.kinks.iter().map(|kink| kink.at_rad).collect();
+                at.sort_by(f64::total_cmp);
+                let at: Vec<String> = at.iter().map(|x| format!("{:+.3}", 1e3 * x)).collect();
+                Some(format!("run {}: {} mrad", k + 1, at.join(", ")))
+            })
+            .collect();
+        let kinks = match (kinked.is_empty(), tested) {
+            (_, 0) => "not tested on any run (see each run's report)".to_string(),
+            (true, _) => format!("named in none of the {tested} runs tested"),
+            (false, _) => format!("named in {} of the {tested} runs tested ({})", kinked.len(), kinked.join("; ")),
+        };
+        let _ = writeln!(s, "  - stiffness_kinks: {kinks}");
         let masing = match &across.non_masing {
             NonMasingCheck::No { why } => format!("not tested: {why}"),
             NonMasingCheck::Yes(found) => {

@@ -263,7 +263,12 @@ fn draw_residuals(observed: &Observed, before: &[f64], after: &[f64], svg: &mut 
 /// The loop with the baseline model's and the final model's torque at every sample.
 /// With `mirrored`, the measured samples point-mirrored, (−θ, −T), are drawn beside them: a spring
 /// whose two sides differ shows as a mirror that leaves the loop.
-pub fn diagnosis_loop_svg(observed: &Observed, diagnosis: &Diagnosis, mirrored: bool) -> Result<String, PlotError> {
+pub fn diagnosis_loop_svg(
+    observed: &Observed,
+    diagnosis: &Diagnosis,
+    mirrored: bool,
+    kinks: &[f64],
+) -> Result<String, PlotError> {
     const PICTURE: &str = "diagnosis loop picture";
     let d = &observed.data;
     let stride = d.theta.len().div_ceil(MAX_POINTS).max(1);
@@ -275,7 +280,10 @@ pub fn diagnosis_loop_svg(observed: &Observed, diagnosis: &Diagnosis, mirrored: 
     };
     let (baseline, final_model) = (predicted(&diagnosis.baseline)?, predicted(&diagnosis.final_fit)?);
     let mut svg = String::new();
-    drawn(PICTURE, draw_diagnosis_loop(observed, diagnosis, &shown, [baseline, final_model], mirrored, &mut svg))?;
+    drawn(
+        PICTURE,
+        draw_diagnosis_loop(observed, diagnosis, &shown, [baseline, final_model], mirrored, kinks, &mut svg),
+    )?;
     Ok(svg)
 }
 
@@ -285,6 +293,7 @@ fn draw_diagnosis_loop(
     all: &[usize],
     [baseline, final_model]: [Vec<f64>; 2],
     mirrored: bool,
+    kinks: &[f64],
     svg: &mut String,
 ) -> DrawResult {
     let d = &observed.data;
@@ -346,6 +355,15 @@ fn draw_diagnosis_loop(
         )?
         .label("with the effects found")
         .legend(move |(x, y)| Circle::new((x + 10, y), 3, blue.filled()));
+    if !kinks.is_empty() {
+        let red = RGBColor(200, 30, 30);
+        chart
+            .draw_series(
+                kinks.iter().map(|&x| PathElement::new(vec![(x * MRAD, y_lo), (x * MRAD, y_hi)], red.stroke_width(1))),
+            )?
+            .label("where the spring's stiffness steps (stiffness_kinks)")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], red.stroke_width(2)));
+    }
     draw_legend(&mut chart)?;
     root.present()?;
     Ok(())
