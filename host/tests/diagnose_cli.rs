@@ -686,6 +686,52 @@ fn a_catalogue_springs_kinks_are_named_where_they_are_and_a_smooth_springs_are_n
     }
 }
 
+/// The simulator's catalogue gear with its + side 0.8× as stiff: the kinks lie at the same
+/// torques, so at other deflections on each side (− side: −0.500 and −0.962 mrad; + side:
+/// +0.625 mrad, and +1.202 beyond the motion). Each kink named is one of them, with its step
+/// (− side: K2 − K1 = 12000, K3 − K2 = 10000 N·m/rad) within 25 %, and the − side's two are
+/// found. The best step by its fit, at +0.64 mrad, fits better sharp than spread by under 10:
+/// the scan used to stop there and name none; it goes on to the next best.
+#[test]
+fn an_asymmetric_catalogue_springs_kinks_are_found_where_each_side_has_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let params = dir.path().join("catalogue.json");
+    std::fs::write(&params, r#"{"positive_scale": 0.8}"#).unwrap();
+    let args = [
+        "--physics",
+        "catalogue",
+        "--physics-params",
+        params.to_str().unwrap(),
+        "--frequency",
+        "0.2,0.6",
+        "--cycles",
+        "3",
+        "--input-bits",
+        "20",
+        "--output-bits",
+        "20",
+        "--seed",
+        "4",
+    ];
+    let json = simulated_and_diagnosed(dir.path(), "catalogue.csv", &args);
+    let check = &json["stiffness_kinks"];
+    assert!(check["rejected"].is_null(), "{check:#}");
+    let truth = [(-0.962e-3, 10000.0), (-0.500e-3, 12000.0), (0.625e-3, 0.8 * 12000.0)];
+    let mut found = Vec::new();
+    for kink in check["kinks"].as_array().unwrap() {
+        let at = kink["at_rad"].as_f64().unwrap();
+        let step = kink["outer_nm_per_rad"].as_f64().unwrap() - kink["inner_nm_per_rad"].as_f64().unwrap();
+        let Some(&(_, truth_step)) = truth.iter().find(|(x, _)| (at - x).abs() <= 0.04e-3) else {
+            panic!("a kink named at {at} rad, where the spring has none: {check:#}");
+        };
+        assert!((step - truth_step).abs() <= 0.25 * truth_step, "step {step} at {at} against {truth_step}");
+        found.push(at);
+    }
+    for side in [-0.962e-3, -0.500e-3] {
+        assert!(found.iter().any(|at| (at - side).abs() <= 0.04e-3), "no kink at {side}: {check:#}");
+    }
+}
+
 /// Curvature is not a kink. The simulator's micro-slip gear, whose cubic spring stiffens from
 /// 9000 to 60000 N·m/rad at 1.24 mrad, swept to ±1.5 mrad: a step there drops the criterion by
 /// 180 beside the knot rule's spring, but a change spread over four times the stretch fits as

@@ -7,10 +7,11 @@
 //! the rule's, whose stiffness may differ by anything. The pairs are tried at every point of a
 //! grid of [`KINK_GRID`] steps a side, as [`placed_knots`] places knots (one pass over a
 //! subsample for the normal equations on the grid's knots, each trial mapped onto its own
-//! knots), and the best is added while it drops the information criterion and is a kink, not
-//! something else a pair can take up:
+//! knots), and the best that drops the information criterion and is a kink is added (the best
+//! few by their fit are tried in turn), not something else a pair can take up:
 //! - **not a gradual change:** it fits better than the best pair [`WIDE`] times as far apart
-//!   (the curvature of a stiffening spring that the rule's segments miss fits as well spread);
+//!   around it (the curvature of a stiffening spring that the rule's segments miss fits as well
+//!   spread);
 //! - **the same on both branches:** a step of its own on the rising branch alone does not fit
 //!   better. A spring's step is at one deflection on every branch; a misfit of the hysteresis,
 //!   or the deflection error of coarse encoders, is not (the slip elements' stiffness changes at
@@ -24,12 +25,15 @@ const KINK_GRID: usize = 32;
 const KINK_SAMPLES: usize = 1 << 13;
 /// The most kinks searched for: two a side, the catalogue's three segments.
 pub const MAX_KINKS: usize = 4;
+/// Candidates tried a round, best first, for one that is a kink.
+const TRIED_PER_ROUND: usize = 8;
 /// What a kink costs the information criterion: the stiffness at its two knots, and where it is.
 pub const KINK_PARAMETERS: usize = 3;
 /// A kink's knots against a gradual change's, how many times as far apart: the step must fit
-/// better sharp than spread over four times the stretch (on the OpenSees catalogue gear by
-/// 58–141 times the residual's variance; on the simulator's micro-slip gear, whose cubic spring
-/// stiffens from 9000 to 60000 N·m/rad at 1.24 mrad, steps there fit worse sharp by 15–24).
+/// better sharp than spread over four times the stretch around it (the OpenSees catalogue
+/// gear's kinks by 21–141 times the residual's variance; on the simulator's micro-slip gear,
+/// whose cubic spring stiffens from 9000 to 60000 N·m/rad at 1.24 mrad, a step there fits worse
+/// sharp by 15).
 pub const WIDE: f64 = 4.0;
 
 /// A step of the spring's stiffness between two knots close together.
@@ -45,8 +49,8 @@ pub struct Kink {
     pub outer_nm_per_rad: f64,
     /// The drop of the information criterion when it was added to the kinks before it.
     pub delta_bic: f64,
-    /// How much better it fits than the best pair [`WIDE`] times as far apart, added in its
-    /// place: the drop of χ² in units of the residual's variance, at the same count of
+    /// How much better it fits than the best pair [`WIDE`] times as far apart around it, added
+    /// in its place: the drop of χ² in units of the residual's variance, at the same count of
     /// parameters. A kink fits better than a gradual change; curvature, or a misfit of the slip
     /// elements that a change of stiffness can take up, fits as well or better gradually. `None`
     /// where no such pair fits beside it.
@@ -224,53 +228,63 @@ pub fn scan_kinks(
     let mut kinks: Vec<Kink> = Vec::new();
     let mut refused = None;
     while kinks.len() < MAX_KINKS {
-        let mut best: Option<(f64, [f64; 2], Vec<f64>, Solved)> = None;
-        let mut best_wide = f64::INFINITY;
         let free = |p: &&[f64; 2]| !kinks.iter().any(|k| overlaps(&k.knots_rad, p));
-        for (wide, pair) in
-            pairs.iter().filter(free).map(|p| (false, p)).chain(wide_pairs.iter().filter(free).map(|p| (true, p)))
-        {
+        let trial_of = |pair: &[f64; 2]| -> Option<(Vec<f64>, Solved)> {
             let mut trial = current.clone();
             trial.extend_from_slice(pair);
             trial.sort_by(f64::total_cmp);
             trial.dedup();
-            let Ok(solved) = solve(&trial) else { continue };
-            if wide {
-                best_wide = best_wide.min(solved.rss);
-                continue;
-            }
-            let step = stiffness_at(&trial, &solved, pair[1]) - stiffness_at(&trial, &solved, pair[0]);
-            if !(step.abs() >= min_step) {
-                continue;
-            }
-            if best.as_ref().is_none_or(|(b, ..)| solved.rss < *b) {
-                best = Some((solved.rss, *pair, trial, solved));
-            }
-        }
-        let Some((trial_rss, pair, trial, solved)) = best else { break };
-        let parameters = trial.len() + elements.columns() + extra.len();
-        let delta_bic = (rss - trial_rss) / variance(trial_rss, parameters) - KINK_PARAMETERS as f64 * n.ln();
-        let at = 0.5 * (pair[0] + pair[1]);
-        // None where no pair that far apart fits beside it (a short side) or the split fit fails:
-        // then it cannot be told from a gradual change, or its branches compared.
-        let sharpness = best_wide.is_finite().then(|| (best_wide - trial_rss) / variance(trial_rss, parameters));
-        let branches = branches_differ(&trial, at, parameters).ok();
-        let kink = Kink {
-            at_rad: at,
-            knots_rad: pair,
-            inner_nm_per_rad: stiffness_at(&trial, &solved, pair[0]),
-            outer_nm_per_rad: stiffness_at(&trial, &solved, pair[1]),
-            delta_bic,
-            sharpness,
-            branches,
+            solve(&trial).ok().map(|solved| (trial, solved))
         };
-        let sharp = sharpness.is_some_and(|s| s > min_bic_drop);
-        let alike = branches.is_some_and(|b| b <= min_bic_drop);
-        if !(delta_bic > min_bic_drop && sharp && alike) {
-            refused = Some(kink);
-            break;
+        let wide: Vec<([f64; 2], f64)> =
+            wide_pairs.iter().filter(free).filter_map(|p| trial_of(p).map(|(_, solved)| (*p, solved.rss))).collect();
+        let mut candidates: Vec<([f64; 2], Vec<f64>, Solved)> = pairs
+            .iter()
+            .filter(free)
+            .filter_map(|p| trial_of(p).map(|(trial, solved)| (*p, trial, solved)))
+            .filter(|(p, trial, solved)| {
+                (stiffness_at(trial, solved, p[1]) - stiffness_at(trial, solved, p[0])).abs() >= min_step
+            })
+            .collect();
+        candidates.sort_by(|a, b| a.2.rss.total_cmp(&b.2.rss));
+        // The best candidates in turn, until one is a kink or they no longer drop the criterion:
+        // the best by RSS may be a gradual change or a misfit, and a kink elsewhere still be found.
+        let mut added = None;
+        for (pair, trial, solved) in candidates.into_iter().take(TRIED_PER_ROUND) {
+            let parameters = trial.len() + elements.columns() + extra.len();
+            let trial_rss = solved.rss;
+            let delta_bic = (rss - trial_rss) / variance(trial_rss, parameters) - KINK_PARAMETERS as f64 * n.ln();
+            let at = 0.5 * (pair[0] + pair[1]);
+            // Against the same change spread over the wide pairs around it; None where no wide
+            // pair fits there (a short side): then it cannot be told from a gradual change.
+            let spread =
+                wide.iter().filter(|(w, _)| overlaps(w, &pair)).map(|(_, rss)| *rss).fold(f64::INFINITY, f64::min);
+            let sharpness = spread.is_finite().then(|| (spread - trial_rss) / variance(trial_rss, parameters));
+            let branches = branches_differ(&trial, at, parameters).ok();
+            let kink = Kink {
+                at_rad: at,
+                knots_rad: pair,
+                inner_nm_per_rad: stiffness_at(&trial, &solved, pair[0]),
+                outer_nm_per_rad: stiffness_at(&trial, &solved, pair[1]),
+                delta_bic,
+                sharpness,
+                branches,
+            };
+            if !(delta_bic > min_bic_drop) {
+                refused = refused.or(Some(kink));
+                break;
+            }
+            let sharp = sharpness.is_some_and(|s| s > min_bic_drop);
+            let alike = branches.is_some_and(|b| b <= min_bic_drop);
+            if sharp && alike {
+                added = Some((kink, trial, trial_rss));
+                break;
+            }
+            refused = refused.or(Some(kink));
         }
+        let Some((kink, trial, trial_rss)) = added else { break };
         kinks.push(kink);
+        refused = None;
         current = trial;
         rss = trial_rss;
     }
