@@ -2,25 +2,25 @@
 //! as a catalogue's three-segment curve does at T1 and T2, where a smooth curve would not.
 //!
 //! The micro-slip form, with the accepted torque effects beside it (and a torque offset where
-//! none was accepted), is scanned for pairs of knots close together that its knot rule's spring
-//! lacks ([`scan_kinks`]): a kink is a step of stiffness at one deflection on every branch alike.
-//! Curvature is not a kink: the rule's spring is piecewise linear in stiffness on knots at least
-//! 20σθ apart, so a pair gains little on a smooth curve, and what it gains a pair spread wider
-//! gains as well; a kink must fit better sharp than spread over [`WIDE`] times the stretch, by
-//! more than [`MIN_BIC_DROP`] times the residual's variance. The kinks are then named on the tests
-//! an effect must pass: each dropped the information criterion by more than [`MIN_BIC_DROP`]
-//! when added, and steps by at least [`MIN_STEP`] of the loop's secant stiffness; together they
-//! explain at least [`MIN_EXPLAINED`] of the rule's weighted residual; the form with them leaves
-//! at most [`STRUCTURE_FACTOR`] times the noise (a wrong hysteresis form leaves structure that a
-//! step may stand in for); and the two independent parts of the recording, each fitted alone,
-//! show every step with the same sign and magnitudes within [`MAX_HALF_SPREAD`] of their mean.
+//! none was accepted), is scanned for steps of stiffness beside its knot rule's spring
+//! ([`scan_kinks`]): a kink is a step at one deflection, on every branch alike. A step is named
+//! when it is a kink, not curvature (it fits better sharp than spread over [`WIDE`] times the
+//! scan's resolution), not a misfit of the hysteresis (the same on both branches), not a wiggle
+//! (the spring's stiffness across it changes the way it steps), and passes the tests an effect
+//! must pass: it dropped the information criterion by more than [`MIN_BIC_DROP`] when added and
+//! steps by at least [`MIN_STEP`] of the loop's secant stiffness; together the kinks explain at
+//! least [`MIN_EXPLAINED`] of the rule's weighted residual; the form with them leaves at most
+//! [`STRUCTURE_FACTOR`] times the noise (a wrong hysteresis form leaves structure that a step may
+//! stand in for); and the two independent parts of the recording, each fitted alone, show every
+//! step with the same sign and magnitudes within [`MAX_HALF_SPREAD`] of their mean.
 //!
-//! Where: the middle of the pair, x = θ − θ0 (from the zero read at rest, or the encoders' own
-//! where there is none: a kink's place moves with the zero, its test does not), and the mean
-//! measured torque between its knots. Its magnitude is the step of stiffness outwards, which is
-//! identified; the stiffness on each side is the spring's share of the loop's, which is not
-//! (slip elements wider than the motion stand in for a spring), so it is reported beside it.
-use super::effects::Effect;
+//! Where: x = θ − θ0 (from the zero read at rest, or the encoders' own where there is none: a
+//! kink's place moves with the zero, its test does not), to the scan's resolution, and the mean
+//! measured torque there. Its magnitude is the step of stiffness outwards, which is identified;
+//! the stiffness on each side is the spring's share of the loop's, which is not (slip elements
+//! wider than the motion stand in for a spring), so it is reported beside it in the JSON only.
+use super::effects::{backlash, Effect};
+use super::extended::{kinematic_at, ExtendedFit};
 use super::form::{torque_column, STRUCTURE_FACTOR};
 use super::observed::Observed;
 use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED};
@@ -37,11 +37,13 @@ pub const MIN_STEP: f64 = 0.1;
 pub struct StiffnessKinks {
     /// The kinks found, in the order the scan added them.
     pub kinks: Vec<Kink>,
-    /// The mean measured torque between each kink's knots, N·m.
+    /// The mean measured torque within half the scan's resolution of each kink, N·m.
     pub torque_nm: Vec<f64>,
     /// The loop's secant stiffness, the torque's range over the deflection's, N·m/rad: what the
     /// steps are measured against.
     pub secant_nm_per_rad: f64,
+    /// How finely the kinks are placed: the scan's grid step, or 10σθ where wider, rad.
+    pub resolution_rad: f64,
     /// The best further kink the criterion refused.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub refused: Option<Kink>,
@@ -80,15 +82,27 @@ impl KinksCheck {
     }
 }
 
-/// Tests the spring of `observed` for kinks, the accepted effects `active` beside the form, with
-/// the search's `weights` (1/σ² of each sample's noise).
-pub fn check(observed: &Observed, weights: &[f64], active: &[Effect]) -> KinksCheck {
+/// Tests the spring of `observed` for kinks, the final model's accepted effects beside the form,
+/// with the search's `weights` (1/σ² of each sample's noise).
+pub fn check(observed: &Observed, weights: &[f64], final_fit: &ExtendedFit) -> KinksCheck {
+    let active = &final_fit.active;
     let untested = |why: String| KinksCheck::No { why };
     let Some(noise) = observed.noise else {
         return untested("the data give no noise estimate to judge it by".to_string());
     };
     let data = &observed.data;
-    let (lo, hi) = data.theta.iter().fold((0.0f64, 0.0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+    // The deflection as the final model sees it, moved by the deflection effects it accepted: a
+    // backlash's dead band is a step of stiffness at ±w/2, which the backlash already names
+    // (`simulate --effect backlash=0.0003` on the micro-slip gear: steps at ±0.155 mrad beside a
+    // backlash of 0.307 mrad).
+    let moved: Option<Vec<f64>> = active.iter().any(|e| e.moves_deflection()).then(|| {
+        let state = &final_fit.state;
+        (0..data.theta.len())
+            .map(|i| backlash(data.theta[i] + kinematic_at(state, observed, i), state.backlash))
+            .collect()
+    });
+    let theta: &[f64] = moved.as_deref().unwrap_or(&data.theta);
+    let (lo, hi) = theta.iter().fold((0.0f64, 0.0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
     // A kink needs a stretch of stiffness on each of its sides, as the knot rule asks of a segment.
     let needed = 2.0 * crate::fit::spring::KNOT_SPACING_IN_NOISE * noise.deflection_rad;
     if !((-lo).max(hi) > needed) {
@@ -112,9 +126,9 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect]) -> KinksCh
     let columns: Vec<Vec<f64>> = active.iter().filter_map(|&effect| torque_column(observed, effect)).collect();
     let extra: Vec<&[f64]> = columns.iter().map(Vec::as_slice).collect();
     let scan = match scan_kinks(
-        &data.theta,
+        theta,
         &data.torque,
-        &reversals(&data.theta),
+        &reversals(theta),
         noise,
         weights,
         &extra,
@@ -131,12 +145,13 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect]) -> KinksCh
     let variance = kinked / (n - scan.parameters[1] as f64).max(1.0);
     let delta_bic = (rule - kinked) / variance - (KINK_PARAMETERS * scan.kinks.len()) as f64 * n.ln();
     let explained = if rule > 0.0 { (rule - kinked) / rule } else { 0.0 };
-    // A part that does not run through a kink has no samples at one of its knots: its step
-    // there is the solve's bound, not a measurement (a one-cycle run's parts are its legs).
+    // A part that does not run through a kink, a resolution either side, does not measure its
+    // step (a one-cycle run's parts are its legs).
+    let reach = scan.resolution_rad;
     let runs_through = |part: &Vec<usize>, kink: &Kink| {
-        let [inner, outer] = kink.knots_rad;
-        let along = |i: &usize| data.theta[*i] * outer.signum();
-        part.iter().any(|i| along(i) > outer.abs()) && part.iter().any(|i| along(i) < inner.abs())
+        let along = |i: &usize| theta[*i] * kink.at_rad.signum();
+        part.iter().any(|i| along(i) > kink.at_rad.abs() + reach)
+            && part.iter().any(|i| along(i) < kink.at_rad.abs() - reach)
     };
     let not_run_through = scan.kinks.iter().find(|kink| !observed.parts.iter().all(|part| runs_through(part, kink)));
     let halves = <[Option<Vec<f64>>; 2]>::try_from(scan.parts.clone())
@@ -154,12 +169,14 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect]) -> KinksCh
                 );
                 match (best.sharpness, best.branches) {
                     (None, _) => format!(
-                        "{step}, but no stretch {WIDE} times as wide fits beside it, so it cannot be told from a \
-                         gradual change of stiffness"
+                        "{step}, but the same change spread over {WIDE} times the scan's resolution ({:.3} mrad) does \
+                         not fit inside the range, so it cannot be told from a gradual change of stiffness",
+                        1e3 * WIDE * scan.resolution_rad
                     ),
                     (Some(sharpness), _) if sharpness <= MIN_BIC_DROP => format!(
-                        "{step} but fits no better sharp than spread over {WIDE} times the stretch (by \
-                         {sharpness:.1}, not more than {MIN_BIC_DROP}): a gradual change of stiffness, not a kink"
+                        "{step} but fits no better sharp than spread over {:.3} mrad (by {sharpness:.1}, not more than \
+                         {MIN_BIC_DROP}): it cannot be told from a gradual change of stiffness",
+                        1e3 * WIDE * scan.resolution_rad
                     ),
                     (Some(_), None) => format!("{step}, but its two branches cannot be fitted apart to compare"),
                     (Some(_), Some(branches)) => format!(
@@ -220,12 +237,10 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect]) -> KinksCh
         .kinks
         .iter()
         .map(|kink| {
-            let [a, b] = kink.knots_rad;
-            let (sum, count) = data
-                .theta
+            let (sum, count) = theta
                 .iter()
                 .zip(&data.torque)
-                .filter(|(&x, _)| x >= a.min(b) && x <= a.max(b))
+                .filter(|(&x, _)| (x - kink.at_rad).abs() <= 0.5 * reach)
                 .fold((0.0, 0usize), |(sum, count), (_, &t)| (sum + t, count + 1));
             sum / count.max(1) as f64
         })
@@ -234,6 +249,7 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect]) -> KinksCh
         kinks: scan.kinks,
         torque_nm,
         secant_nm_per_rad: secant,
+        resolution_rad: scan.resolution_rad,
         refused: scan.refused,
         samples: scan.samples,
         delta_bic,

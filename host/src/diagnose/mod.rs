@@ -322,7 +322,7 @@ pub fn diagnose_dataset(
     );
     // Side by side: the kinks' scan runs on one core (one run's normal equations).
     let (kinks, non_masing) = rayon::join(
-        || kinks::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active),
+        || kinks::check(&observed, &diagnosis.weights, &diagnosis.final_fit),
         || non_masing::check(&observed, &diagnosis.weights, &diagnosis.final_fit.active, known_state_from),
     );
     let ratcheting = match (&observed.time, &observed.noise) {

@@ -162,6 +162,15 @@ pub fn check(
     }
     let drift = both.slope();
     let variance = both.variance();
+    // The same residual at every turning point (a torque clipped at its tips reads one value
+    // there) leaves no scatter to judge a drift by, and the criterion would be 0/0.
+    if !(variance > 0.0 && both.xx > 0.0 && (drift * both.xy / variance).is_finite()) {
+        return RatchetingCheck::No {
+            why: "the final model's residual is the same at every turning point (a torque clipped or held at the \
+                  tips?): no scatter to judge a drift by"
+                .to_string(),
+        };
+    }
     let drift_se = (variance / both.xx).sqrt();
     let drop = drift * both.xy;
     let delta_bic = drop / variance - (both.points as f64).ln();

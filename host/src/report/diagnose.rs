@@ -309,7 +309,8 @@ impl DiagnoseReport {
             let _ = writeln!(
                 s,
                 "  ΔBIC {:.0}, explains {:.0} % of the smooth spring's residual; the micro-slip kind of `fit` places a \
-                 pair of knots around each step, the other kinds' springs smear it over a segment",
+                 pair of knots around each step, the other kinds' springs smear it over a segment (the stiffness each \
+                 side is not told apart from the slip elements': `--json` gives the spring's share)",
                 k.delta_bic,
                 100.0 * k.explained
             );
@@ -489,17 +490,21 @@ fn kinks_words(k: &StiffnessKinks) -> String {
                 .as_ref()
                 .map_or(String::new(), |[p, q]| format!("; each part alone {:+.0}, {:+.0}", p[*j], q[*j]));
             format!(
-                "at {:+.3} mrad ({torque:+.2} N·m) by {:+.0} N·m/rad outwards ({:+.0} % of the loop's secant; the \
-                 spring's share {:.0} → {:.0}{parts})",
+                "at {:+.3} mrad ({torque:+.2} N·m measured there) by {:+.0} N·m/rad outwards ({:+.0} % of the \
+                 loop's secant{parts})",
                 1e3 * kink.at_rad,
                 kink.step_nm_per_rad(),
                 100.0 * kink.step_nm_per_rad() / k.secant_nm_per_rad,
-                kink.inner_nm_per_rad,
-                kink.outer_nm_per_rad,
             )
         })
         .collect();
-    format!("{} step{}: {}", each.len(), if each.len() == 1 { "" } else { "s" }, each.join("; "))
+    format!(
+        "{} step{} of the spring's stiffness, placed to ±{:.3} mrad: {}",
+        each.len(),
+        if each.len() == 1 { "" } else { "s" },
+        1e3 * k.resolution_rad,
+        each.join("; ")
+    )
 }
 
 /// The loops against Masing's rule, in words.

@@ -83,10 +83,13 @@ impl RunsReport {
             .enumerate()
             .filter_map(|(k, run)| {
                 let found = run.stiffness_kinks.named()?;
-                let mut at: Vec<f64> = found.kinks.iter().map(|kink| kink.at_rad).collect();
-                at.sort_by(f64::total_cmp);
-                let at: Vec<String> = at.iter().map(|x| format!("{:+.3}", 1e3 * x)).collect();
-                Some(format!("run {}: {} mrad", k + 1, at.join(", ")))
+                let mut kinks: Vec<_> = found.kinks.iter().collect();
+                kinks.sort_by(|a, b| a.at_rad.total_cmp(&b.at_rad));
+                let each: Vec<String> = kinks
+                    .iter()
+                    .map(|kink| format!("{:+.3} mrad by {:+.0}", 1e3 * kink.at_rad, kink.step_nm_per_rad()))
+                    .collect();
+                Some(format!("run {}: {} N·m/rad", k + 1, each.join(", ")))
             })
             .collect();
         let kinks = match (kinked.is_empty(), tested) {

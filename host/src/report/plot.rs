@@ -312,7 +312,7 @@ fn draw_diagnosis_loop(
     let (y_lo, y_hi) = range(measured.iter().flat_map(|&t| [t, sign * t]));
     let effects: Vec<&str> = diagnosis.final_fit.active.iter().map(|e| e.name()).collect();
     let title = if effects.is_empty() {
-        "loop, mean stiffness removed: no missing physics found".to_string()
+        "loop, mean stiffness removed: the baseline, no torque effect named".to_string()
     } else {
         format!("loop, mean stiffness removed: baseline vs with {}", effects.join(" + "))
     };

@@ -3,15 +3,18 @@
 //!
 //! The rule's spring is continuous and piecewise linear in stiffness, its knots at least 20σθ
 //! apart (`fit::spring`): a step (a catalogue gear's kink at T1 and T2) is smeared over a
-//! segment. A kink is a pair of knots 10σθ apart (or one grid step, whichever is wider) added to
-//! the rule's, whose stiffness may differ by anything. The pairs are tried at every point of a
-//! grid of [`KINK_GRID`] steps a side, as [`placed_knots`] places knots (one pass over a
-//! subsample for the normal equations on the grid's knots, each trial mapped onto its own
-//! knots), and the best that drops the information criterion and is a kink is added (the best
-//! few by their fit are tried in turn), not something else a pair can take up:
-//! - **not a gradual change:** it fits better than the best pair [`WIDE`] times as far apart
-//!   around it (the curvature of a stiffening spring that the rule's segments miss fits as well
-//!   spread);
+//! segment. A kink at x_k is one column more beside the rule's spring: the torque of a unit step
+//! of stiffness outwards of x_k, (x − x_k) beyond it and 0 inside, its coefficient the step, of
+//! either sign. (Pairs of knots close together were tried first: they can make a local bump of
+//! stiffness as well as a step, and named softening steps on the simulator's catalogue gear
+//! where its stiffening kink lay a little away, at A = 1.1 and 2.2 mrad.) The steps are tried at
+//! every point of a grid of [`KINK_GRID`] a side (one pass over a subsample for the normal
+//! equations of them all, each trial a selection of its columns), and the best few by their fit
+//! are tried in turn for one that drops the information criterion and is a kink, not something
+//! else a step can take up:
+//! - **not a gradual change:** it fits better than the same change of stiffness spread linearly
+//!   over [`WIDE`] times the scan's resolution around it (curvature that the rule's segments
+//!   miss fits as well spread; on the measured spring's 4 and 5 A runs the best steps do not);
 //! - **the same on both branches:** a step of its own on the rising branch alone does not fit
 //!   better. A spring's step is at one deflection on every branch; a misfit of the hysteresis,
 //!   or the deflection error of coarse encoders, is not (the slip elements' stiffness changes at
@@ -27,38 +30,35 @@ const KINK_SAMPLES: usize = 1 << 13;
 pub const MAX_KINKS: usize = 4;
 /// Candidates tried a round, best first, for one that is a kink.
 const TRIED_PER_ROUND: usize = 8;
-/// What a kink costs the information criterion: the stiffness at its two knots, and where it is.
-pub const KINK_PARAMETERS: usize = 3;
-/// A kink's knots against a gradual change's, how many times as far apart: the step must fit
-/// better sharp than spread over four times the stretch around it (the OpenSees catalogue
-/// gear's kinks by 21–141 times the residual's variance; on the simulator's micro-slip gear,
-/// whose cubic spring stiffens from 9000 to 60000 N·m/rad at 1.24 mrad, a step there fits worse
-/// sharp by 15).
+/// What a kink costs the information criterion: its step and where it is.
+pub const KINK_PARAMETERS: usize = 2;
+/// How much wider than the scan's resolution the gradual change a kink is tested against is:
+/// a step must fit better sharp than spread over four times that.
 pub const WIDE: f64 = 4.0;
 
-/// A step of the spring's stiffness between two knots close together.
+/// A step of the spring's stiffness at one deflection.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Kink {
-    /// Where it is: the middle of its two knots, x = θ − θ0, rad.
+    /// Where it is, x = θ − θ0, rad.
     pub at_rad: f64,
-    /// Its knots, the one nearer x = 0 first, rad.
-    pub knots_rad: [f64; 2],
-    /// The spring's stiffness at the knot nearer x = 0, N·m/rad.
+    /// The spring's stiffness just inside it (towards x = 0), N·m/rad.
     pub inner_nm_per_rad: f64,
-    /// The spring's stiffness at the other knot, N·m/rad.
+    /// The spring's stiffness just outside it, N·m/rad.
     pub outer_nm_per_rad: f64,
     /// The drop of the information criterion when it was added to the kinks before it.
     pub delta_bic: f64,
-    /// How much better it fits than the best pair [`WIDE`] times as far apart around it, added
-    /// in its place: the drop of χ² in units of the residual's variance, at the same count of
-    /// parameters. A kink fits better than a gradual change; curvature, or a misfit of the slip
-    /// elements that a change of stiffness can take up, fits as well or better gradually. `None`
-    /// where no such pair fits beside it.
+    /// How much better it fits than the same change spread over [`WIDE`] times the scan's
+    /// resolution in its place: the drop of χ² in units of the residual's variance, at the same
+    /// count of parameters. `None` where the spread change does not fit inside the range.
     pub sharpness: Option<f64>,
     /// How much better the step fits when it may differ between the rising and the falling
     /// branches (χ² in units of the residual's variance, one parameter more): a spring's step is
     /// the same on both, a misfit of the hysteresis is not. `None` where that fit fails.
     pub branches: Option<f64>,
+    /// How much the spring's stiffness changes across it, outwards, from a spread width inside
+    /// to one outside (N·m/rad): a kink's step is that change, not a wiggle that the rule's
+    /// neighbouring segments undo.
+    pub across_nm_per_rad: f64,
 }
 
 impl Kink {
@@ -68,6 +68,15 @@ impl Kink {
     pub fn step_nm_per_rad(&self) -> f64 {
         self.outer_nm_per_rad - self.inner_nm_per_rad
     }
+
+    /// Whether the stiffness across it changes the way its step does, by at least half of it.
+    /// (On the simulator's catalogue gear a softening step at one of the rule's knots, the
+    /// segment before it rising steeply, fitted as well as the stiffening kink between the
+    /// knots; across both the stiffness rises by the catalogue's step.)
+    pub fn steps_across(&self) -> bool {
+        let step = self.step_nm_per_rad();
+        self.across_nm_per_rad * step.signum() >= 0.5 * step.abs()
+    }
 }
 
 /// What [`scan_kinks`] found.
@@ -75,8 +84,10 @@ impl Kink {
 pub struct KinkScan {
     /// The kinks added, in order, the stiffnesses those of the fit with all of them.
     pub kinks: Vec<Kink>,
-    /// The best kink the criterion refused after them (none where no pair could be tried).
+    /// The best kink the tests refused after them (none where no step could be tried).
     pub refused: Option<Kink>,
+    /// The scan's resolution: the grid's step, or 10σθ where wider, rad.
+    pub resolution_rad: f64,
     /// The subsample's fitted samples (weight > 0).
     pub samples: usize,
     /// The weighted residual sum of squares on the subsample, the rule's spring alone and with
@@ -84,16 +95,50 @@ pub struct KinkScan {
     pub chi2: [f64; 2],
     /// Columns solved for, without and with the kinks.
     pub parameters: [usize; 2],
-    /// Each part's steps at the kinks' knots (N·m/rad), fitted on that part alone; `None` where a
-    /// part cannot be fitted alone.
+    /// Each part's steps at the kinks (N·m/rad), fitted on that part alone; `None` where a part
+    /// cannot be fitted alone.
     pub parts: Vec<Option<Vec<f64>>>,
+}
+
+/// A column of stiffness changing outwards of x_k (by 1 N·m/rad per unit coefficient).
+#[derive(Clone, Copy, Debug)]
+enum Step {
+    /// A step at x_k.
+    Sharp(f64),
+    /// The step spread linearly over a stretch of this width centred on x_k.
+    Spread(f64, f64),
+    /// A step at x_k on the rising branch only.
+    Rising(f64),
+}
+
+impl Step {
+    /// The column's torque at x_m carried `offset` along its slope, as the spring's rows are.
+    fn value(self, at: Projected, rising: bool) -> f64 {
+        let (x_k, width) = match self {
+            Step::Sharp(x_k) => (x_k, 0.0),
+            Step::Spread(x_k, width) => (x_k, width),
+            Step::Rising(x_k) if rising => (x_k, 0.0),
+            Step::Rising(_) => return 0.0,
+        };
+        // Distance outwards from x_k, so that both sides' steps are outwards.
+        let (side, u) = (x_k.signum(), (at.theta_m - x_k) * x_k.signum());
+        let half = 0.5 * width;
+        let (torque, slope) = if u >= half {
+            (u, 1.0)
+        } else if u > -half {
+            ((u + half).powi(2) / (2.0 * width), (u + half) / width)
+        } else {
+            (0.0, 0.0)
+        };
+        side * torque + slope * at.offset
+    }
 }
 
 /// Scans the micro-slip form (its slip elements, and the free `extra` columns beside it, with a
 /// torque offset too where `with_offset`) on the samples of one recording for kinks of its
 /// spring, with the given weights on every sample (0: followed, not fitted); refits the kinks on
-/// each of `parts` (sample indices, increasing) alone. A kink is added while it drops the criterion by more
-/// than `min_bic_drop`, among those that step by at least `min_step` N·m/rad.
+/// each of `parts` (sample indices, increasing) alone. A kink is added while it drops the
+/// criterion by more than `min_bic_drop`, among those that step by at least `min_step` N·m/rad.
 #[allow(clippy::too_many_arguments)]
 pub fn scan_kinks(
     theta: &[f64],
@@ -124,7 +169,6 @@ pub fn scan_kinks(
     }
     sub.runs.iter_mut().flatten().enumerate().for_each(|(k, sample)| sample.index = k);
     let extra: Vec<&[f64]> = gathered.iter().map(Vec::as_slice).collect();
-    let extra = extra.as_slice();
     let (fitted, mean_weight) = sub
         .runs
         .iter()
@@ -134,70 +178,35 @@ pub fn scan_kinks(
     let count = sub.runs.iter().flatten().filter(|s| s.role == Role::Fitted).count();
     // The solves' RSS are in units of the weights' mean (`Normal::finish`).
     let unit = if count > 0 { mean_weight / count as f64 } else { 0.0 };
-    let (_, elements) = slip_columns(&motion, &rule, extra, Source::Stored(&sub), Weighting::Carried)?;
-    let fine = fine_grid(&rule, KINK_GRID);
-    let fine_basis = rule.with_knots(fine.clone());
-    fn columns<'a>(
-        spring: &'a SpringBasis,
-        motion: &Motion,
-        elements: &Elements,
-        extra: &'a [&'a [f64]],
-    ) -> Columns<'a> {
-        Columns { spring, own: vec![true; elements.columns()], extra, scale: motion.scale() }
-    }
-    let stiffness_at = |knots: &[f64], solved: &Solved, x: f64| {
-        knots.iter().position(|&k| k == x).map_or(f64::NAN, |j| solved.coef[j] / motion.scale())
-    };
+    let (columns, elements) = slip_columns(&motion, &rule, &extra, Source::Stored(&sub), Weighting::Carried)?;
+    let scale = motion.scale();
     let n = fitted as f64;
     let variance = |rss: f64, parameters: usize| rss / (n - parameters as f64).max(1.0);
-    // Pairs: a point of the grid and the first one at least the gap further out, on one side,
-    // clear of x = 0 and of the edge's segment (its stiffness is the one the spring extrapolates
-    // with, as `placed_knots` keeps it).
-    let gap =
-        (super::super::spring::PLACED_KNOT_GAP_IN_NOISE * motion.knot_noise()).max(lo.abs().max(hi) / KINK_GRID as f64);
+    // The candidates: the grid's points, clear of x = 0's first segment either side (a step
+    // there is the two sides' difference, which `diagnose` tests as the asymmetry about a zero
+    // read at rest; on the OpenSees asymmetric spring, whose stiffness steps at 0 by −24 %, a
+    // step 0.04–0.07 mrad from 0 stood in for it with the other sign) and a resolution short of
+    // the range's edges (a step needs samples beyond it).
+    let resolution =
+        (super::super::spring::PLACED_KNOT_GAP_IN_NOISE * motion.knot_noise()).max((-lo).max(hi) / KINK_GRID as f64);
     let knots = rule.knots();
-    let edge_lo = knots.get(1).map_or(lo, |&k1| knots[0] + EDGE_SEGMENT * (k1 - knots[0]));
-    let edge_hi = knots.len().checked_sub(2).map_or(hi, |j| knots[j + 1] - EDGE_SEGMENT * (knots[j + 1] - knots[j]));
-    // Nor in the rule's first segment either side of x = 0: a step there is the two sides'
-    // difference, which `diagnose` tests as the asymmetry, about a zero read at rest (on the
-    // OpenSees asymmetric spring, whose stiffness steps at 0 by −24 %, a pair 0.04–0.07 mrad
-    // from 0 stood in for it with a step of the other sign).
     let zero = knots.iter().position(|&k| k == 0.0);
     let near_lo = zero.and_then(|z| z.checked_sub(1)).map_or(0.0, |j| knots[j]);
     let near_hi = zero.and_then(|z| knots.get(z + 1)).copied().unwrap_or(0.0);
-    let pairs_apart = |spacing: f64| -> Vec<[f64; 2]> {
-        let mut pairs = Vec::new();
-        for &inner in fine.iter().filter(|&&x| x != 0.0 && (x <= near_lo || x >= near_hi)) {
-            let outward = inner.signum();
-            let outer = fine
-                .iter()
-                .copied()
-                .filter(|&x| x * outward >= inner.abs() + spacing * (1.0 - 1e-12))
-                .min_by(|a, b| a.abs().total_cmp(&b.abs()));
-            if let Some(outer) = outer.filter(|&x| x > edge_lo && x < edge_hi && x.signum() == outward) {
-                pairs.push([inner, outer]);
-            }
-        }
-        pairs
-    };
-    let (pairs, wide_pairs) = (pairs_apart(gap), pairs_apart(WIDE * gap));
-    let fine_columns = columns(&fine_basis, &motion, &elements, extra);
-    let equations = slip_equations(Source::Stored(&sub), Weighting::Carried, &fine_columns, &elements)?;
-    let solve = |knots: &[f64]| -> Result<Solved, FitError> {
-        let trial = rule.with_knots(knots.to_vec());
-        columns(&trial, &motion, &elements, extra).solve(&equations.mapped(&fine, knots, fine_columns.len()))
-    };
-    // The drop of χ², in units of the variance, when the step at `at` on the knots `knots` may
-    // differ between the rising and the falling branches (a further column: a step of stiffness
-    // outwards of `at` on the rising samples alone). A spring's step is the same on both.
-    let branches_differ = |knots: &[f64], at: f64, parameters: usize| -> Result<f64, FitError> {
-        let trial = rule.with_knots(knots.to_vec());
-        let kinked = columns(&trial, &motion, &elements, extra);
-        let scale = motion.scale();
-        let split = normal_equations(Source::Stored(&sub), kinked.len() + 1, Weighting::Carried, |run| {
+    let places: Vec<f64> = fine_grid(&rule, KINK_GRID)
+        .into_iter()
+        .filter(|&x| x != 0.0 && (x <= near_lo || x >= near_hi) && x > lo + resolution && x < hi - resolution)
+        .collect();
+    let width = WIDE * resolution;
+    let steps: Vec<Step> = places.iter().map(|&x| Step::Sharp(x)).collect();
+    let base = columns.len();
+    // The normal equations of the form's columns and the given steps beside them, on a
+    // subsample (the direction of travel from the projected x_m, which is monotone on a leg).
+    let equations_with = |sample_set: &Subsample, steps: &[Step]| -> Result<Equations, FitError> {
+        normal_equations(Source::Stored(sample_set), base + steps.len(), Weighting::Carried, |run| {
             let mut all = StartedElements::new(&elements, run);
             let (mut last, mut rising) = (f64::NAN, true);
-            let kinked = &kinked;
+            let columns = &columns;
             Ok(move |sample: &Sample, x: &mut [f64]| {
                 all.step(sample.at.theta_m)?;
                 let m = sample.at.theta_m;
@@ -207,68 +216,120 @@ pub fn scan_kinks(
                     rising = false;
                 }
                 last = m;
-                let (kind, step) = x.split_at_mut(kinked.len());
-                kinked.row(sample, |own| all.columns(sample.at.offset, scale, own), kind);
-                let beyond = (m - at) * at.signum() > 0.0;
-                step[0] = if rising && beyond { (m - at + sample.at.offset) / scale } else { 0.0 };
+                let (kind, stepped) = x.split_at_mut(base);
+                columns.row(sample, |own| all.columns(sample.at.offset, scale, own), kind);
+                for (value, step) in stepped.iter_mut().zip(steps) {
+                    *value = step.value(sample.at, rising) / scale;
+                }
                 Ok(())
             })
-        })?;
-        let bounded = knots.len() + elements.columns();
-        let nonnegative: Vec<bool> = (0..kinked.len() + 1).map(|j| j < bounded).collect();
-        let alike = split.selected(&(0..kinked.len()).collect::<Vec<_>>()).solve(&nonnegative[..kinked.len()])?;
-        let apart = split.solve(&nonnegative)?;
-        Ok((alike.rss - apart.rss) / variance(apart.rss, parameters + 1))
+        })
     };
-    let mut current: Vec<f64> = knots.to_vec();
-    let rule_solved = solve(&current)?;
-    let parameters_rule = current.len() + elements.columns() + extra.len();
-    let mut rss = rule_solved.rss;
-    // Each kink added, with the tests of the round that added it.
-    let mut kinks: Vec<Kink> = Vec::new();
-    let mut refused = None;
-    while kinks.len() < MAX_KINKS {
-        let free = |p: &&[f64; 2]| !kinks.iter().any(|k| overlaps(&k.knots_rad, p));
-        let trial_of = |pair: &[f64; 2]| -> Option<(Vec<f64>, Solved)> {
-            let mut trial = current.clone();
-            trial.extend_from_slice(pair);
-            trial.sort_by(f64::total_cmp);
-            trial.dedup();
-            solve(&trial).ok().map(|solved| (trial, solved))
-        };
-        let wide: Vec<([f64; 2], f64)> =
-            wide_pairs.iter().filter(free).filter_map(|p| trial_of(p).map(|(_, solved)| (*p, solved.rss))).collect();
-        let mut candidates: Vec<([f64; 2], Vec<f64>, Solved)> = pairs
+    let bounded = rule.len() + elements.columns();
+    let solve = |equations: &Equations, keep: &[usize]| -> Result<Solved, FitError> {
+        let nonnegative: Vec<bool> = keep.iter().map(|&j| j < bounded).collect();
+        equations.selected(keep).solve(&nonnegative)
+    };
+    let equations = equations_with(&sub, &steps)?;
+    let sharp_column = |k: usize| base + k;
+    // The spring's stiffness at x, with the steps at `positions` (in the solve's order after the
+    // base columns) that lie inside x on its side.
+    let stiffness_with = |solved: &Solved, positions: &[f64], x: f64| -> f64 {
+        let (mut per_knot, mut stiffness) = (vec![0.0; knots.len()], vec![0.0; knots.len()]);
+        model_core::spring::basis(knots, x, &mut per_knot, &mut stiffness);
+        let spring: f64 = stiffness.iter().zip(&solved.coef).map(|(h, c)| h * c).sum::<f64>() / scale;
+        let stepped: f64 = positions
             .iter()
-            .filter(free)
-            .filter_map(|p| trial_of(p).map(|(trial, solved)| (*p, trial, solved)))
-            .filter(|(p, trial, solved)| {
-                (stiffness_at(trial, solved, p[1]) - stiffness_at(trial, solved, p[0])).abs() >= min_step
-            })
+            .enumerate()
+            .filter(|&(_, &p)| p.signum() == x.signum() && x.abs() > p.abs())
+            .map(|(j, _)| solved.coef[base + j] / scale)
+            .sum();
+        spring + stepped
+    };
+    let stiffness_inside = |solved: &Solved, kept: &[usize], x: f64| {
+        stiffness_with(solved, &kept.iter().map(|&k| places[k]).collect::<Vec<_>>(), x)
+    };
+    // A kink found at a point of the grid, placed to a quarter of a grid step about it beside
+    // the kinks `placed` before it (one pass over the subsample for the few places).
+    let refined = |k: usize, placed: &[f64]| -> Result<f64, FitError> {
+        let grid_step = if places[k] > 0.0 { hi } else { -lo } / KINK_GRID as f64;
+        let trials: Vec<f64> = (-3..=3)
+            .map(|j| places[k] + 0.25 * j as f64 * grid_step)
+            .filter(|&x| x > lo + resolution && x < hi - resolution && x.signum() == places[k].signum())
             .collect();
-        candidates.sort_by(|a, b| a.2.rss.total_cmp(&b.2.rss));
+        let steps: Vec<Step> = placed.iter().chain(&trials).map(|&x| Step::Sharp(x)).collect();
+        let equations = equations_with(&sub, &steps)?;
+        let fixed: Vec<usize> = (0..base + placed.len()).collect();
+        let rss_at = |t: usize| {
+            let keep: Vec<usize> = fixed.iter().copied().chain([base + placed.len() + t]).collect();
+            solve(&equations, &keep).map_or(f64::INFINITY, |solved| solved.rss)
+        };
+        let best = (0..trials.len()).min_by(|&a, &b| rss_at(a).total_cmp(&rss_at(b)));
+        Ok(best.map_or(places[k], |t| trials[t]))
+    };
+    let base_columns: Vec<usize> = (0..base).collect();
+    let rule_solved = solve(&equations, &base_columns)?;
+    let mut rss = rule_solved.rss;
+    let mut kept: Vec<usize> = Vec::new();
+    // Where each kink kept is placed, finer than the grid.
+    let mut positions: Vec<f64> = Vec::new();
+    let mut found: Vec<Kink> = Vec::new();
+    let mut refused = None;
+    while kept.len() < MAX_KINKS {
+        let with = |extra_column: usize| -> Vec<usize> {
+            base_columns.iter().copied().chain(kept.iter().map(|&k| sharp_column(k))).chain([extra_column]).collect()
+        };
+        let clear = |k: usize| kept.iter().all(|&j| (places[j] - places[k]).abs() > width);
+        let mut candidates: Vec<(usize, Solved)> = (0..places.len())
+            .filter(|&k| clear(k))
+            .filter_map(|k| solve(&equations, &with(sharp_column(k))).ok().map(|solved| (k, solved)))
+            .filter(|(_, solved)| (solved.coef.last().copied().unwrap_or(0.0) / scale).abs() >= min_step)
+            .collect();
+        candidates.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
         // The best candidates in turn, until one is a kink or they no longer drop the criterion:
         // the best by RSS may be a gradual change or a misfit, and a kink elsewhere still be found.
         let mut added = None;
-        for (pair, trial, solved) in candidates.into_iter().take(TRIED_PER_ROUND) {
-            let parameters = trial.len() + elements.columns() + extra.len();
-            let trial_rss = solved.rss;
-            let delta_bic = (rss - trial_rss) / variance(trial_rss, parameters) - KINK_PARAMETERS as f64 * n.ln();
-            let at = 0.5 * (pair[0] + pair[1]);
-            // Against the same change spread over the wide pairs around it; None where no wide
-            // pair fits there (a short side): then it cannot be told from a gradual change.
-            let spread =
-                wide.iter().filter(|(w, _)| overlaps(w, &pair)).map(|(_, rss)| *rss).fold(f64::INFINITY, f64::min);
-            let sharpness = spread.is_finite().then(|| (spread - trial_rss) / variance(trial_rss, parameters));
-            let branches = branches_differ(&trial, at, parameters).ok();
+        for (k, solved) in candidates.into_iter().take(TRIED_PER_ROUND) {
+            let parameters = base + kept.len() + 1;
+            let delta_bic = (rss - solved.rss) / variance(solved.rss, parameters) - KINK_PARAMETERS as f64 * n.ln();
+            let x_k = places[k];
+            let inner = stiffness_inside(&solved, &kept, x_k);
+            // Against the same change spread over the wide stretch in its place (where that fits
+            // inside the range), and with the step free to differ on the rising branch: one pass.
+            let fits_inside = x_k.abs() - 0.5 * width > 0.0 && x_k + 0.5 * width < hi && x_k - 0.5 * width > lo;
+            let mut trial: Vec<Step> = kept.iter().map(|&j| Step::Sharp(places[j])).collect();
+            trial.extend([Step::Sharp(x_k), Step::Rising(x_k), Step::Spread(x_k, width)]);
+            let (sharpness, branches) = match equations_with(&sub, &trial) {
+                Ok(trial_equations) => {
+                    let first = base + kept.len();
+                    let with =
+                        |columns: &[usize]| -> Vec<usize> { (0..first).chain(columns.iter().copied()).collect() };
+                    let rss_of =
+                        |columns: &[usize]| solve(&trial_equations, &with(columns)).ok().map(|solved| solved.rss);
+                    let sharp = rss_of(&[first]);
+                    let apart = rss_of(&[first, first + 1]);
+                    let spread = if fits_inside { rss_of(&[first + 2]) } else { None };
+                    let sharpness =
+                        sharp.zip(spread).map(|(sharp, spread)| (spread - sharp) / variance(sharp, parameters));
+                    let branches =
+                        sharp.zip(apart).map(|(sharp, apart)| (sharp - apart) / variance(apart, parameters + 1));
+                    (sharpness, branches)
+                }
+                Err(_) => (None, None),
+            };
+            // The spring's stiffness across it, a spread width either side, every step included.
+            let with_it: Vec<usize> = kept.iter().copied().chain([k]).collect();
+            let outwards = x_k.signum();
+            let across = stiffness_inside(&solved, &with_it, x_k + outwards * width)
+                - stiffness_inside(&solved, &with_it, x_k - outwards * width);
             let kink = Kink {
-                at_rad: at,
-                knots_rad: pair,
-                inner_nm_per_rad: stiffness_at(&trial, &solved, pair[0]),
-                outer_nm_per_rad: stiffness_at(&trial, &solved, pair[1]),
+                at_rad: x_k,
+                inner_nm_per_rad: inner,
+                outer_nm_per_rad: inner + solved.coef.last().copied().unwrap_or(0.0) / scale,
                 delta_bic,
                 sharpness,
                 branches,
+                across_nm_per_rad: across,
             };
             if !(delta_bic > min_bic_drop) {
                 refused = refused.or(Some(kink));
@@ -276,34 +337,36 @@ pub fn scan_kinks(
             }
             let sharp = sharpness.is_some_and(|s| s > min_bic_drop);
             let alike = branches.is_some_and(|b| b <= min_bic_drop);
-            if sharp && alike {
-                added = Some((kink, trial, trial_rss));
+            if sharp && alike && kink.steps_across() {
+                added = Some((k, kink, solved.rss));
                 break;
             }
             refused = refused.or(Some(kink));
         }
-        let Some((kink, trial, trial_rss)) = added else { break };
-        kinks.push(kink);
+        let Some((k, kink, trial_rss)) = added else { break };
+        positions.push(refined(k, &positions)?);
+        kept.push(k);
+        found.push(kink);
         refused = None;
-        current = trial;
         rss = trial_rss;
     }
-    // The stiffnesses of the fit with every kink.
-    let final_solved = solve(&current)?;
-    let final_basis = rule.with_knots(current.clone());
-    let found: Vec<Kink> = kinks
+    // The fit with every kink where it was placed, and the stiffnesses each side.
+    let kinked: Vec<Step> = positions.iter().map(|&x| Step::Sharp(x)).collect();
+    let final_equations = equations_with(&sub, &kinked)?;
+    let final_solved = solve(&final_equations, &(0..base + kinked.len()).collect::<Vec<_>>())?;
+    let step_of = |solved: &Solved, j: usize| solved.coef[base + j] / scale;
+    let kinks: Vec<Kink> = found
         .iter()
-        .map(|kink| Kink {
-            inner_nm_per_rad: stiffness_at(&current, &final_solved, kink.knots_rad[0]),
-            outer_nm_per_rad: stiffness_at(&current, &final_solved, kink.knots_rad[1]),
-            ..*kink
+        .zip(&positions)
+        .enumerate()
+        .map(|(j, (kink, &at_rad))| {
+            let inner = stiffness_with(&final_solved, &positions, at_rad);
+            Kink { at_rad, inner_nm_per_rad: inner, outer_nm_per_rad: inner + step_of(&final_solved, j), ..*kink }
         })
         .collect();
-    let parameters_kinked = current.len() + elements.columns() + extra.len();
-    let parts = if kinks.is_empty() {
+    let parts = if kept.is_empty() {
         Vec::new()
     } else {
-        let kinked_columns = columns(&final_basis, &motion, &elements, extra);
         parts
             .iter()
             .map(|part| {
@@ -313,34 +376,20 @@ pub fn scan_kinks(
                         sample.weight = 0.0;
                     }
                 }
-                let equations =
-                    slip_equations(Source::Stored(&alone), Weighting::Carried, &kinked_columns, &elements).ok()?;
-                let solved = kinked_columns.solve(&equations).ok()?;
-                Some(
-                    kinks
-                        .iter()
-                        .map(|k| {
-                            stiffness_at(&current, &solved, k.knots_rad[1])
-                                - stiffness_at(&current, &solved, k.knots_rad[0])
-                        })
-                        .collect(),
-                )
+                let equations = equations_with(&alone, &kinked).ok()?;
+                let all: Vec<usize> = (0..base + kinked.len()).collect();
+                let solved = solve(&equations, &all).ok()?;
+                Some((0..kinked.len()).map(|j| step_of(&solved, j)).collect())
             })
             .collect()
     };
     Ok(KinkScan {
-        kinks: found,
+        kinks,
         refused,
+        resolution_rad: resolution,
         samples: fitted,
         chi2: [unit * rule_solved.rss, unit * final_solved.rss],
-        parameters: [parameters_rule, parameters_kinked],
+        parameters: [base, base + kept.len()],
         parts,
     })
-}
-
-/// Whether two pairs of knots share a stretch.
-fn overlaps(a: &[f64; 2], b: &[f64; 2]) -> bool {
-    let span = |p: &[f64; 2]| (p[0].min(p[1]), p[0].max(p[1]));
-    let ((a0, a1), (b0, b1)) = (span(a), span(b));
-    a0 <= b1 && b0 <= a1
 }
