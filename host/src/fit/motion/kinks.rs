@@ -134,8 +134,9 @@ impl Step {
     }
 }
 
-/// Scans the micro-slip form (its slip elements, and the free `extra` columns beside it) on the
-/// samples of one recording for kinks of its spring, with the given weights on every sample (0: followed, not fitted); refits the kinks on
+/// Scans the micro-slip form (its slip elements, and the free `extra` columns beside it, with a
+/// torque offset too where `with_offset`) on the samples of one recording for kinks of its
+/// spring, with the given weights on every sample (0: followed, not fitted); refits the kinks on
 /// each of `parts` (sample indices, increasing) alone. A kink is added while it drops the
 /// criterion by more than `min_bic_drop`, among those that step by at least `min_step` N·m/rad.
 #[allow(clippy::too_many_arguments)]
@@ -146,6 +147,7 @@ pub fn scan_kinks(
     noise: NoiseModel,
     weights: &[f64],
     extra: &[&[f64]],
+    with_offset: bool,
     parts: &[Vec<usize>],
     min_bic_drop: f64,
     min_step: f64,
@@ -157,10 +159,14 @@ pub fn scan_kinks(
     let mut sub = motion.subsample(KINK_SAMPLES);
     sub.reweigh(Weighting::Given(weights))?;
     // The extra columns gathered at the subsample's samples, numbered anew: the scan never
-    // reads a column elsewhere.
+    // reads a column elsewhere, and a torque offset's column of ones along a recording of 2 M
+    // samples would be 16 MB.
     let picked: Vec<usize> = sub.runs.iter().flatten().map(|sample| sample.index).collect();
-    let gathered: Vec<Vec<f64>> =
+    let mut gathered: Vec<Vec<f64>> =
         extra.iter().map(|column| picked.iter().map(|&i| column.get(i).copied().unwrap_or(0.0)).collect()).collect();
+    if with_offset {
+        gathered.push(vec![1.0; picked.len()]);
+    }
     sub.runs.iter_mut().flatten().enumerate().for_each(|(k, sample)| sample.index = k);
     let extra: Vec<&[f64]> = gathered.iter().map(Vec::as_slice).collect();
     let (fitted, mean_weight) = sub
