@@ -874,6 +874,23 @@ fn a_torque_clipped_at_the_tips_leaves_the_drift_untested_and_the_diagnosis_whol
     assert!(json["ratcheting"]["why"].as_str().unwrap().contains("same at every turning point"));
 }
 
+/// A trial whose column the data cannot determine (here a backlash fitted wider than the motion,
+/// which leaves its column zero) has an unbounded standard error, so no evidence: rounding left
+/// its error zero, its z infinite, and the whole report was refused as "not finite" (the
+/// simulator's genetic gear under random motion, `bash bench/kinks.sh`).
+#[test]
+fn an_effect_the_data_cannot_determine_has_no_evidence_and_the_report_stands() {
+    let dir = tempfile::tempdir().unwrap();
+    let recording = dir.path().join("random.csv");
+    let out = recording.to_str().unwrap();
+    let bits = ["--input-bits", "20", "--output-bits", "20", "--seed", "3", "--cycles", "6"];
+    let motion = ["simulate", "--out", out, "--amplitude", "0.0015", "--motion", "random"];
+    ok(swg_host(&[&motion[..], &bits[..]].concat()));
+    let json: serde_json::Value = serde_json::from_str(&ok(swg_host(&["diagnose", out, "--json"]))).unwrap();
+    let backlash = json["rejected"].as_array().unwrap().iter().find(|r| r["effect"] == "backlash").unwrap();
+    assert_eq!(backlash["evidence"]["z"], 0.0, "{backlash:#}");
+}
+
 /// The effects a diagnosis' JSON says cannot be told from its data, with why.
 fn untellable(json: &serde_json::Value) -> Vec<(String, String)> {
     let entries = json["not_revealable"].as_array().unwrap().iter();

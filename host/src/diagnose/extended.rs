@@ -361,8 +361,15 @@ pub fn fit_extended(
         params = basis::params(scale, r, &solution, reference_amplitude)?;
         let dof = (m as f64 - (4 + width) as f64).max(1.0);
         let variance = solution.weighted_rss / dof;
-        let column_errors: Vec<f64> =
-            (0..width).map(|k| (variance * solution.factor.inverse_diagonal(4 + k)).max(0.0).sqrt()).collect();
+        // A column the data cannot determine (a backlash wider than the motion leaves its column
+        // zero) makes the normal matrix singular there, and rounding leaves its inverse diagonal
+        // zero or negative: its error is unbounded, not zero.
+        let column_errors: Vec<f64> = (0..width)
+            .map(|k| match solution.factor.inverse_diagonal(4 + k) {
+                inverse if inverse > 0.0 => (variance * inverse).sqrt(),
+                _ => f64::INFINITY,
+            })
+            .collect();
         let mut converged = true;
         let mut k = 4;
         for &effect in active {
