@@ -14,6 +14,7 @@
 //! independent halves of the recording, fitted alone, must each show it clearly (|z| > 3)
 //! with magnitudes within ±25 % of their mean.
 pub mod asymmetry;
+mod backlash_on_form;
 pub mod effects;
 mod extended;
 pub mod form;
@@ -146,10 +147,10 @@ pub struct Diagnosis {
     pub untellable: Vec<Untellable>,
     /// Structure that neither the vocabulary nor a model kind explains.
     pub unexplained: Option<form::Unexplained>,
-    /// The final model where it is the named form with the torque effects beside it (none of
-    /// the deflection effects, which the form cannot take): its torque along the recording.
-    /// `final_fit` is then the genetic model with the same effects, whose magnitudes the form's
-    /// replace.
+    /// The final model where it is the named form with the torque effects beside it (and a
+    /// backlash named on it, run on the deflection it moves; not a kinematic error, which the
+    /// form cannot take): its torque along the recording. `final_fit` is then the genetic model
+    /// with the same effects, whose magnitudes the form's replace (its backlash's too).
     pub final_form: Option<FinalForm>,
 }
 

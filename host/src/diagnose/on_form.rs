@@ -366,7 +366,7 @@ fn held_out_rms(form: &Form, columns: &[&[f64]]) -> Option<f64> {
 
 /// Each sample's total-noise weight by the stiffness of the form fitted with `weights` and the
 /// torque columns of `in_model`, along the recording; `None` where the form cannot be fitted.
-fn form_weights(
+pub(super) fn form_weights(
     observed: &Observed,
     reversals: &Reversals,
     noise: NoiseModel,
