@@ -158,6 +158,32 @@ pub fn check(observed: &Observed, weights: &[f64], final_fit: &ExtendedFit) -> K
         .ok()
         .and_then(|[a, b]| Some([a?, b?]))
         .filter(|_| not_run_through.is_none());
+    // A step that fits as well sharp as spread out, or whose spread twin does not fit in the
+    // range, is what this data cannot tell from a gradual change: said so, not refused (which
+    // read as "no kink").
+    let best_step = scan.refused.as_ref().filter(|best| scan.kinks.is_empty() && best.delta_bic > MIN_BIC_DROP);
+    if let Some(best) = best_step {
+        let step = format!(
+            "the best step, {:+.0} N·m/rad at {:+.3} mrad, drops the information criterion by {:.1}",
+            best.step_nm_per_rad(),
+            1e3 * best.at_rad,
+            best.delta_bic
+        );
+        let wide = 1e3 * WIDE * scan.resolution_rad;
+        match best.sharpness {
+            None => {
+                return untested(format!(
+                    "{step}, but the same change spread over {WIDE} times the scan's resolution ({wide:.3} mrad) does \
+                     not fit inside the range, so it cannot be told from a gradual change of stiffness"
+                ))
+            }
+            Some(sharpness) if sharpness.abs() <= MIN_BIC_DROP => return untested(format!(
+                "{step}, and fits as well spread over {wide:.3} mrad (χ² within {MIN_BIC_DROP}: {sharpness:+.1}), so \
+                     it cannot be told from a gradual change of stiffness"
+            )),
+            Some(_) => {}
+        }
+    }
     let rejected = if scan.kinks.is_empty() {
         Some(match &scan.refused {
             Some(best) if best.delta_bic > MIN_BIC_DROP => {
@@ -168,18 +194,14 @@ pub fn check(observed: &Observed, weights: &[f64], final_fit: &ExtendedFit) -> K
                     best.delta_bic
                 );
                 match (best.sharpness, best.branches) {
-                    (None, _) => format!(
-                        "{step}, but the same change spread over {WIDE} times the scan's resolution ({:.3} mrad) does \
-                         not fit inside the range, so it cannot be told from a gradual change of stiffness",
-                        1e3 * WIDE * scan.resolution_rad
+                    (Some(sharpness), _) if sharpness < -MIN_BIC_DROP => format!(
+                        "{step} but fits worse sharp than spread over {:.3} mrad (χ² higher by {:.1}, more than \
+                         {MIN_BIC_DROP}): a gradual change of stiffness, not a kink",
+                        1e3 * WIDE * scan.resolution_rad,
+                        -sharpness
                     ),
-                    (Some(sharpness), _) if sharpness <= MIN_BIC_DROP => format!(
-                        "{step} but fits no better sharp than spread over {:.3} mrad (by {sharpness:.1}, not more than \
-                         {MIN_BIC_DROP}): it cannot be told from a gradual change of stiffness",
-                        1e3 * WIDE * scan.resolution_rad
-                    ),
-                    (Some(_), None) => format!("{step}, but its two branches cannot be fitted apart to compare"),
-                    (Some(_), Some(branches)) => format!(
+                    (_, None) => format!("{step}, but its two branches cannot be fitted apart to compare"),
+                    (_, Some(branches)) => format!(
                         "{step} but differently on the rising and the falling branches (a step of its own on each \
                          lowers χ² by {branches:.1}, more than {MIN_BIC_DROP}): a spring's step is the same on both, \
                          a misfit of the hysteresis or of the encoders' steps is not"
