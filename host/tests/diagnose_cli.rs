@@ -897,6 +897,42 @@ fn a_backlash_the_genetic_forms_misfit_hid_is_found_on_the_form() {
     assert!(!effects_named(&without).contains(&"backlash".to_string()), "{:#}", without["findings"]);
 }
 
+/// Behind a dead band the gear does not move, so its torque holds across the band; a spring
+/// soft about zero moves there. The catalogue gear's first segment (14000 N·m/rad to ±0.5 mrad)
+/// under nested motion was taken for a dead band: 24 µrad named on the form at 1.5 mrad, and
+/// 100 µrad named on the genetic form at 2 mrad and kept beside the form. Inside those bands the
+/// torque's slope is the one just beyond them (a new user's trial): neither is named now.
+#[test]
+fn a_spring_soft_about_zero_is_not_taken_for_a_dead_band() {
+    let dir = tempfile::tempdir().unwrap();
+    let nested = ["--physics", "catalogue", "--motion", "nested", "--frequency", "0.2,0.6", "--cycles", "4"];
+    let bits = ["--input-bits", "20", "--output-bits", "20", "--seed", "1"];
+    for amplitude in ["0.0015", "0.002"] {
+        let json =
+            simulated_and_diagnosed(dir.path(), amplitude, &[&nested[..], &bits, &["--amplitude", amplitude]].concat());
+        assert!(!effects_named(&json).contains(&"backlash".to_string()), "{amplitude}: {:#}", json["findings"]);
+        let backlash = json["rejected"].as_array().unwrap().iter().find(|r| r["effect"] == "backlash").unwrap();
+        assert!(backlash["reason"].as_str().unwrap().contains("the gear moves inside it"), "{backlash:#}");
+    }
+}
+
+/// The search on the genetic form asks a backlash for a flat torque inside its band too. The
+/// catalogue gear at 3 mrad under nested motion, a 20 µrad dead band and a 2 ms channel delay
+/// concealed, had 401 µrad named there beside an offset of −0.65 N·m it lacks, its first segment
+/// moving inside that band as stiff as beyond it; now the form is named with the delay.
+#[test]
+fn a_dead_band_wider_than_the_torque_holds_is_refused_on_the_genetic_form_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let gear = ["--physics", "catalogue", "--amplitude", "0.003", "--motion", "nested", "--frequency", "1"];
+    let effects = ["--effect", "backlash=2e-05", "--effect", "channel_delay=0.002", "--cycles", "6", "--seed", "33"];
+    let json = simulated_and_diagnosed(dir.path(), "nested.csv", &[&gear[..], &effects].concat());
+    assert_eq!(effects_named(&json), ["channel_delay"], "{:#}", json["findings"]);
+    let delay = json["findings"][0]["magnitude"].as_f64().unwrap();
+    assert!((delay - 0.002).abs() <= 0.1 * 0.002, "delay {delay} s against 0.002 concealed");
+    let backlash = json["rejected"].as_array().unwrap().iter().find(|r| r["effect"] == "backlash").unwrap();
+    assert!(backlash["reason"].as_str().unwrap().contains("the gear moves inside it"), "{backlash:#}");
+}
+
 /// A trial whose column the data cannot determine (here a backlash fitted wider than the motion,
 /// which leaves its column zero) has an unbounded standard error, so no evidence: rounding left
 /// its error zero, its z infinite, and the whole report was refused as "not finite" (the

@@ -177,10 +177,12 @@ pub fn check(observed: &Observed, weights: &[f64], final_fit: &ExtendedFit) -> K
                      not fit inside the range, so it cannot be told from a gradual change of stiffness"
                 ))
             }
-            Some(sharpness) if sharpness.abs() <= MIN_BIC_DROP => return untested(format!(
-                "{step}, and fits as well spread over {wide:.3} mrad (χ² within {MIN_BIC_DROP}: {sharpness:+.1}), so \
-                     it cannot be told from a gradual change of stiffness"
-            )),
+            Some(sharpness) if sharpness.abs() <= MIN_BIC_DROP => {
+                return untested(format!(
+                    "{step}, and fits as well spread over {wide:.3} mrad (χ² within {MIN_BIC_DROP}: {sharpness:+.1}), \
+                     so it cannot be told from a gradual change of stiffness"
+                ))
+            }
             Some(_) => {}
         }
     }
