@@ -245,10 +245,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             // or the width of one named there.
             let mut backlash_form = None;
             if let Some(noise) = observed.noise {
-                // Not one the form has judged already: withdrawn at the genetic form's width as
-                // standing in for the loop's shape (a catalogue gear's soft first segment, 2.2 mrad
-                // loops), it was named again at another width here.
-                if observed.revealable().contains(&Effect::Backlash) && !judged.contains(&Effect::Backlash) {
+                if observed.revealable().contains(&Effect::Backlash) {
                     backlash_form = backlash_on_the_form(
                         observed,
                         noise,
