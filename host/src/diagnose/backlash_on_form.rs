@@ -291,10 +291,14 @@ pub fn test(observed: &Observed, noise: NoiseModel, weights: &[f64], columns: &[
     let width =
         vertex(&[widths[at] / step, widths[at], widths[at] * step], &[refined[0].0, coarse[at].0, refined[1].0])
             .unwrap_or(widths[at]);
+    // Each part's width placed between the coarse widths as the whole's is, where it has a
+    // coarse neighbour on either side (else the grid's).
     let halves = [1, 2].map(|k| {
         let part = &chi2(&refined[2..])[(k - 1) * near.len()..k * near.len()];
         let (at, z) = best(&near, part, thinned.fitted(k), parameters);
-        (near[at], z)
+        let placed =
+            (at > 1 && at + 1 < near.len()).then(|| vertex(&near[at - 1..=at + 1], &part[at - 1..=at + 1])).flatten();
+        (placed.unwrap_or(near[at]), z)
     });
     let subsample_evidence = || Evidence {
         delta_bic: z * z - (thinned.fitted(0) as f64).ln(),

@@ -405,9 +405,18 @@ fn backlash_on_the_form(
     let named_before = in_model.contains(&Effect::Backlash);
     match backlash_on_form::test(observed, noise, weights, &columns) {
         Some(Verdict::Named(named)) if named_before => {
+            // Its figures the form's, all of them: the genetic form's halves beside the form's
+            // width read as a contradiction (a new user's trial).
             for finding in findings.iter_mut().filter(|f| f.effect == Effect::Backlash) {
                 finding.magnitude = named.width;
-                finding.location = location_at(Effect::Backlash, named.width, &EffectState::default());
+                finding.location = format!(
+                    "{}; its width and figures on the {} form",
+                    location_at(Effect::Backlash, named.width, &EffectState::default()),
+                    model_core::Kind::MicroSlip.name()
+                );
+                finding.evidence = named.evidence.clone();
+                finding.rss_before = named.rss_before;
+                finding.rss_after = named.rss_after;
             }
             Some((named.predicted, named.held_out_rms, named.width))
         }
