@@ -22,9 +22,9 @@
 //!   within [`super::MAX_HALF_SPREAD`] of their mean;
 //! - the held-out samples are predicted better with it, each fitted without them.
 use super::effects::backlash;
-use super::form::STRUCTURE_FACTOR;
+use super::form::{held_out_rms_along, STRUCTURE_FACTOR};
 use super::observed::Observed;
-use super::{magnitudes_differ, weights_on, Evidence, MIN_BIC_DROP, MIN_HALF_Z};
+use super::{magnitudes_differ, Evidence, MIN_BIC_DROP, MIN_HALF_Z};
 use crate::fit::motion::{micro_slip_with_columns, ColumnsFit, SpringShape};
 use crate::prepare::{reversals, NoiseModel};
 use rayon::prelude::*;
@@ -376,16 +376,12 @@ fn held_out_rms(
     columns: &[&[f64]],
     width: f64,
 ) -> Result<Option<f64>, String> {
-    let held = observed.held_out();
-    if held.is_empty() {
+    if observed.held_out().is_empty() {
         return Ok(None);
     }
-    let data = &observed.data;
-    let training = weights_on(weights, observed.training().iter().copied());
     let rms = |width: f64| {
-        form_at(&data.theta, &data.torque, noise, &training, columns, width).map(|fit| {
-            (held.iter().map(|&i| (data.torque[i] - fit.predicted[i]).powi(2)).sum::<f64>() / held.len() as f64).sqrt()
-        })
+        let moved: Vec<f64> = observed.data.theta.iter().map(|&t| backlash(t, width)).collect();
+        held_out_rms_along(observed, &moved, &reversals(&moved), noise, weights, columns)
     };
     match (rms(0.0), rms(width)) {
         (Some(before), Some(after)) if after < before => Ok(Some(after)),

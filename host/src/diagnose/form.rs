@@ -188,22 +188,28 @@ pub(super) fn held_out_rms_of_form(
     weights: &[f64],
     columns: &[&[f64]],
 ) -> Option<f64> {
+    held_out_rms_along(observed, &observed.data.theta, reversals, noise, weights, columns)
+}
+
+/// [`held_out_rms_of_form`] with the form run along `theta` (the recording's deflection, or as a
+/// backlash moves it) and its `reversals`.
+pub(super) fn held_out_rms_along(
+    observed: &Observed,
+    theta: &[f64],
+    reversals: &crate::gear::Reversals,
+    noise: crate::prepare::NoiseModel,
+    weights: &[f64],
+    columns: &[&[f64]],
+) -> Option<f64> {
     let held = observed.held_out();
     if held.is_empty() {
         return None;
     }
     let data = &observed.data;
     let training = weights_on(weights, observed.training().iter().copied());
-    let fit = micro_slip_with_columns(
-        &data.theta,
-        &data.torque,
-        reversals,
-        Some(noise),
-        &training,
-        columns,
-        SpringShape::Free,
-    )
-    .ok()?;
+    let fit =
+        micro_slip_with_columns(theta, &data.torque, reversals, Some(noise), &training, columns, SpringShape::Free)
+            .ok()?;
     Some((held.iter().map(|&i| (data.torque[i] - fit.predicted[i]).powi(2)).sum::<f64>() / held.len() as f64).sqrt())
 }
 
