@@ -260,17 +260,18 @@ pub fn test(observed: &Observed, noise: NoiseModel, weights: &[f64], columns: &[
     let parameters = coarse[0].1 + 1;
     let chi2 = |values: &[(f64, usize)]| values.iter().map(|v| v.0).collect::<Vec<f64>>();
     let (at, z) = best(&widths, &chi2(&coarse), thinned.fitted(0), parameters);
+    // The evidence on the subsample, where a refusal there spares the fits on every sample.
+    let subsample_evidence = |halves: Option<[(f64, f64); 2]>| Evidence {
+        delta_bic: z * z - (thinned.fitted(0) as f64).ln(),
+        explained: (coarse[0].0 - coarse[at].0).max(0.0) / coarse[0].0,
+        z,
+        halves: halves.map(|h| h.map(|(width, _)| width)),
+        halves_z: halves.map(|h| h.map(|(_, z)| z)),
+    };
     if z < MIN_HALF_Z {
         // Each part alone, half of these samples, must show it by as much: the solves on every
         // sample (a third of the time at 60 k samples) are spared where none can pass.
-        let drop = (coarse[0].0 - coarse[at].0).max(0.0);
-        let evidence = Evidence {
-            delta_bic: z * z - (thinned.fitted(0) as f64).ln(),
-            explained: drop / coarse[0].0,
-            z,
-            halves: None,
-            halves_z: None,
-        };
+        let evidence = subsample_evidence(None);
         let why = format!(
             "on the micro-slip form no dead band fits clearly better than none (z = {z:.1} on {} samples, below {MIN_HALF_Z})",
             thinned.fitted(0)
@@ -300,16 +301,9 @@ pub fn test(observed: &Observed, noise: NoiseModel, weights: &[f64], columns: &[
             (at > 1 && at + 1 < near.len()).then(|| vertex(&near[at - 1..=at + 1], &part[at - 1..=at + 1])).flatten();
         (placed.unwrap_or(near[at]), z)
     });
-    let subsample_evidence = || Evidence {
-        delta_bic: z * z - (thinned.fitted(0) as f64).ln(),
-        explained: (coarse[0].0 - coarse[at].0).max(0.0) / coarse[0].0,
-        z,
-        halves: Some([halves[0].0, halves[1].0]),
-        halves_z: Some([halves[0].1, halves[1].1]),
-    };
     if let Flatness::Stiff(why) | Flatness::Untold(why) = flatness(observed, width) {
         let why = format!("on the micro-slip form: {why}");
-        return Some(Verdict::Refused { width, evidence: subsample_evidence(), why });
+        return Some(Verdict::Refused { width, evidence: subsample_evidence(Some(halves)), why });
     }
     // On every sample, one fit at a time: each holds its torque at every sample (16 MB at 2 M).
     let rss = |fit: &ColumnsFit| data.torque.iter().zip(&fit.predicted).map(|(t, p)| (t - p).powi(2)).sum::<f64>();
