@@ -116,8 +116,8 @@ fn pooled_slope(theta: &[f64], torque: &[f64], turning: &[usize], band: (f64, f6
 /// the form takes a band for a spring soft about zero too, or for its own misfit, and there
 /// the torque inside is as stiff as outside. On `simulate`'s catalogue gear under nested
 /// motion (a 14000 N·m/rad first segment) the form named 24 µrad at 1.5 mrad and 80 µrad at
-/// 2 mrad, and on a Bouc–Wen gear with damping 68 µrad: inside 14800, 15000 and 8400 N·m/rad,
-/// outside 13000, 15100 and 8200. OpenSees' six materials with 20 µrad concealed: inside −94 ±
+/// 2 mrad, and on a Bouc–Wen gear with damping 68 µrad: inside 14800, 14800 and 8400 N·m/rad,
+/// outside 13000, 15000 and 8200. OpenSees' six materials with 20 µrad concealed: inside −94 ±
 /// 972, outside 11000–14600.
 pub fn flatness(observed: &Observed, width: f64) -> Flatness {
     let data = &observed.data;

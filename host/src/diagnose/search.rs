@@ -242,7 +242,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 );
             }
             // A backlash on the form with its torque effects: one the genetic form's misfit hid,
-            // or the width of one named there.
+            // or the width of one named there (withdrawn where the gear moves inside its band).
             let mut backlash_form = None;
             if let Some(noise) = observed.noise {
                 if observed.revealable().contains(&Effect::Backlash) {
@@ -384,10 +384,11 @@ fn merge(
 
 /// Tests a backlash on the form ([`backlash_on_form`]) beside the torque effects `in_model`.
 /// Named there, it joins them and the findings with the form's width (one named on the genetic
-/// form takes that width, as the torque effects kept beside the form take their magnitudes on
-/// it: on OpenSees' materials the genetic form read 20 µrad as 24–28), and the form with it is
-/// returned (its torque along the recording, its held-out RMS and the width). Refused there, one named on
-/// the genetic form stays as it is, re-tested at its width ([`form::judge`]), and another's
+/// form takes that width and its figures, as the torque effects kept beside the form take their
+/// magnitudes on it: on OpenSees' materials the genetic form read 20 µrad as 24–28), and the
+/// form with it is returned (its torque along the recording, its held-out RMS and the width).
+/// Refused there, one named on the genetic form stays as it is (re-tested at its width,
+/// [`form::judge`]) unless the gear moves inside its band, where it is withdrawn; another's
 /// reason joins the genetic search's.
 fn backlash_on_the_form(
     observed: &Observed,
