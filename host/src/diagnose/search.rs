@@ -243,9 +243,11 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             }
             // A backlash on the form with its torque effects: one the genetic form's misfit hid,
             // or the width of one named there (withdrawn where the gear moves inside its band).
+            // Not beside a kinematic error, which moves the deflection in a way the form cannot
+            // take.
             let mut backlash_form = None;
             if let Some(noise) = observed.noise {
-                if observed.revealable().contains(&Effect::Backlash) {
+                if observed.revealable().contains(&Effect::Backlash) && !in_model.contains(&Effect::KinematicError) {
                     backlash_form = backlash_on_the_form(
                         observed,
                         noise,
@@ -260,10 +262,9 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             // backlash named there), where no other deflection effect, which the form cannot take,
             // is in the model.
             let deflection = in_model.iter().any(|e| e.moves_deflection());
-            let only_backlash = in_model.iter().filter(|e| e.moves_deflection()).count() == 1;
             let (on_the_form, width) = match backlash_form {
-                Some((predicted, held_out, width)) if only_backlash => (Some((predicted, held_out)), Some(width)),
-                _ => (on_the_form.filter(|_| !deflection), None),
+                Some((predicted, held_out, width)) => (Some((predicted, held_out)), Some(width)),
+                None => (on_the_form.filter(|_| !deflection), None),
             };
             let mut final_fit = fit_extended(observed, all, &weights, &in_model, &baseline)
                 .map_err(|source| refit_error(&in_model, source))?;
