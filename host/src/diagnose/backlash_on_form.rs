@@ -22,7 +22,7 @@
 //!   within [`super::MAX_HALF_SPREAD`] of their mean;
 //! - the held-out samples are predicted better with it, each fitted without them.
 use super::effects::backlash;
-use super::form::{held_out_rms_along, STRUCTURE_FACTOR};
+use super::form::{held_out_rms_along, rss_of, STRUCTURE_FACTOR};
 use super::observed::Observed;
 use super::{magnitudes_differ, Evidence, MIN_BIC_DROP, MIN_HALF_Z};
 use crate::fit::motion::{micro_slip_with_columns, ColumnsFit, SpringShape};
@@ -117,8 +117,7 @@ fn pooled_slope(theta: &[f64], torque: &[f64], turning: &[usize], band: (f64, f6
 /// the torque inside is as stiff as outside. On `simulate`'s catalogue gear under nested
 /// motion (a 14000 N·m/rad first segment) the form named 24 µrad at 1.5 mrad and 80 µrad at
 /// 2 mrad, and on a Bouc–Wen gear with damping 68 µrad: inside 14800, 14800 and 8400 N·m/rad,
-/// outside 13000, 15000 and 8200. OpenSees' six materials with 20 µrad concealed: inside −94 ±
-/// 972, outside 11000–14600.
+/// outside 13000, 15000 and 8200 (the refusals' words, `bash bench/backlash.sh`'s gears).
 pub fn flatness(observed: &Observed, width: f64) -> Flatness {
     let data = &observed.data;
     let turning = reversals(&data.theta).indices;
@@ -306,7 +305,7 @@ pub fn test(observed: &Observed, noise: NoiseModel, weights: &[f64], columns: &[
         return Some(Verdict::Refused { width, evidence: subsample_evidence(Some(halves)), why });
     }
     // On every sample, one fit at a time: each holds its torque at every sample (16 MB at 2 M).
-    let rss = |fit: &ColumnsFit| data.torque.iter().zip(&fit.predicted).map(|(t, p)| (t - p).powi(2)).sum::<f64>();
+    let rss = |fit: &ColumnsFit| rss_of(&fit.predicted, &data.torque);
     let (chi2_without, rss_before) =
         form_at(&data.theta, &data.torque, noise, weights, columns, 0.0).map(|fit| (fit.chi2, rss(&fit)))?;
     let with = form_at(&data.theta, &data.torque, noise, weights, columns, width)?;

@@ -275,7 +275,7 @@ fn deflection_effects_on_the_form(
 }
 
 /// Σ (torque − predicted)².
-fn rss_of(predicted: &[f64], torque: &[f64]) -> f64 {
+pub(super) fn rss_of(predicted: &[f64], torque: &[f64]) -> f64 {
     predicted.iter().zip(torque).map(|(p, t)| (t - p).powi(2)).sum()
 }
 
