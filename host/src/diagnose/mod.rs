@@ -210,6 +210,17 @@ pub struct DiagnoseOutcome {
     pub ratcheting: ratcheting::RatchetingCheck,
     /// The first sample from which the hysteresis state is known: 0 from rest.
     pub known_state_from: usize,
+    /// Whether the recording starts at a standstill found in the data, not declared
+    /// ([`OfflineRun::remanent_start`]): its hysteresis may start at a remanence.
+    pub remanent_start: bool,
+}
+
+/// Where a recording's hysteresis state is known: from its first sample scored
+/// ([`OfflineRun::scored_from`]: 0 from rest, else once the motion has visited both its
+/// extremes), and whether it may start at a remanence ([`OfflineRun::remanent_start`]).
+struct Start {
+    known_from: usize,
+    remanent: bool,
 }
 
 /// `dataset` with its deflection measured from its zero θ0 where it is a recording that starts
@@ -221,10 +232,9 @@ pub struct DiagnoseOutcome {
 /// 1.6·10⁵ N·m. The torque read at rest is reported, not removed: the `torque_offset` test
 /// judges it with the rest of the effects.
 ///
-/// Also the first sample from which the hysteresis state is known ([`OfflineRun::scored_from`]:
-/// 0 from rest, else once the motion has visited both its extremes), and the torque read at
-/// rest with its standard error (N·m), where the rest window is long enough to read it.
-fn zeroed(dataset: Dataset) -> (Dataset, Option<RunOrigin>, usize, Option<(f64, f64)>) {
+/// Also where the hysteresis state is known ([`Start`]), and the torque read at rest with its
+/// standard error (N·m), where the rest window is long enough to read it.
+fn zeroed(dataset: Dataset) -> (Dataset, Option<RunOrigin>, Start, Option<(f64, f64)>) {
     match dataset {
         Dataset::Recording(mut recording) => {
             let run = OfflineRun::of(&recording);
@@ -235,9 +245,10 @@ fn zeroed(dataset: Dataset) -> (Dataset, Option<RunOrigin>, usize, Option<(f64, 
             let rest_torque = run.rest.and_then(|rest| {
                 rest.torque_nm.map(|torque| (torque, run.noise.torque_nm / (rest.samples.max(1) as f64).sqrt()))
             });
-            (Dataset::Recording(recording), origin, run.scored_from, rest_torque)
+            let start = Start { known_from: run.scored_from, remanent: run.remanent_start };
+            (Dataset::Recording(recording), origin, start, rest_torque)
         }
-        table => (table, None, 0, None),
+        table => (table, None, Start { known_from: 0, remanent: false }, None),
     }
 }
 
@@ -282,7 +293,8 @@ pub fn diagnose_dataset(
     baseline: Option<Params<f64>>,
     seed: u64,
 ) -> Result<DiagnoseOutcome, DiagnoseError> {
-    let (dataset, origin, known_state_from, rest_torque) = zeroed(dataset);
+    let (dataset, origin, start, rest_torque) = zeroed(dataset);
+    let known_state_from = start.known_from;
     let mut prepared = prepare(&dataset)?;
     let baseline = match baseline {
         Some(params) => params,
@@ -358,5 +370,6 @@ pub fn diagnose_dataset(
         non_masing,
         ratcheting,
         known_state_from,
+        remanent_start: start.remanent,
     })
 }

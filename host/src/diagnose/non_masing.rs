@@ -49,6 +49,9 @@ pub struct NonMasing {
     pub held_out_rms: Option<[f64; 2]>,
     /// The information criterion's drop and the share explained on each part alone.
     pub halves: Option<[[f64; 2]; 2]>,
+    /// Runs whose start state both forms estimated: they start still, at a standstill found in
+    /// the data, where the motion before may have left a remanence (0 on one recording).
+    pub remanent_starts: usize,
     /// Why it is not named; `None` when it is.
     pub rejected: Option<String>,
     /// The torque of each form fitted on every sample, N·m, at every sample (0 before the
@@ -223,6 +226,7 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], known_stat
         free_to_noise,
         held_out_rms,
         halves,
+        remanent_starts: 0,
         rejected,
         torque,
     })
@@ -242,18 +246,23 @@ fn not_in_each(parts: [[f64; 2]; 2], which: &str) -> Option<String> {
     })
 }
 
-/// One run of [`check_runs`]: its observations, the search's weights, the effects accepted on it
-/// and the first sample whose hysteresis state is known.
+/// One run of [`check_runs`]: its observations, the search's weights, the effects accepted on it,
+/// the first sample whose hysteresis state is known and whether it may start at a remanence.
 pub struct RunOfMany<'a> {
     pub observed: &'a Observed,
     pub weights: &'a [f64],
     pub active: &'a [Effect],
     pub known_state_from: usize,
+    /// Whether it starts at a standstill found in the data, its start state estimated
+    /// ([`crate::prepare::OfflineRun::remanent_start`]).
+    pub remanent_start: bool,
 }
 
-/// Tests the loops of several runs of one gear, each from rest, against Masing's rule: the two
-/// forms of [`check`] fitted on every run at once, one spring and one hysteresis, with each run's
-/// own torque offset and accepted effects beside them. A run at each amplitude is what Masing's
+/// Tests the loops of several runs of one gear against Masing's rule: the two forms of [`check`]
+/// fitted on every run at once, one spring and one hysteresis, with each run's own torque offset
+/// and accepted effects beside them. Each run starts from rest, or at a start state the forms
+/// estimate where it starts at a standstill found in the data: a remanence that the forms run
+/// from rest cannot follow is not a departure from Masing's rule. A run at each amplitude is what Masing's
 /// rule relates; runs that each run one loop, all between the same extremes, cannot show it.
 /// Named on [`check`]'s tests, with runs where it takes the recording's parts: the held-out
 /// samples are whole runs (each run but the largest held out once, fitted on the others), and
@@ -325,6 +334,7 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
                 torque: &run.observed.data.torque,
                 reversals: &reversals[k],
                 weights: if fitted.contains(&k) { &known_weights[k] } else { &zeros[k] },
+                remanent_start: run.remanent_start,
                 // The fitted runs' own columns only: a run followed at weight 0 gives its own none.
                 extra: fitted
                     .iter()
@@ -423,6 +433,7 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
         free_to_noise,
         held_out_rms,
         halves,
+        remanent_starts: runs.iter().filter(|run| run.remanent_start).count(),
         rejected,
         torque: [Vec::new(), Vec::new()],
     })

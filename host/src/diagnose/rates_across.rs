@@ -103,6 +103,7 @@ impl Setting<'_> {
                     reversals: &self.reversals[k],
                     weights: if fitted.contains(&k) { &self.weights[k] } else { &zeros[k] },
                     extra,
+                    remanent_start: run.remanent_start,
                 }
             })
             .collect();

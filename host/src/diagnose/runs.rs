@@ -12,7 +12,8 @@
 //!   form describes passes the tests on its whole recording, and all of them read it with one
 //!   sign, their magnitudes within [`super::MAX_HALF_SPREAD`] of one another.
 //!
-//! - **Masing's rule:** tested on the runs at once, each from rest, where they hold loops of
+//! - **Masing's rule:** tested on the runs at once, each from rest or from a remanence it
+//!   estimates (a run that starts at a standstill found in the data), where they hold loops of
 //!   more than one size ([`non_masing::check_runs`]): what "record several amplitudes" asks.
 //! - **A rate effect** across runs at different rates, where a run at one rate cannot tell one
 //!   ([`rates_across::check`]): what "record the same loop at a second rate" asks.
@@ -143,6 +144,7 @@ pub fn diagnose_runs(
             weights: &outcome.diagnosis.weights,
             active: &outcome.diagnosis.final_fit.active,
             known_state_from: outcome.known_state_from,
+            remanent_start: outcome.remanent_start,
         })
         .collect();
     let across = Across {

@@ -376,9 +376,7 @@ fn fit_recordings(
             .iter()
             .zip(&offline)
             .map(|(r, o)| Run {
-                // A standstill found in the data, not declared: the elements may hold the
-                // remanence of the motion before the recording.
-                remanent_start: o.rest.is_some() && !r.starts_at_rest(),
+                remanent_start: o.remanent_start,
                 ..Run::fitted_from(&r.deflection, &r.torque, &o.reversals, o.scored_from)
             })
             .collect(),

@@ -1702,22 +1702,30 @@ pub fn masing_forms_with_columns(
     weights: &[f64],
     extra: &[&[f64]],
 ) -> Result<[FormFit; 2], FitError> {
-    masing_forms_of_runs(&[FormRun { theta, torque, reversals, weights, extra: extra.to_vec() }], noise)
+    let run = FormRun { theta, torque, reversals, weights, extra: extra.to_vec(), remanent_start: false };
+    masing_forms_of_runs(&[run], noise)
 }
 
-/// One run of [`masing_forms_of_runs`]: its deflection (from its zero) and torque from rest,
-/// its reversals, each sample's weight and the free columns' values at its samples.
+/// One run of [`masing_forms_of_runs`]: its deflection (from its zero) and torque, its
+/// reversals, each sample's weight, the free columns' values at its samples, and whether it
+/// starts at a standstill found in the data ([`Run::remanent_start`]: among several runs, its
+/// start state is estimated), else from rest.
 pub struct FormRun<'a> {
     pub theta: &'a [f64],
     pub torque: &'a [f64],
     pub reversals: &'a Reversals,
     pub weights: &'a [f64],
     pub extra: Vec<&'a [f64]>,
+    pub remanent_start: bool,
 }
 
-/// [`masing_forms_with_columns`] on several runs, each from rest, sharing one spring and one
-/// set of elements and cells; each run brings its own values of the free columns (as many for
-/// every run). The forms' torque runs through the runs in turn.
+/// [`masing_forms_with_columns`] on several runs, sharing one spring and one set of elements
+/// and cells; each run brings its own values of the free columns (as many for every run). Each
+/// run starts from rest, or, where it starts at a standstill found in the data, at a start
+/// state the slip elements' copies estimate ([`START_STATES`], as the micro-slip fit of several
+/// runs does): the measured runs start at the remanence of the run before, and from rest
+/// Masing's form missed their first legs by what the free form then fitted (`bench/real/`
+/// `FINDINGS.md` §10). The forms' torque runs through the runs in turn.
 pub fn masing_forms_of_runs(runs: &[FormRun], noise: Option<NoiseModel>) -> Result<[FormFit; 2], FitError> {
     let setting = FormSetting::of(runs, noise)?;
     let cells = Cells::moving(&setting.motion)?;
@@ -1750,6 +1758,7 @@ impl<'a> FormSetting<'a> {
                 .iter()
                 .map(|run| Run {
                     weights: Some(run.weights),
+                    remanent_start: run.remanent_start,
                     ..Run::fitted_from(run.theta, run.torque, run.reversals, 0)
                 })
                 .collect(),
@@ -2495,6 +2504,60 @@ mod tests {
         let merged = torque_of(&estimated.model, &whole, &crate::prepare::reversals(&whole));
         let rms = (merged.iter().zip(&along).map(|(m, t)| (m - t).powi(2)).sum::<f64>() / whole.len() as f64).sqrt();
         assert!(rms < 1e-3 * peak, "merged RMS {rms} of {peak}");
+    }
+
+    #[test]
+    fn masings_form_follows_runs_that_start_at_the_remanence_of_the_run_before() {
+        // A Masing gear (micro-slip) recorded in three runs at three amplitudes, one after the
+        // other, as the measured spring was: each run starts at x = 0, still, at the remanence
+        // of the one before. Run from rest, Masing's form misses each first leg, and the
+        // Preisach cells, which can switch anywhere, take that up: Masing's rule "broken" by a
+        // gear that follows it.
+        let amplitude = 1.2e-3;
+        let sine = |a: f64, n: usize| -> Vec<f64> {
+            (0..=n).map(|i| a * (std::f64::consts::TAU * i as f64 / n as f64).sin()).collect()
+        };
+        let runs: Vec<Vec<f64>> = [0.4, 1.0, 0.7].iter().map(|&a| sine(a * amplitude, 2000)).collect();
+        let whole: Vec<f64> = runs.iter().flat_map(|run| run[1..].iter().copied()).collect();
+        let theta: Vec<f64> = std::iter::once(0.0).chain(whole).collect();
+        let elements = elements_on_grid(&theta, &crate::prepare::reversals(&theta));
+        let truth = GearModel::micro_slip(0.0, asymmetric_spring(&theta), &elements).unwrap();
+        // Before the first run, a loop larger than any of them.
+        let history = sine(1.1 * amplitude, 2000);
+        let along_all: Vec<f64> = history.iter().chain(&theta[1..]).copied().collect();
+        let along = torque_of(&truth, &along_all, &crate::prepare::reversals(&along_all));
+        let mut torque: Vec<Vec<f64>> = Vec::new();
+        let mut at = history.len() - 1;
+        for run in &runs {
+            torque.push(along[at..at + run.len()].to_vec());
+            at += run.len() - 1;
+        }
+        let reversals: Vec<Reversals> = runs.iter().map(|run| crate::prepare::reversals(run)).collect();
+        let weights: Vec<Vec<f64>> = runs.iter().map(|run| vec![1.0; run.len()]).collect();
+        // Each run's own torque offset (its sensor zeroed as it starts), zero on the others.
+        let ones: Vec<Vec<f64>> = runs.iter().map(|run| vec![1.0; run.len()]).collect();
+        let forms = |remanent_start: bool| {
+            let form_runs: Vec<FormRun> = (0..runs.len())
+                .map(|k| FormRun {
+                    theta: &runs[k],
+                    torque: &torque[k],
+                    reversals: &reversals[k],
+                    weights: &weights[k],
+                    extra: (0..runs.len()).map(|j| if j == k { ones[k].as_slice() } else { &[][..] }).collect(),
+                    remanent_start,
+                })
+                .collect();
+            masing_forms_of_runs(&form_runs, None).unwrap()
+        };
+        let samples = weights.iter().map(Vec::len).sum::<usize>() as f64;
+        let rms = |form: &FormFit| (form.chi2 / samples).sqrt();
+        let peak = along.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+        let [masing, free] = forms(true);
+        assert!(rms(&masing) < 3e-3 * peak, "Masing's form from the remanence: RMS {} of {peak}", rms(&masing));
+        assert!(rms(&free) > 0.9 * rms(&masing), "the cells fit {} against {}", rms(&free), rms(&masing));
+        let [masing, free] = forms(false);
+        assert!(rms(&masing) > 5e-3 * peak, "Masing's form from rest: RMS {} of {peak}", rms(&masing));
+        assert!(rms(&free) < 0.7 * rms(&masing), "the cells fit {} against {}", rms(&free), rms(&masing));
     }
 
     #[test]

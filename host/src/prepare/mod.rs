@@ -113,6 +113,11 @@ pub struct OfflineRun {
     /// still runs through the samples before, from rest, but they are neither fitted nor
     /// scored. 0 from rest.
     pub scored_from: usize,
+    /// Whether the run starts at a standstill found in the data, not declared: the gear is
+    /// still, but its hysteresis may hold the remanence of the motion before the recording
+    /// (`bench/real/FINDINGS.md` §1), which fits of several runs estimate
+    /// (`fit::motion::START_STATES`).
+    pub remanent_start: bool,
 }
 
 impl OfflineRun {
@@ -127,6 +132,7 @@ impl OfflineRun {
                 torque_nm: noise_from_second_differences(&recording.torque),
                 deflection_rad: band.noise,
             },
+            remanent_start: rest.is_some() && !recording.starts_at_rest(),
             rest,
             scored_from,
         }

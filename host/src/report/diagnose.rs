@@ -138,6 +138,7 @@ impl DiagnoseReport {
             non_masing,
             ratcheting,
             known_state_from: _,
+            remanent_start: _,
         } = outcome;
         DiagnoseReport {
             input,

@@ -104,9 +104,17 @@ impl RunsReport {
                 let held = found.held_out_rms.map_or(String::new(), |[m, f]| {
                     format!("; the runs held out, each fitted on the others: {m:.4} (Masing's) and {f:.4} N·m (free)")
                 });
+                let started = match found.remanent_starts {
+                    0 => String::new(),
+                    n => format!(
+                        "; both forms estimate the start state of the {n} run{} that start at a standstill \
+                         found in the data (a remanence the motion before may have left)",
+                        if n == 1 { "" } else { "s" }
+                    ),
+                };
                 let figures = format!(
                     "the free form misses Masing's by {:.4} N·m RMS, ΔBIC {:.0}, explains {:.1} % of Masing's \
-                     residual, leaves {:.1}× the noise{held}",
+                     residual, leaves {:.1}× the noise{held}{started}",
                     found.magnitude_nm,
                     found.delta_bic,
                     100.0 * found.explained,
