@@ -569,6 +569,40 @@ fn effects_named(json: &serde_json::Value) -> Vec<String> {
     json["findings"].as_array().unwrap().iter().map(|f| f["effect"].as_str().unwrap().to_string()).collect()
 }
 
+/// Where a form is named, the final model is that form, and the JSON holds it as a parameter
+/// file (`final.form_model`, θ0 the zero read at rest): `predict` runs it along the recording to
+/// the final RMS. `final.params` stay the genetic model's, which a new user's trial took for the
+/// final model. The text gives the magnitude each effect refused was tried at.
+#[test]
+fn the_form_named_is_written_as_a_parameter_file_that_predict_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let motion = ["--physics", "micro-slip", "--motion", "nested", "--deflection-zero", "2e-4"];
+    let noise = ["--input-bits", "20", "--output-bits", "20"];
+    let report = simulated_and_diagnosed(dir.path(), "rec.csv", &[&motion[..], &noise].concat());
+    let final_model = &report["final"];
+    assert_eq!(final_model["form"], "micro-slip", "{final_model:#}");
+    assert!(report["baseline"].get("form_model").is_none(), "{:#}", report["baseline"]);
+    let form = &final_model["form_model"];
+    assert_eq!(form["model"], "micro-slip", "{form:#}");
+    let zero = form["params"]["zero"].as_f64().unwrap();
+    assert!((zero - 2e-4).abs() < 1e-5, "θ0 {zero}");
+    let params = dir.path().join("form.json");
+    std::fs::write(&params, form.to_string()).unwrap();
+    let recording = dir.path().join("rec.csv");
+    let predicted =
+        common::json(&swg_host(&["predict", params.to_str().unwrap(), recording.to_str().unwrap(), "--json"]));
+    let (rms, final_rms) = (predicted["rms"].as_f64().unwrap(), final_model["rms"].as_f64().unwrap());
+    assert!((rms - final_rms).abs() <= 1e-6 * final_rms, "predict {rms} N·m, the final model {final_rms}");
+    // The text says at what magnitude each effect refused was tried (a trial missed it).
+    let text = ok(swg_host(&["diagnose", recording.to_str().unwrap()]));
+    let refused = report["rejected"].as_array().unwrap();
+    assert!(!refused.is_empty(), "{report:#}");
+    for rejection in refused.iter().filter(|r| r["magnitude"].as_f64().is_some_and(|m| m != 0.0)) {
+        let line = format!("  - {} (tried at ", rejection["effect"].as_str().unwrap());
+        assert!(text.contains(&line), "{line:?} in\n{text}");
+    }
+}
+
 /// The search on the form. OpenSees' Iwan material is a micro-slip gear: with 40 N·m·s/rad of
 /// damping concealed, the genetic form's misfit made the slow and fast estimates disagree (159
 /// and 49) and the damping was refused; searched on the micro-slip form it is named at 40 ± 10 %,

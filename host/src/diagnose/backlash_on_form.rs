@@ -24,7 +24,7 @@
 use super::effects::backlash;
 use super::form::{held_out_rms_along, rss_of, STRUCTURE_FACTOR};
 use super::observed::Observed;
-use super::{magnitudes_differ, Evidence, MIN_BIC_DROP, MIN_HALF_Z};
+use super::{magnitudes_differ, Evidence, FormAlong, MIN_BIC_DROP, MIN_HALF_Z};
 use crate::fit::motion::{micro_slip_with_columns, ColumnsFit, SpringShape};
 use crate::prepare::{reversals, NoiseModel};
 use rayon::prelude::*;
@@ -33,22 +33,22 @@ use rayon::prelude::*;
 pub const SUBSAMPLE: usize = 4096;
 
 /// A backlash named on the form: its width (rad) there, its evidence, the form's unweighted RSS
-/// without and with it, (N·m)², and the form with it: its torque at every sample and its RMS on
-/// the held-out samples fitted without them, N·m.
+/// without and with it, (N·m)², and the form with it, and its RMS on the held-out samples fitted
+/// without them, N·m.
 #[derive(Clone, Debug)]
 pub struct Named {
     pub width: f64,
     pub evidence: Evidence,
     pub rss_before: f64,
     pub rss_after: f64,
-    pub predicted: Vec<f64>,
+    pub along: FormAlong,
     pub held_out_rms: Option<f64>,
 }
 
 /// What the form says of a backlash: named, or refused with its best width, evidence and why.
 #[derive(Clone, Debug)]
 pub enum Verdict {
-    Named(Named),
+    Named(Box<Named>),
     Refused { width: f64, evidence: Evidence, why: String },
 }
 
@@ -348,14 +348,14 @@ pub fn test(observed: &Observed, noise: NoiseModel, weights: &[f64], columns: &[
     };
     Some(match refused {
         Some(why) => Verdict::Refused { width, evidence, why },
-        None => Verdict::Named(Named {
+        None => Verdict::Named(Box::new(Named {
             width,
             evidence,
             rss_before,
             rss_after,
             held_out_rms: held_out,
-            predicted: with.predicted,
-        }),
+            along: FormAlong { model: with.model, predicted: with.predicted },
+        })),
     })
 }
 

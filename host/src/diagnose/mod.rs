@@ -41,7 +41,7 @@ use crate::fit::zero::{fit_with_zero, FinalSolve};
 use crate::fit::{fit, FitError, FitOptions};
 use crate::input::{Dataset, Recording};
 use crate::prepare::{prepare, reversals, OfflineRun, RunOrigin, SegmentError};
-use model_core::{Kind, Params};
+use model_core::{GearModel, Kind, Params};
 use serde::Serialize;
 
 /// ΔBIC an effect must reach.
@@ -158,8 +158,17 @@ pub struct Diagnosis {
 #[derive(Clone, Debug)]
 pub struct FinalForm {
     /// The model kind: `micro-slip`.
-    pub model: &'static str,
-    /// Its torque at every sample, N·m.
+    pub kind: &'static str,
+    /// The form fitted with them.
+    pub along: FormAlong,
+}
+
+/// A form fitted with torque effects beside it: its model (θ0 = 0 on the deflection as the
+/// diagnosis measures it, from the zero it read at rest, and moved by a backlash named on the
+/// form), without the effects, and the torque of both at every sample, N·m.
+#[derive(Clone, Debug)]
+pub struct FormAlong {
+    pub model: GearModel<f64>,
     pub predicted: Vec<f64>,
 }
 
@@ -318,7 +327,7 @@ pub fn diagnose_dataset(
     let diagnosis = diagnose(&observed, baseline)?;
     let before = diagnosis.baseline.residuals(&observed, observed.samples()).map_err(DiagnoseError::Baseline)?;
     let after = match &diagnosis.final_form {
-        Some(form) => observed.data.torque.iter().zip(&form.predicted).map(|(t, p)| t - p).collect(),
+        Some(form) => observed.data.torque.iter().zip(&form.along.predicted).map(|(t, p)| t - p).collect(),
         None => {
             diagnosis.final_fit.residuals(&observed, observed.samples()).map_err(|source| DiagnoseError::Refit {
                 effects: diagnosis.final_fit.active.iter().map(|e| format!(" + {}", e.name())).collect(),

@@ -40,10 +40,11 @@ use super::form::{
 };
 use super::observed::Observed;
 use super::{estimates_disagree, magnitudes_differ, weights_on};
-use super::{Evidence, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
+use super::{Evidence, FormAlong, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use crate::fit::motion::{micro_slip_with_columns, SpringShape};
 use crate::gear::Reversals;
 use crate::prepare::NoiseModel;
+use model_core::GearModel;
 use rayon::prelude::*;
 
 /// Effects tried on the form: the torque effects but friction (see the module's doc).
@@ -92,15 +93,16 @@ pub struct FormSearch {
     /// Every torque effect on the form at the end, with its magnitude there: the ones the
     /// model had, the ones named and the untold ones.
     pub magnitudes: Vec<(Effect, f64)>,
-    /// The form with all of them: its torque at every sample, and its RMS on the held-out
-    /// samples fitted without them (N·m).
-    pub predicted: Option<Vec<f64>>,
+    /// The form with all of them, and its RMS on the held-out samples fitted without them
+    /// (N·m).
+    pub along: Option<FormAlong>,
     pub held_out_rms: Option<f64>,
 }
 
 /// One solve of the form with torque columns beside it.
 struct Solve {
     predicted: Vec<f64>,
+    model: GearModel<f64>,
     chi2: f64,
     parameters: usize,
     /// The columns' coefficients, in their order.
@@ -144,6 +146,7 @@ impl Form<'_> {
         let last = fit.extra.last().copied().unwrap_or(0.0);
         Some(Solve {
             predicted: fit.predicted,
+            model: fit.model,
             chi2: fit.chi2,
             parameters: fit.parameters,
             coefficients: fit.extra,
@@ -299,7 +302,7 @@ pub fn search(
     let columns: Vec<&[f64]> = kept.iter().map(|(_, c)| c.as_slice()).collect();
     if let Some(fit) = form.solve(&columns, None) {
         found.magnitudes = kept.iter().zip(fit.coefficients).map(|((e, _), c)| (*e, in_its_unit(*e, c, c1))).collect();
-        found.predicted = Some(fit.predicted);
+        found.along = Some(FormAlong { model: fit.model, predicted: fit.predicted });
     }
     found.held_out_rms = held_out_rms(&form, &columns);
     found

@@ -8,7 +8,7 @@ use super::locate::{locate, torque, Observation};
 use super::observed::Observed;
 use super::on_form;
 use super::{estimates_disagree, magnitudes_differ};
-use super::{DiagnoseError, Diagnosis, Evidence, FinalForm, Finding, Rejection, Undecided};
+use super::{DiagnoseError, Diagnosis, Evidence, FinalForm, Finding, FormAlong, Rejection, Undecided};
 use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use crate::fit::total_noise_weights;
 use model_core::{Model, Params};
@@ -263,7 +263,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
             // is in the model.
             let deflection = in_model.iter().any(|e| e.moves_deflection());
             let (on_the_form, width) = match backlash_form {
-                Some((predicted, held_out, width)) => (Some((predicted, held_out)), Some(width)),
+                Some((along, held_out, width)) => (Some((along, held_out)), Some(width)),
                 None => (on_the_form.filter(|_| !deflection), None),
             };
             let mut final_fit = fit_extended(observed, all, &weights, &in_model, &baseline)
@@ -290,10 +290,10 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 });
             }
             let mut held_out_rms = held_out(observed, &weights, &baseline, &final_fit)?;
-            let final_form = on_the_form.map(|(predicted, form_held_out)| {
+            let final_form = on_the_form.map(|(along, form_held_out)| {
                 // The held-out line compares the baseline with the final model, the form.
                 held_out_rms = held_out_rms.zip(form_held_out).map(|((baseline, _), form)| (baseline, form));
-                FinalForm { model: model_form.model, predicted }
+                FinalForm { kind: model_form.model, along }
             });
             // An undecided torque that stood in for the shape goes with the shape.
             undecided.retain(|u| in_model.contains(&u.effects[0]));
@@ -327,7 +327,7 @@ fn merge(
     in_model: &mut Vec<Effect>,
     untold: &mut Vec<Untold>,
     untellable: &mut Vec<on_form::Untellable>,
-) -> Option<(Vec<f64>, Option<f64>)> {
+) -> Option<(FormAlong, Option<f64>)> {
     for effect in &found.untellable {
         rejected.retain(|r| r.effect != effect.effect);
     }
@@ -380,7 +380,7 @@ fn merge(
         in_model.push(pair.effect);
         untold.push(pair);
     }
-    found.predicted.map(|predicted| (predicted, found.held_out_rms))
+    found.along.map(|along| (along, found.held_out_rms))
 }
 
 /// Tests a backlash on the form ([`backlash_on_form`]) beside the torque effects `in_model`.
@@ -398,7 +398,7 @@ fn backlash_on_the_form(
     in_model: &mut Vec<Effect>,
     findings: &mut Vec<Finding>,
     rejected: &mut Vec<Rejection>,
-) -> Option<(Vec<f64>, Option<f64>, f64)> {
+) -> Option<(FormAlong, Option<f64>, f64)> {
     let reversals = crate::prepare::reversals(&observed.data.theta);
     let form_weights = on_form::form_weights(observed, &reversals, noise, weights, in_model);
     let weights = form_weights.as_deref().unwrap_or(weights);
@@ -420,7 +420,7 @@ fn backlash_on_the_form(
                 finding.rss_before = named.rss_before;
                 finding.rss_after = named.rss_after;
             }
-            Some((named.predicted, named.held_out_rms, named.width))
+            Some((named.along, named.held_out_rms, named.width))
         }
         Some(Verdict::Named(named)) => {
             rejected.retain(|r| r.effect != Effect::Backlash);
@@ -436,7 +436,7 @@ fn backlash_on_the_form(
                 evidence: named.evidence,
                 active: false,
             });
-            Some((named.predicted, named.held_out_rms, named.width))
+            Some((named.along, named.held_out_rms, named.width))
         }
         // Named on the genetic form where the torque is as stiff inside its band as beside it:
         // the form's misfit or a spring soft about zero, not a dead band (`simulate --physics

@@ -6,11 +6,12 @@ use crate::diagnose::non_masing::{NonMasing, NonMasingCheck};
 use crate::diagnose::passivity::Passivity;
 use crate::diagnose::ratcheting::{Ratcheting, RatchetingCheck};
 use crate::diagnose::{
-    DiagnoseOutcome, Effect, ExtendedFit, Finding, Observation, Rejection, Undecided, MAX_HALF_SPREAD, MIN_BIC_DROP,
-    MIN_EXPLAINED, MIN_HALF_Z,
+    DiagnoseOutcome, Effect, ExtendedFit, FinalForm, Finding, Observation, Rejection, Undecided, MAX_HALF_SPREAD,
+    MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z,
 };
 use crate::prepare::{NoiseModel, OriginSource, RunOrigin};
-use model_core::Params;
+use crate::report::params::ModelFile;
+use model_core::{GearModel, Params};
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -72,13 +73,19 @@ pub struct ModelSummary {
     pub rms: f64,
     pub n: usize,
     /// The genetic model's parameters: the baseline's, or the final genetic model's with the
-    /// effects (beside a `form` too).
+    /// effects (beside a `form` too, where the final model is the form's).
     pub params: Params<f64>,
     pub effects: Vec<Effect>,
     /// The model kind the final model is, with the torque effects beside it, where the
     /// diagnosis named that form: `rss` and `rms` are then its.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub form: Option<&'static str>,
+    /// That form's model as a parameter file holds it (`predict` and `push` read it), its θ0
+    /// the zero the diagnosis measured the deflection from. Without the effects beside it:
+    /// their magnitudes are the findings' (a backlash named on the form moves the deflection
+    /// the form runs on).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub form_model: Option<ModelFile>,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -109,7 +116,9 @@ pub struct Criteria {
 }
 
 impl ModelSummary {
-    fn new(fit: &ExtendedFit, residuals: &[f64], form: Option<&'static str>) -> ModelSummary {
+    /// The summary of `fit` with `residuals`, or of the `form` with its torque effects where it
+    /// is the final model, its θ0 `zero` (rad).
+    fn new(fit: &ExtendedFit, residuals: &[f64], form: Option<&FinalForm>, zero: f64) -> ModelSummary {
         let rss: f64 = residuals.iter().map(|r| r * r).sum();
         ModelSummary {
             rss,
@@ -117,7 +126,8 @@ impl ModelSummary {
             n: residuals.len(),
             params: fit.params,
             effects: fit.active.clone(),
-            form,
+            form: form.map(|f| f.kind),
+            form_model: form.map(|f| ModelFile::of(GearModel { zero, ..f.along.model })),
         }
     }
 }
@@ -143,7 +153,7 @@ impl DiagnoseReport {
         DiagnoseReport {
             input,
             kind,
-            baseline: ModelSummary::new(&diagnosis.baseline, before, None),
+            baseline: ModelSummary::new(&diagnosis.baseline, before, None, 0.0),
             noise: observed.noise,
             origin: *origin,
             rest_torque_nm: observed.rest_torque.map(|(torque, _)| torque),
@@ -169,7 +179,12 @@ impl DiagnoseReport {
             ratcheting: ratcheting.clone(),
             passivity: passivity.clone(),
             rejected: diagnosis.rejected.clone(),
-            final_model: ModelSummary::new(&diagnosis.final_fit, after, diagnosis.final_form.as_ref().map(|f| f.model)),
+            final_model: ModelSummary::new(
+                &diagnosis.final_fit,
+                after,
+                diagnosis.final_form.as_ref(),
+                origin.map_or(0.0, |o| o.zero_rad),
+            ),
             held_out: diagnosis.held_out_rms.map(|(rms_before, rms_after)| HeldOut {
                 rms_before,
                 rms_after,
@@ -395,7 +410,13 @@ impl DiagnoseReport {
         {
             let _ = writeln!(s, "\nnot accepted");
             for r in &report.rejected {
-                let _ = writeln!(s, "  - {}: {}", r.effect, r.reason);
+                // The magnitude the test tried, where it has one: the reason alone may not say it.
+                let tried = if r.magnitude.is_finite() && r.magnitude != 0.0 {
+                    format!(" (tried at {:.4e} {})", r.magnitude, r.effect.unit())
+                } else {
+                    String::new()
+                };
+                let _ = writeln!(s, "  - {}{tried}: {}", r.effect, r.reason);
             }
             if let Some((a, why)) = asymmetry_rejected {
                 let _ = writeln!(s, "  - asymmetry ({}): {why}", asymmetry_words(a));

@@ -94,6 +94,22 @@ pub fn parse_params(path: &Path, text: &str) -> Result<Params<f64>, ParamsFileEr
     })
 }
 
+/// A model as a parameter file holds it and nothing more, `{"model": kind, "model_version": 2,
+/// "params": {…}}`: what [`parse_model`] reads back (`diagnose` writes the form it names so).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ModelFile {
+    pub model: &'static str,
+    pub model_version: u16,
+    #[serde(serialize_with = "GearModel::serialize_params")]
+    pub params: GearModel<f64>,
+}
+
+impl ModelFile {
+    pub fn of(model: GearModel<f64>) -> Self {
+        ModelFile { model: model.kind().name(), model_version: MODEL_VERSION, params: model }
+    }
+}
+
 /// [`read_model`] of a text already read.
 pub fn parse_model(path: &Path, text: &str) -> Result<GearModel<f64>, ParamsFileError> {
     let syntax = |e: serde_json::Error| ParamsFileError::Syntax {
