@@ -569,10 +569,11 @@ fn effects_named(json: &serde_json::Value) -> Vec<String> {
     json["findings"].as_array().unwrap().iter().map(|f| f["effect"].as_str().unwrap().to_string()).collect()
 }
 
-/// Where a form is named, the final model is that form, and the JSON holds it as a parameter
-/// file (`final.form_model`, θ0 the zero read at rest): `predict` runs it along the recording to
-/// the final RMS. `final.params` stay the genetic model's, which a new user's trial took for the
-/// final model. The text gives the magnitude each effect refused was tried at.
+/// Where a form is named and nothing beside it, the final model is that form, and the JSON holds
+/// it as a parameter file (`final.form_model`, θ0 the zero read at rest): `predict --keep-zero`
+/// runs it along the recording to the final RMS. `final.params` stay the genetic model's, which a
+/// new user's trial took for the final model. Beside an effect there is no such file (it would
+/// leave the effect out). The text gives the magnitude each effect refused was tried at.
 #[test]
 fn the_form_named_is_written_as_a_parameter_file_that_predict_runs() {
     let dir = tempfile::tempdir().unwrap();
@@ -589,8 +590,13 @@ fn the_form_named_is_written_as_a_parameter_file_that_predict_runs() {
     let params = dir.path().join("form.json");
     std::fs::write(&params, form.to_string()).unwrap();
     let recording = dir.path().join("rec.csv");
-    let predicted =
-        common::json(&swg_host(&["predict", params.to_str().unwrap(), recording.to_str().unwrap(), "--json"]));
+    let predicted = common::json(&swg_host(&[
+        "predict",
+        params.to_str().unwrap(),
+        recording.to_str().unwrap(),
+        "--keep-zero",
+        "--json",
+    ]));
     let (rms, final_rms) = (predicted["rms"].as_f64().unwrap(), final_model["rms"].as_f64().unwrap());
     assert!((rms - final_rms).abs() <= 1e-6 * final_rms, "predict {rms} N·m, the final model {final_rms}");
     // The text says at what magnitude each effect refused was tried (a trial missed it).
@@ -601,6 +607,11 @@ fn the_form_named_is_written_as_a_parameter_file_that_predict_runs() {
         let line = format!("  - {} (tried at ", rejection["effect"].as_str().unwrap());
         assert!(text.contains(&line), "{line:?} in\n{text}");
     }
+    let damped = ["--physics", "micro-slip", "--frequency", "0.2,0.8", "--effect", "viscous_damping=30"];
+    let report = simulated_and_diagnosed(dir.path(), "damped.csv", &[&damped[..], &noise].concat());
+    assert_eq!(report["final"]["form"], "micro-slip", "{:#}", report["final"]);
+    assert_eq!(report["final"]["effects"][0], "viscous_damping", "{:#}", report["final"]);
+    assert!(report["final"].get("form_model").is_none(), "{:#}", report["final"]);
 }
 
 /// The search on the form. OpenSees' Iwan material is a micro-slip gear: with 40 N·m·s/rad of

@@ -23,7 +23,7 @@ use super::effects::{backlash, Effect};
 use super::extended::{kinematic_at, ExtendedFit};
 use super::form::{torque_column, STRUCTURE_FACTOR};
 use super::observed::Observed;
-use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED};
+use super::{share_below, MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::fit::motion::{scan_kinks, Kink, KINK_PARAMETERS, WIDE};
 use crate::prepare::reversals;
 use serde::Serialize;
@@ -231,8 +231,8 @@ pub fn check(observed: &Observed, weights: &[f64], final_fit: &ExtendedFit) -> K
         ))
     } else if !(explained >= MIN_EXPLAINED) {
         Some(format!(
-            "they explain {:.1} % of the smooth spring's residual, less than {:.0} %",
-            100.0 * explained,
+            "they explain {} % of the smooth spring's residual, less than {:.0} %",
+            share_below(explained, MIN_EXPLAINED),
             100.0 * MIN_EXPLAINED
         ))
     } else {

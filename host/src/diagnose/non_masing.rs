@@ -24,9 +24,9 @@
 //! Its magnitude is the torque Masing's rule misses: the RMS difference between the two forms
 //! along the recording, N·m.
 use super::effects::Effect;
-use super::form::{torque_column, STRUCTURE_FACTOR};
+use super::form::{columns_of, STRUCTURE_FACTOR};
 use super::observed::Observed;
-use super::{weights_on, MIN_BIC_DROP, MIN_EXPLAINED};
+use super::{share_below, weights_on, MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::fit::motion::{masing_forms_of_runs, masing_forms_with_columns, FormFit, FormRun};
 use crate::gear::Reversals;
 use crate::prepare::{reversals, NoiseModel};
@@ -127,8 +127,8 @@ impl Pair {
             ))
         } else if explained < MIN_EXPLAINED {
             Some(format!(
-                "the free form explains {:.1} % of Masing's residual, less than {:.0} %",
-                100.0 * explained,
+                "the free form explains {} % of Masing's residual, less than {:.0} %",
+                share_below(explained, MIN_EXPLAINED),
                 100.0 * MIN_EXPLAINED
             ))
         } else if !(free_to_noise <= STRUCTURE_FACTOR) {
@@ -169,8 +169,8 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], known_stat
              inside a large one, a biased oscillation or several amplitudes",
         );
     }
-    let columns: Vec<Vec<f64>> = active.iter().filter_map(|&effect| torque_column(observed, effect)).collect();
-    let extra: Vec<&[f64]> = columns.iter().map(Vec::as_slice).collect();
+    let columns = columns_of(observed, &reversals, noise, weights, active);
+    let extra: Vec<&[f64]> = columns.iter().map(|(_, c)| c.as_slice()).collect();
     let pair = |weights: &[f64]| -> Option<Pair> {
         let [masing, free] =
             masing_forms_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &extra).ok()?;
@@ -314,10 +314,13 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
     // accepted effects, zero on the other runs.
     let own: Vec<Vec<Vec<f64>>> = runs
         .iter()
-        .map(|run| {
+        .zip(&reversals)
+        .zip(&noises)
+        .map(|((run, reversals), &noise)| {
             let constant = vec![1.0; run.observed.data.theta.len()];
+            let effects = columns_of(run.observed, reversals, noise, run.weights, run.active);
             std::iter::once(constant)
-                .chain(run.active.iter().filter_map(|&effect| torque_column(run.observed, effect)))
+                .chain(effects.into_iter().filter(|(e, _)| *e != Effect::TorqueOffset).map(|(_, c)| c))
                 .collect()
         })
         .collect();

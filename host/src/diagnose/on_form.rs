@@ -40,7 +40,7 @@ use super::form::{
 };
 use super::observed::Observed;
 use super::{estimates_disagree, magnitudes_differ, weights_on};
-use super::{Evidence, FormAlong, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
+use super::{share_below, Evidence, FormAlong, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use crate::fit::motion::{micro_slip_with_columns, SpringShape};
 use crate::gear::Reversals;
 use crate::prepare::NoiseModel;
@@ -245,8 +245,8 @@ pub fn search(
                 Some(format!("on the micro-slip form: ΔBIC {:.1}, not above {MIN_BIC_DROP}", evidence.delta_bic))
             } else if evidence.explained < MIN_EXPLAINED {
                 Some(format!(
-                    "on the micro-slip form: explains {:.1} % of its residual, less than {:.0} %",
-                    100.0 * evidence.explained,
+                    "on the micro-slip form: explains {} % of its residual, less than {:.0} %",
+                    share_below(evidence.explained, MIN_EXPLAINED),
                     100.0 * MIN_EXPLAINED
                 ))
             } else if rms_after > STRUCTURE_FACTOR * noise_rms {

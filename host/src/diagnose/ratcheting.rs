@@ -28,7 +28,7 @@
 //! within [`MAX_HALF_SPREAD`] of their mean (the whole loop moves, not one end of it). A torque
 //! sensor whose offset drifts with time reads the same, and is told apart only by a recording
 //! that holds still as long.
-use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED};
+use super::{share_below, MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::gear::Reversals;
 use serde::Serialize;
 
@@ -180,8 +180,8 @@ pub fn check(
         Some(format!("the information criterion drops by {delta_bic:.1} (it must drop by more than {MIN_BIC_DROP})"))
     } else if explained < MIN_EXPLAINED {
         Some(format!(
-            "explains {:.1} % of the turning points' scatter, less than {:.0} %",
-            100.0 * explained,
+            "explains {} % of the turning points' scatter, less than {:.0} %",
+            share_below(explained, MIN_EXPLAINED),
             100.0 * MIN_EXPLAINED
         ))
     } else if maxima.signum() != drift.signum() || minima.signum() != drift.signum() {

@@ -21,7 +21,7 @@ use super::effects::Effect;
 use super::form::{delay_on_the_form, torque_column, STRUCTURE_FACTOR};
 use super::non_masing::RunOfMany;
 use super::observed::MIN_RATE_SPREAD;
-use super::{estimates_disagree, weights_on, MIN_BIC_DROP, MIN_EXPLAINED};
+use super::{estimates_disagree, share_below, weights_on, MIN_BIC_DROP, MIN_EXPLAINED};
 use crate::fit::motion::{masing_form_of_runs, FormFit, FormRun};
 use crate::gear::Reversals;
 use crate::prepare::{reversals, NoiseModel};
@@ -221,8 +221,8 @@ fn verdict(runs: &[RunOfMany], frequencies: &[Option<f64>]) -> RateVerdict {
     }
     if explained < MIN_EXPLAINED {
         return refused(format!(
-            "explains {:.1} % of the form's residual, less than {:.0} %",
-            100.0 * explained,
+            "explains {} % of the form's residual, less than {:.0} %",
+            share_below(explained, MIN_EXPLAINED),
             100.0 * MIN_EXPLAINED
         ));
     }

@@ -137,12 +137,14 @@ pub fn diagnose_runs(
         progress(index, count);
         runs.push(diagnose_dataset(dataset, baseline, seed).map_err(|source| RunsError { index, source })?);
     }
+    let beside: Vec<Vec<Effect>> = runs.iter().map(|outcome| outcome.diagnosis.beside_the_form()).collect();
     let many: Vec<RunOfMany> = runs
         .iter()
-        .map(|outcome| RunOfMany {
+        .zip(&beside)
+        .map(|(outcome, beside)| RunOfMany {
             observed: &outcome.observed,
             weights: &outcome.diagnosis.weights,
-            active: &outcome.diagnosis.final_fit.active,
+            active: beside,
             known_state_from: outcome.known_state_from,
             remanent_start: outcome.remanent_start,
         })

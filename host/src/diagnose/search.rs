@@ -8,8 +8,8 @@ use super::locate::{locate, torque, Observation};
 use super::observed::Observed;
 use super::on_form;
 use super::{estimates_disagree, magnitudes_differ};
+use super::{share_below, MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use super::{DiagnoseError, Diagnosis, Evidence, FinalForm, Finding, FormAlong, Rejection, Undecided};
-use super::{MAX_HALF_SPREAD, MIN_BIC_DROP, MIN_EXPLAINED, MIN_HALF_Z};
 use crate::fit::total_noise_weights;
 use model_core::{Model, Params};
 use rayon::prelude::*;
@@ -79,8 +79,8 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 Some(format!("information criterion drops by {:.1}, less than {MIN_BIC_DROP}", evidence.delta_bic))
             } else if evidence.explained < MIN_EXPLAINED {
                 Some(format!(
-                    "explains {:.1} % of the residual, less than {:.0} %",
-                    100.0 * evidence.explained,
+                    "explains {} % of the residual, less than {:.0} %",
+                    share_below(evidence.explained, MIN_EXPLAINED),
                     100.0 * MIN_EXPLAINED
                 ))
             } else if accepted_fit.is_some() || undecided_fit.is_some() {
@@ -295,6 +295,9 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 held_out_rms = held_out_rms.zip(form_held_out).map(|((baseline, _), form)| (baseline, form));
                 FinalForm { kind: model_form.model, along }
             });
+            let unexplained = final_form.as_ref().and_then(|f| {
+                form::left_by_the_form(observed, &f.along.predicted, model_form.noise_rms, f.kind, &in_model)
+            });
             // An undecided torque that stood in for the shape goes with the shape.
             undecided.retain(|u| in_model.contains(&u.effects[0]));
             Ok(Diagnosis {
@@ -307,7 +310,7 @@ pub fn diagnose(observed: &Observed, baseline_params: Params<f64>) -> Result<Dia
                 model_form: Some(model_form),
                 undecided,
                 untellable,
-                unexplained: None,
+                unexplained,
                 final_form,
             })
         }
