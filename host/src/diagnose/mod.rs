@@ -59,6 +59,7 @@ pub(crate) fn share_below(share: f64, limit: f64) -> String {
         (1..4).find(|&d| format!("{percent:.d$}", d = d).parse::<f64>().is_ok_and(|p| p < limit)).unwrap_or(4);
     format!("{percent:.decimals$}")
 }
+
 /// Largest difference of the halves' magnitudes, relative to their mean.
 pub const MAX_HALF_SPREAD: f64 = 0.5;
 
