@@ -113,7 +113,7 @@ impl RunsReport {
                     ),
                 };
                 let figures = format!(
-                    "the free form misses Masing's by {:.4} N·m RMS, ΔBIC {:.0}, explains {:.1} % of Masing's \
+                    "the free form misses Masing's by {:.4} N·m RMS, ΔBIC {:.0}, explains {:.2} % of Masing's \
                      residual, leaves {:.1}× the noise{held}{started}",
                     found.magnitude_nm,
                     found.delta_bic,
