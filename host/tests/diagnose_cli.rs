@@ -624,6 +624,13 @@ fn the_form_named_is_written_as_a_parameter_file_that_predict_runs() {
         let line = format!("  - {} (tried at ", rejection["effect"].as_str().unwrap());
         assert!(text.contains(&line), "{line:?} in\n{text}");
     }
+    // The whole report given for a parameter file: said so, with where the file is.
+    let whole = dir.path().join("report.json");
+    std::fs::write(&whole, report.to_string()).unwrap();
+    let refused = swg_host(&["predict", whole.to_str().unwrap(), recording.to_str().unwrap()]);
+    assert!(!refused.status.success());
+    let said = String::from_utf8_lossy(&refused.stderr);
+    assert!(said.contains("a `swg-host diagnose --json` report") && said.contains("final.form_model"), "{said}");
     let damped = ["--physics", "micro-slip", "--frequency", "0.2,0.8", "--effect", "viscous_damping=30"];
     let report = simulated_and_diagnosed(dir.path(), "damped.csv", &[&damped[..], &noise].concat());
     assert_eq!(report["final"]["form"], "micro-slip", "{:#}", report["final"]);

@@ -41,6 +41,11 @@ pub enum ParamsFileError {
         "{path}: model_version {found} is not one this tool reads (1 to {MODEL_VERSION}): a newer swg-host wrote it"
     )]
     UnknownVersion { path: PathBuf, found: u16 },
+    #[error(
+        "{path}: a `swg-host diagnose --json` report, not a parameter file: its `final.form_model`, where it has \
+         one, is a parameter file of the form it names (save that object alone), or `swg-host fit --out` writes one"
+    )]
+    DiagnoseReport { path: PathBuf },
 }
 
 /// The kinds' names in files, quoted, for an error: "a", "b" or "c".
@@ -57,6 +62,9 @@ fn known_kinds() -> String {
 struct Header {
     model: Option<String>,
     model_version: Option<u16>,
+    /// A `diagnose --json` report has these, a parameter file neither.
+    findings: Option<serde::de::IgnoredAny>,
+    criteria: Option<serde::de::IgnoredAny>,
 }
 
 /// A params file from before the kinds had names: the genetic model's parameters.
@@ -137,6 +145,9 @@ pub fn parse_model(path: &Path, text: &str) -> Result<GearModel<f64>, ParamsFile
         });
     }
     let header: Header = serde_json::from_str(text).map_err(syntax)?;
+    if header.findings.is_some() && header.criteria.is_some() {
+        return Err(ParamsFileError::DiagnoseReport { path: path.to_owned() });
+    }
     // A file without model_version is of version 1, unless it names a kind version 1 did not
     // have: then it can only be of this one (and its errors are this version's).
     let kind_of_version_1 =
