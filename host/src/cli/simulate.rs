@@ -232,6 +232,13 @@ pub fn run(args: SimulateArgs) -> Result<()> {
             None => Preisach::default(),
         }),
     };
+    // The seed table's fit (h > 0) runs its loop the active way. On the sine it plays the loop it
+    // was fitted to; under any other motion its memory term is no gear's (a new user's trial:
+    // random motion reached 100 N·m near θ = 0 on a gear of 28 N·m at its tips), and the user
+    // is told so rather than handed it as a gear.
+    let active_memory = args.physics == PhysicsArg::Genetic
+        && !matches!(args.motion, MotionArg::Sine)
+        && params.identifiable(args.amplitude).is_some_and(|id| id.h > 0.0);
     let simulation = Simulation {
         params,
         amplitude_rad: args.amplitude,
@@ -256,10 +263,17 @@ pub fn run(args: SimulateArgs) -> Result<()> {
     recording.write(&mut text)?;
     outputs.stage(&args.out, &text)?;
     let duration = recording.time.last().copied().unwrap_or(0.0);
-    super::print_then_commit(
-        &format!("wrote {}: {} samples, {duration} s\n", args.out.display(), recording.time.len()),
-        outputs,
-    )
+    let mut report = format!("wrote {}: {} samples, {duration} s\n", args.out.display(), recording.time.len());
+    if active_memory {
+        let peak = recording.torque.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+        report.push_str(&format!(
+            "note: this genetic gear runs its loop the active way (h > 0, as the bundled seed table's fit does): \
+             away from the sine its memory term is no physical gear's (the torque here peaks at {peak:.1} N·m); \
+             for a gear to test on, use --physics micro-slip, bouc-wen, catalogue or preisach, or --params with \
+             h < 0\n"
+        ));
+    }
+    super::print_then_commit(&report, outputs)
 }
 
 impl PhysicsArg {
