@@ -120,10 +120,10 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], zero_se: O
     let reversals = reversals(&data.theta);
     let mut columns: Vec<Vec<f64>> =
         columns_of(observed, &reversals, noise, weights, active).into_iter().map(|(_, c)| c).collect();
-    // Without the torque read at rest, a torque offset c moves the tips' secants by ±c/a and
-    // reads as asymmetry (a symmetric micro-slip gear with 0.3 N·m read +2.5 %, a new user's
-    // trial): an offset stands free beside both springs.
-    if observed.rest_torque.is_none() && !active.contains(&Effect::TorqueOffset) {
+    // A torque offset beside both springs always, as beside the kinks' scan: the form cannot tell
+    // one from its misfit without the torque read at rest, and an offset c moves the tips'
+    // secants by ±c/a (a symmetric micro-slip gear with 0.3 N·m read +2.5 %, a new user's trial).
+    if !active.contains(&Effect::TorqueOffset) {
         columns.extend(torque_column(observed, Effect::TorqueOffset));
     }
     let extra: Vec<&[f64]> = columns.iter().map(Vec::as_slice).collect();

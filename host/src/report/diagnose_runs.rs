@@ -5,6 +5,7 @@ use crate::diagnose::kinks::KinksCheck;
 use crate::diagnose::non_masing::NonMasingCheck;
 use crate::diagnose::rates_across::RateVerdict;
 use crate::diagnose::runs::{Across, RunVerdict};
+use crate::prepare::OriginSource;
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -21,9 +22,10 @@ impl RunsReport {
         let mut s = String::new();
         let _ = writeln!(s, "{} runs, each diagnosed alone from its own start, then together\n", self.runs.len());
         for (k, run) in self.runs.iter().enumerate() {
-            let zero = run
-                .origin
-                .map_or("θ0 not read (no rest)".to_string(), |o| format!("θ0 {:+.4} mrad", 1e3 * o.zero_rad));
+            let zero = run.origin.map_or("θ0 not read (no rest)".to_string(), |o| {
+                let fitted = if o.source == OriginSource::Fitted { " (fitted: no rest)" } else { "" };
+                format!("θ0 {:+.4} mrad{fitted}", 1e3 * o.zero_rad)
+            });
             let form = run.model_form.as_ref().map_or(String::new(), |f| format!("; form: {}", f.model));
             let mut kept: Vec<String> = run.findings.iter().map(|f| f.effect.to_string()).collect();
             kept.extend(run.undecided.iter().map(|u| format!("{} or {}", u.effects[0], u.effects[1])));
@@ -32,13 +34,16 @@ impl RunsReport {
                 .held_out
                 .as_ref()
                 .map_or(String::new(), |h| format!("; held-out RMS {:.4} → {:.4} N·m", h.rms_before, h.rms_after));
+            let left = run.unexplained.as_ref().map_or(String::new(), |u| {
+                format!("; structure remains: {:.1}× the noise", u.rms / u.noise_rms)
+            });
             let _ = writeln!(s, "run {}: {} ({} samples)", k + 1, run.input, run.baseline.n);
             let active = if run.passivity.as_ref().is_some_and(|p| p.active) {
                 "; active loop: energy no passive gear gives back (see its full report)"
             } else {
                 ""
             };
-            let _ = writeln!(s, "  {zero}{form}; {named}{held}{active}");
+            let _ = writeln!(s, "  {zero}{form}; {named}{held}{left}{active}");
         }
         let across = &self.across;
         let _ = writeln!(s, "\nthe runs together");
