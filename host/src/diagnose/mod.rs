@@ -190,9 +190,9 @@ pub struct FinalForm {
     pub along: FormAlong,
 }
 
-/// A form fitted with torque effects beside it: its model (θ0 = 0 on the deflection as the
-/// diagnosis measures it, from the zero it read at rest, and moved by a backlash named on the
-/// form), without the effects, and the torque of both at every sample, N·m.
+/// A form fitted with torque effects beside it: the form's model alone (θ0 = 0 on the
+/// deflection as the diagnosis measures it, from the zero it read at rest, and moved by a
+/// backlash named on the form), and the torque of the form with the effects at every sample, N·m.
 #[derive(Clone, Debug)]
 pub struct FormAlong {
     pub model: GearModel<f64>,

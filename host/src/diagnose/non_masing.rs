@@ -268,8 +268,9 @@ pub struct RunOfMany<'a> {
 /// fitted on every run at once, one spring and one hysteresis, with each run's own torque offset
 /// and accepted effects beside them. Each run starts from rest, or at a start state the forms
 /// estimate where it starts at a standstill found in the data: a remanence that the forms run
-/// from rest cannot follow is not a departure from Masing's rule. A run at each amplitude is what Masing's
-/// rule relates; runs that each run one loop, all between the same extremes, cannot show it.
+/// from rest cannot follow is not a departure from Masing's rule. A run at each amplitude is
+/// what Masing's rule relates; runs that each run one loop, all between the same extremes,
+/// cannot show it.
 /// Named on [`check`]'s tests, with runs where it takes the recording's parts: the held-out
 /// samples are whole runs (each run but the largest held out once, fitted on the others), and
 /// the two parts are alternate runs, each of which must hold loops of more than one size.

@@ -34,9 +34,10 @@ impl RunsReport {
                 .held_out
                 .as_ref()
                 .map_or(String::new(), |h| format!("; held-out RMS {:.4} → {:.4} N·m", h.rms_before, h.rms_after));
-            let left = run.unexplained.as_ref().map_or(String::new(), |u| {
-                format!("; structure remains: {:.1}× the noise", u.rms / u.noise_rms)
-            });
+            let left = run
+                .unexplained
+                .as_ref()
+                .map_or(String::new(), |u| format!("; structure remains: {:.1}× the noise", u.rms / u.noise_rms));
             let _ = writeln!(s, "run {}: {} ({} samples)", k + 1, run.input, run.baseline.n);
             let active = if run.passivity.as_ref().is_some_and(|p| p.active) {
                 "; active loop: energy no passive gear gives back (see its full report)"
