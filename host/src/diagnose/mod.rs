@@ -165,11 +165,12 @@ pub struct Diagnosis {
 }
 
 impl Diagnosis {
-    /// The effects the findings of form (asymmetry, kinks, Masing's rule) fit beside their
-    /// forms: every effect of the final model, and the rival of each torque kept undecided. A
-    /// damping kept for a channel delay it could not be told from (one rate each way) misses the
-    /// delay's torque where the stiffness changes; the Preisach cells took it up and named a
-    /// catalogue gear's loops non-Masing (a new user's trial: ΔBIC 2562).
+    /// The effects the findings of form on the micro-slip form (asymmetry, Masing's rule) fit
+    /// beside their forms: every effect of the final model, and the rival of each torque kept
+    /// undecided (the kinks' scan takes the final model's own). A damping kept for a channel
+    /// delay it could not be told from (one rate each way) misses the delay's torque where the
+    /// stiffness changes; the Preisach cells took it up and named a catalogue gear's loops
+    /// non-Masing (a new user's trial: ΔBIC 2562).
     pub fn beside_the_form(&self) -> Vec<Effect> {
         let mut effects = self.final_fit.active.clone();
         for rival in self.undecided.iter().map(|u| u.effects[1]) {
