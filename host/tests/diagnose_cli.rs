@@ -111,6 +111,12 @@ fn simulated_and_diagnosed(dir: &std::path::Path, name: &str, args: &[&str]) -> 
     serde_json::from_str(&ok(swg_host(&["diagnose", out, "--json"]))).unwrap()
 }
 
+/// [`simulated_and_diagnosed`] on `simulate`'s micro-slip gear with 20-bit encoders.
+fn micro_slip_diagnosed(dir: &std::path::Path, name: &str, args: &[&str]) -> serde_json::Value {
+    let gear = ["--physics", "micro-slip", "--input-bits", "20", "--output-bits", "20"];
+    simulated_and_diagnosed(dir, name, &[&gear[..], args].concat())
+}
+
 #[test]
 fn at_one_rate_friction_damping_and_a_delay_cannot_be_told_from_the_loops_shape() {
     let json = diagnosed(None, "0.3", "coulomb_friction=0.06");
@@ -577,12 +583,11 @@ fn effects_named(json: &serde_json::Value) -> Vec<String> {
 #[test]
 fn an_offset_the_search_cannot_tell_is_not_taken_for_a_finding_of_form() {
     let dir = tempfile::tempdir().unwrap();
-    let noise = ["--input-bits", "20", "--output-bits", "20", "--effect", "torque_offset=0.3"];
-    let sine = ["--physics", "micro-slip", "--frequency", "0.2,0.8", "--deflection-zero", "4e-4"];
-    let report = simulated_and_diagnosed(dir.path(), "sine.csv", &[&sine[..], &noise].concat());
+    let sine = ["--frequency", "0.2,0.8", "--deflection-zero", "4e-4", "--effect", "torque_offset=0.3"];
+    let report = micro_slip_diagnosed(dir.path(), "sine.csv", &sine);
     assert!(report["asymmetry"]["rejected"].is_string(), "{:#}", report["asymmetry"]);
-    let nested = ["--physics", "micro-slip", "--motion", "nested", "--frequency", "0.25,1"];
-    let report = simulated_and_diagnosed(dir.path(), "nested.csv", &[&nested[..], &noise].concat());
+    let nested = ["--motion", "nested", "--frequency", "0.25,1", "--effect", "torque_offset=0.3"];
+    let report = micro_slip_diagnosed(dir.path(), "nested.csv", &nested);
     assert_eq!(report["non_masing"]["tested"], "yes", "{:#}", report["non_masing"]);
     assert!(report["non_masing"]["rejected"].is_string(), "{:#}", report["non_masing"]);
 }
@@ -594,9 +599,8 @@ fn an_offset_the_search_cannot_tell_is_not_taken_for_a_finding_of_form() {
 #[test]
 fn a_delay_read_alike_at_two_rates_on_the_form_is_named() {
     let dir = tempfile::tempdir().unwrap();
-    let args = ["--physics", "micro-slip", "--motion", "nested", "--frequency", "0.25,1"];
-    let noise = ["--input-bits", "20", "--output-bits", "20", "--effect", "channel_delay=0.002"];
-    let report = simulated_and_diagnosed(dir.path(), "rec.csv", &[&args[..], &noise].concat());
+    let args = ["--motion", "nested", "--frequency", "0.25,1", "--effect", "channel_delay=0.002"];
+    let report = micro_slip_diagnosed(dir.path(), "rec.csv", &args);
     let named = named(&report);
     assert_eq!(named.len(), 1, "{:#}", report["findings"]);
     let (effect, delay) = &named[0];
@@ -612,9 +616,7 @@ fn a_delay_read_alike_at_two_rates_on_the_form_is_named() {
 #[test]
 fn the_form_named_is_written_as_a_parameter_file_that_predict_runs() {
     let dir = tempfile::tempdir().unwrap();
-    let motion = ["--physics", "micro-slip", "--motion", "nested", "--deflection-zero", "2e-4"];
-    let noise = ["--input-bits", "20", "--output-bits", "20"];
-    let report = simulated_and_diagnosed(dir.path(), "rec.csv", &[&motion[..], &noise].concat());
+    let report = micro_slip_diagnosed(dir.path(), "rec.csv", &["--motion", "nested", "--deflection-zero", "2e-4"]);
     let final_model = &report["final"];
     assert_eq!(final_model["form"], "micro-slip", "{final_model:#}");
     assert!(report["baseline"].get("form_model").is_none(), "{:#}", report["baseline"]);
@@ -649,8 +651,8 @@ fn the_form_named_is_written_as_a_parameter_file_that_predict_runs() {
     assert!(!refused.status.success());
     let said = String::from_utf8_lossy(&refused.stderr);
     assert!(said.contains("a `swg-host diagnose --json` report") && said.contains("final.form_model"), "{said}");
-    let damped = ["--physics", "micro-slip", "--frequency", "0.2,0.8", "--effect", "viscous_damping=30"];
-    let report = simulated_and_diagnosed(dir.path(), "damped.csv", &[&damped[..], &noise].concat());
+    let damped = ["--frequency", "0.2,0.8", "--effect", "viscous_damping=30"];
+    let report = micro_slip_diagnosed(dir.path(), "damped.csv", &damped);
     assert_eq!(report["final"]["form"], "micro-slip", "{:#}", report["final"]);
     assert_eq!(report["final"]["effects"][0], "viscous_damping", "{:#}", report["final"]);
     assert!(report["final"].get("form_model").is_none(), "{:#}", report["final"]);

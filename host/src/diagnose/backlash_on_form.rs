@@ -22,10 +22,10 @@
 //!   within [`super::MAX_HALF_SPREAD`] of their mean;
 //! - the held-out samples are predicted better with it, each fitted without them.
 use super::effects::backlash;
-use super::form::{held_out_rms_along, rss_of, STRUCTURE_FACTOR};
+use super::form::{form_at, held_out_rms_along, noise_rms_of, rss_of, STRUCTURE_FACTOR};
 use super::observed::Observed;
 use super::{magnitudes_differ, Evidence, FormAlong, MIN_BIC_DROP, MIN_HALF_Z};
-use crate::fit::motion::{micro_slip_with_columns, ColumnsFit, SpringShape};
+use crate::fit::motion::ColumnsFit;
 use crate::prepare::{reversals, NoiseModel};
 use rayon::prelude::*;
 
@@ -143,20 +143,6 @@ pub fn flatness(observed: &Observed, width: f64) -> Flatness {
     } else {
         Flatness::Flat
     }
-}
-
-/// The form on the deflection moved by a backlash `width` (rad), with torque `columns` beside
-/// it, weighed by `weights` (a sample of weight 0 is followed, not fitted).
-fn form_at(
-    theta: &[f64],
-    torque: &[f64],
-    noise: NoiseModel,
-    weights: &[f64],
-    columns: &[&[f64]],
-    width: f64,
-) -> Option<ColumnsFit> {
-    let moved: Vec<f64> = theta.iter().map(|&t| backlash(t, width)).collect();
-    micro_slip_with_columns(&moved, torque, &reversals(&moved), Some(noise), weights, columns, SpringShape::Free).ok()
 }
 
 /// The recording thinned to one sample in each block of `stride` and its turning points: its
@@ -320,7 +306,7 @@ pub fn test(observed: &Observed, noise: NoiseModel, weights: &[f64], columns: &[
     };
     let rss_after = rss(&with);
     let rms_after = (rss_after / n as f64).sqrt();
-    let noise_rms = (weights.iter().map(|w| 1.0 / w).sum::<f64>() / n as f64).sqrt();
+    let noise_rms = noise_rms_of(weights);
     let mut held_out = None;
     let refused = if evidence.delta_bic <= MIN_BIC_DROP {
         Some(format!("on the micro-slip form: ΔBIC {:.1}, not above {MIN_BIC_DROP}", evidence.delta_bic))

@@ -11,9 +11,9 @@ use super::effects::{backlash, Effect};
 use super::extended::{direction_sign, kinematic_at, ExtendedFit};
 use super::observed::Observed;
 use super::{weights_on, MIN_BIC_DROP, MIN_EXPLAINED};
-use crate::fit::motion::{micro_slip_with_columns, SpringShape};
+use crate::fit::motion::{micro_slip_with_columns, ColumnsFit, SpringShape};
 use crate::gear::{run_offline, step_offline};
-use crate::prepare::reversals;
+use crate::prepare::{reversals, NoiseModel};
 use serde::Serialize;
 
 /// Structure remains when the final residual's RMS exceeds this many times the noise's.
@@ -213,6 +213,20 @@ pub(super) fn held_out_rms_along(
     Some((held.iter().map(|&i| (data.torque[i] - fit.predicted[i]).powi(2)).sum::<f64>() / held.len() as f64).sqrt())
 }
 
+/// The form on the deflection moved by a backlash `width` (rad), with torque `columns` beside
+/// it, weighed by `weights` (a sample of weight 0 is followed, not fitted).
+pub(super) fn form_at(
+    theta: &[f64],
+    torque: &[f64],
+    noise: NoiseModel,
+    weights: &[f64],
+    columns: &[&[f64]],
+    width: f64,
+) -> Option<ColumnsFit> {
+    let moved: Vec<f64> = theta.iter().map(|&t| backlash(t, width)).collect();
+    micro_slip_with_columns(&moved, torque, &reversals(&moved), Some(noise), weights, columns, SpringShape::Free).ok()
+}
+
 /// The deflection effects of `final_fit` (backlash, the kinematic error: they move the deflection
 /// the form runs on, so they have no torque column) that the micro-slip form does not explain
 /// away: the form run on the deflection with all of them fits better, by more than
@@ -247,20 +261,9 @@ fn deflection_effects_on_the_form(
         if !effects.contains(&Effect::KinematicError) {
             state.kinematic = [0.0; 4];
         }
-        let theta: Vec<f64> = (0..data.theta.len())
-            .map(|i| backlash(data.theta[i] + kinematic_at(&state, observed, i), state.backlash))
-            .collect();
-        micro_slip_with_columns(
-            &theta,
-            &data.torque,
-            &reversals(&theta),
-            Some(noise),
-            weights,
-            &extra,
-            SpringShape::Free,
-        )
-        .ok()
-        .map(|fit| fit.chi2)
+        let turned: Vec<f64> =
+            (0..data.theta.len()).map(|i| data.theta[i] + kinematic_at(&state, observed, i)).collect();
+        form_at(&turned, &data.torque, noise, weights, &extra, state.backlash).map(|fit| fit.chi2)
     };
     let Some(with) = form_chi2(&moved) else { return Vec::new() };
     let ln_n = (data.theta.len() as f64).ln();
@@ -306,6 +309,11 @@ pub(super) fn left_by_the_form(
     })
 }
 
+/// The RMS of the noise the search's `weights` stand for (1/w is each sample's variance), N·m.
+pub(super) fn noise_rms_of(weights: &[f64]) -> f64 {
+    (weights.iter().map(|w| 1.0 / w).sum::<f64>() / weights.len() as f64).sqrt()
+}
+
 /// Σ (torque − predicted)².
 pub(super) fn rss_of(predicted: &[f64], torque: &[f64]) -> f64 {
     predicted.iter().zip(torque).map(|(p, t)| (t - p).powi(2)).sum()
@@ -343,8 +351,8 @@ pub fn judge(
     // stiffness, not the genetic loop's, which is infinite at its tips. There it made the
     // noise of the measured spring's run 5-3 3.50 N·m RMS, and a genetic misfit of 0.95 N·m
     // (the form's 0.20) passed for noise: "no missing physics found".
-    let noise_rms = noise_rms_along(&with_all.3, &data.theta, &reversals, noise)
-        .unwrap_or_else(|| (weights.iter().map(|w| 1.0 / w).sum::<f64>() / n as f64).sqrt());
+    let noise_rms =
+        noise_rms_along(&with_all.3, &data.theta, &reversals, noise).unwrap_or_else(|| noise_rms_of(weights));
     let form_chi2 = with_all.1;
     let on_the_form =
         |effect: Effect| columns.iter().position(|(e, _)| *e == effect).map_or(f64::NAN, |k| with_all.2[k]);

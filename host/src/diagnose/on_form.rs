@@ -36,7 +36,8 @@
 //! gives no covariance.
 use super::effects::Effect;
 use super::form::{
-    columns_of, delay_on_the_form, held_out_rms_of_form, noise_weights_along, torque_column, Untold, STRUCTURE_FACTOR,
+    columns_of, delay_on_the_form, held_out_rms_of_form, noise_rms_of, noise_weights_along, rss_of, torque_column,
+    Untold, STRUCTURE_FACTOR,
 };
 use super::observed::Observed;
 use super::{estimates_disagree, magnitudes_differ, weights_on};
@@ -196,7 +197,7 @@ pub fn search(
     let form = Form { observed, reversals, noise, weights: &weights };
     let n = observed.data.theta.len();
     let ln_n = (n as f64).ln();
-    let noise_rms = (weights.iter().map(|w| 1.0 / w).sum::<f64>() / n as f64).sqrt();
+    let noise_rms = noise_rms_of(&weights);
     let revealable = observed.revealable();
     let untellable = [(Effect::CoulombFriction, FRICTION_IN_THE_FORM), (Effect::TorqueOffset, OFFSET_WITHOUT_REST)]
         .into_iter()
@@ -239,7 +240,7 @@ pub fn search(
         let mut taken = None;
         for (effect, column, solve, mut evidence) in trials {
             tried.push(effect);
-            let rms_after = (unweighted_rss(&observed.data.torque, &solve.predicted) / n as f64).sqrt();
+            let rms_after = (rss_of(&solve.predicted, &observed.data.torque) / n as f64).sqrt();
             let with: Vec<&[f64]> = columns.iter().copied().chain(std::iter::once(column.as_slice())).collect();
             let refused = if evidence.delta_bic <= MIN_BIC_DROP {
                 Some(format!("on the micro-slip form: ΔBIC {:.1}, not above {MIN_BIC_DROP}", evidence.delta_bic))
@@ -292,8 +293,8 @@ pub fn search(
                 effect,
                 magnitude: in_its_unit(effect, solve.last, c1),
                 evidence,
-                rss_before: unweighted_rss(&observed.data.torque, &before),
-                rss_after: unweighted_rss(&observed.data.torque, &solve.predicted),
+                rss_before: rss_of(&before, &observed.data.torque),
+                rss_after: rss_of(&solve.predicted, &observed.data.torque),
             }),
         }
         kept.push((effect, column));
@@ -383,10 +384,6 @@ pub(super) fn form_weights(
         micro_slip_with_columns(&data.theta, &data.torque, reversals, Some(noise), weights, &extra, SpringShape::Free)
             .ok()?;
     noise_weights_along(&fit.model, &data.theta, reversals, noise)
-}
-
-fn unweighted_rss(torque: &[f64], predicted: &[f64]) -> f64 {
-    torque.iter().zip(predicted).map(|(t, p)| (t - p).powi(2)).sum()
 }
 
 /// The held-out samples predicted better with the last of `with` than by `without`, each fitted
