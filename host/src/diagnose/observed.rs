@@ -51,6 +51,9 @@ pub struct Observed {
     /// The torque read at rest before the motion and its standard error, N·m: a torque
     /// sensor's offset reads there as it does everywhere.
     pub rest_torque: Option<(f64, f64)>,
+    /// The first sample whose hysteresis state is known (0 from rest): the samples before it,
+    /// of a recording that starts mid-motion, carry no weight in any fit.
+    pub known_state_from: usize,
     /// The ends of a recording's legs as (deflection, sample index): the first sample, every
     /// turning point, the last sample. Leg k (from end k to end k + 1) holds the samples after
     /// turning point k − 1 up to turning point k. The kinematic error moves the elastic turning
@@ -165,6 +168,7 @@ impl Observed {
             split: HeldOut::Spans(Vec::new()),
             cannot_reveal: Vec::new(),
             rest_torque: None,
+            known_state_from: 0,
             leg_ends: None,
             data,
         };

@@ -30,6 +30,9 @@ pub struct DiagnoseReport {
     /// rest that the motion leaves at once gives θ0 from its first sample and no torque).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rest_torque_nm: Option<f64>,
+    /// Samples of a recording that does not say `# start: rest` before its motion's extremes
+    /// wiped out the unknown start state: run through, in no fit (as `fit` reports them).
+    pub start_state_samples: usize,
     pub locate: Vec<Observation>,
     /// The effects the data can reveal: searched for, and each named or refused.
     pub revealable: Vec<Effect>,
@@ -150,7 +153,7 @@ impl DiagnoseReport {
             kinks,
             non_masing,
             ratcheting,
-            known_state_from: _,
+            known_state_from,
             remanent_start: _,
         } = outcome;
         DiagnoseReport {
@@ -160,6 +163,7 @@ impl DiagnoseReport {
             noise: observed.noise,
             origin: *origin,
             rest_torque_nm: observed.rest_torque.map(|(torque, _)| torque),
+            start_state_samples: *known_state_from,
             locate: locate.clone(),
             revealable: observed
                 .revealable()
@@ -242,6 +246,14 @@ impl DiagnoseReport {
         }
         if report.kind == "recording" {
             let _ = writeln!(s, "{}", origin_words(report.origin.as_ref(), report.rest_torque_nm));
+        }
+        if report.start_state_samples > 0 {
+            let _ = writeln!(
+                s,
+                "{} samples before the motion's extremes wiped out the unknown start state (no `# start: rest`): run \
+                 through, not fitted",
+                report.start_state_samples
+            );
         }
         let _ = writeln!(s, "baseline model: RSS {:.5} (N·m)², RMS {:.4} N·m", b.rss, b.rms);
         let _ = writeln!(s, "\nwhere the residual concentrates");
