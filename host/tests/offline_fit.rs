@@ -292,7 +292,7 @@ fn diagnoses_held_out_samples_are_interleaved_cycles_over_the_whole_recording() 
     let mut prepared = prepare(&dataset).unwrap();
     let data = std::mem::take(&mut prepared.data);
     let n = data.theta.len();
-    let observed = Observed::with_data(dataset, &prepared, data);
+    let observed = Observed::with_data(dataset, &prepared, data, 0);
     let held = observed.held_out();
     let held = held.as_ref();
     assert_eq!(observed.held_out_count(), held.len());

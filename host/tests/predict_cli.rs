@@ -110,9 +110,9 @@ fn the_unknown_start_state_is_counted_and_marked() {
     assert!((1300..=1500).contains(&unscored), "{unscored}");
     assert_eq!(report["n"].as_u64().unwrap() as usize, 8001 - unscored);
     let text = ok(swg_host(&["fit", recording.to_str().unwrap()]));
-    assert!(
-        text.contains(&format!("{unscored} samples before the motion's extremes wiped out the unknown start state"))
-    );
+    assert!(text.contains(&format!(
+        "{unscored} samples before the motion's extremes wiped out the unknown start state between them"
+    )));
 
     let pred = dir.path().join("pred.csv");
     let summary = json(&swg_host(&[

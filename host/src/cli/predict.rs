@@ -81,7 +81,7 @@ pub fn run(args: PredictArgs) -> Result<()> {
         if summary.start_state_samples > 0 {
             let _ = writeln!(
                 text,
-                "  {} samples before the motion's extremes wiped out the unknown start state: run through, not scored \
+                "  {} samples before the motion's extremes wiped out the unknown start state between them: run through, not scored \
                  (the recording does not say `# start: rest`)",
                 summary.start_state_samples
             );

@@ -22,7 +22,7 @@
 //!   within [`super::MAX_HALF_SPREAD`] of their mean;
 //! - the held-out samples are predicted better with it, each fitted without them.
 use super::effects::backlash;
-use super::form::{form_at, held_out_rms_along, noise_rms_of, rss_of, STRUCTURE_FACTOR};
+use super::form::{form_at, held_out_rms_along, noise_rms_of, STRUCTURE_FACTOR};
 use super::observed::Observed;
 use super::{magnitudes_differ, Evidence, FormAlong, MIN_BIC_DROP, MIN_HALF_Z};
 use crate::fit::motion::ColumnsFit;
@@ -227,7 +227,6 @@ fn vertex(widths: &[f64], chi2: &[f64]) -> Option<f64> {
 /// it, `weights` the form's noise weights. `None` where the form cannot be fitted.
 pub fn test(observed: &Observed, noise: NoiseModel, weights: &[f64], columns: &[&[f64]]) -> Option<Verdict> {
     let data = &observed.data;
-    let n = data.theta.len();
     let half_range = data.theta.iter().fold(0.0f64, |m, t| m.max(t.abs()));
     let sigma = noise.deflection_rad.max(f64::MIN_POSITIVE);
     let mut widths = vec![0.0];
@@ -291,21 +290,22 @@ pub fn test(observed: &Observed, noise: NoiseModel, weights: &[f64], columns: &[
         return Some(Verdict::Refused { width, evidence: subsample_evidence(Some(halves)), why });
     }
     // On every sample, one fit at a time: each holds its torque at every sample (16 MB at 2 M).
-    let rss = |fit: &ColumnsFit| rss_of(&fit.predicted, &data.torque);
+    let rss = |fit: &ColumnsFit| observed.rss(&fit.predicted);
+    let scored = observed.scored_count();
     let (chi2_without, rss_before) =
         form_at(&data.theta, &data.torque, noise, weights, columns, 0.0).map(|fit| (fit.chi2, rss(&fit)))?;
     let with = form_at(&data.theta, &data.torque, noise, weights, columns, width)?;
     let drop = (chi2_without - with.chi2).max(0.0);
-    let variance = with.chi2 / (n as f64 - parameters as f64).max(1.0);
+    let variance = with.chi2 / (scored as f64 - parameters as f64).max(1.0);
     let evidence = Evidence {
-        delta_bic: drop / variance - (n as f64).ln(),
+        delta_bic: drop / variance - (scored as f64).ln(),
         explained: drop / chi2_without,
         z: (drop / variance).sqrt(),
         halves: Some([halves[0].0, halves[1].0]),
         halves_z: Some([halves[0].1, halves[1].1]),
     };
     let rss_after = rss(&with);
-    let rms_after = (rss_after / n as f64).sqrt();
+    let rms_after = (rss_after / scored.max(1) as f64).sqrt();
     let noise_rms = noise_rms_of(weights);
     let mut held_out = None;
     let refused = if evidence.delta_bic <= MIN_BIC_DROP {

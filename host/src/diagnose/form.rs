@@ -266,7 +266,7 @@ fn deflection_effects_on_the_form(
         form_at(&turned, &data.torque, noise, weights, &extra, state.backlash).map(|fit| fit.chi2)
     };
     let Some(with) = form_chi2(&moved) else { return Vec::new() };
-    let ln_n = (data.theta.len() as f64).ln();
+    let ln_n = (observed.scored_count() as f64).ln();
     moved
         .iter()
         .copied()
@@ -282,7 +282,7 @@ fn deflection_effects_on_the_form(
 /// noise's RMS `noise_rms` (the form's, [`ModelForm::noise_rms`]). Said, a recording the form
 /// does not describe is not taken for one it does (a new user's trial: 4.2× the noise on a
 /// micro-slip gear with a delay refused, 18× on a recording that starts mid-motion, and the
-/// report said nothing of it).
+/// report said nothing of it). Over the scored samples, as every figure of `diagnose`.
 pub(super) fn left_by_the_form(
     observed: &Observed,
     predicted: &[f64],
@@ -290,9 +290,7 @@ pub(super) fn left_by_the_form(
     form: &str,
     in_model: &[Effect],
 ) -> Option<Unexplained> {
-    let samples = observed.samples();
-    let rss: f64 = samples.iter().map(|&i| (observed.data.torque[i] - predicted[i]).powi(2)).sum();
-    let rms = (rss / samples.len().max(1) as f64).sqrt();
+    let rms = (observed.rss(predicted) / observed.scored_count().max(1) as f64).sqrt();
     (rms > STRUCTURE_FACTOR * noise_rms).then(|| {
         let with: String = in_model.iter().map(|e| format!(" + {}", e.name())).collect();
         Unexplained {
@@ -309,14 +307,12 @@ pub(super) fn left_by_the_form(
     })
 }
 
-/// The RMS of the noise the search's `weights` stand for (1/w is each sample's variance), N·m.
+/// The RMS of the noise the search's `weights` stand for (1/w is each sample's variance), N·m,
+/// over the samples weighed (a mid-motion recording's before its known state are not).
 pub(super) fn noise_rms_of(weights: &[f64]) -> f64 {
-    (weights.iter().map(|w| 1.0 / w).sum::<f64>() / weights.len() as f64).sqrt()
-}
-
-/// Σ (torque − predicted)².
-pub(super) fn rss_of(predicted: &[f64], torque: &[f64]) -> f64 {
-    predicted.iter().zip(torque).map(|(p, t)| (t - p).powi(2)).sum()
+    let (variance, count) =
+        weights.iter().filter(|&&w| w > 0.0).fold((0.0, 0usize), |(sum, count), w| (sum + 1.0 / w, count + 1));
+    (variance / count.max(1) as f64).sqrt()
 }
 
 /// Judges the final residual (`final_residuals`, every sample) against the noise that the
@@ -329,9 +325,10 @@ pub fn judge(
     held_out_final: Option<f64>,
 ) -> Structure {
     let Some(noise) = observed.noise else { return Structure::Noise };
-    let n = final_residuals.len();
-    let rss: f64 = final_residuals.iter().map(|r| r * r).sum();
-    let rms = (rss / n as f64).sqrt();
+    // Over the scored samples: before the known state nothing is fitted.
+    let n = observed.scored_count();
+    let rss: f64 = final_residuals.get(observed.scored()).unwrap_or(&[]).iter().map(|r| r * r).sum();
+    let rms = (rss / n.max(1) as f64).sqrt();
     let data = &observed.data;
     // The micro-slip model follows the recording's reversals offline, as `fit` and `predict` do.
     let reversals = reversals(&data.theta);
@@ -344,7 +341,7 @@ pub fn judge(
         let extra: Vec<&[f64]> = columns.iter().filter(|(e, _)| Some(*e) != skip).map(|(_, c)| c.as_slice()).collect();
         micro_slip_with_columns(&data.theta, &data.torque, &reversals, Some(noise), weights, &extra, SpringShape::Free)
             .ok()
-            .map(|fit| (rss_of(&fit.predicted, &data.torque), fit.chi2, fit.extra, fit.model))
+            .map(|fit| (observed.rss(&fit.predicted), fit.chi2, fit.extra, fit.model))
     };
     let Some(with_all) = with(None) else { return Structure::Noise };
     // The noise the residual is judged against, in torque: σT² + K²σθ² with K the form's
@@ -442,7 +439,7 @@ pub fn judge(
             &kept_columns,
             SpringShape::Free,
         ) {
-            Ok(form) => (rss_of(&form.predicted, &data.torque), form.chi2),
+            Ok(form) => (observed.rss(&form.predicted), form.chi2),
             Err(_) => return Structure::Noise,
         }
     };

@@ -12,13 +12,14 @@ pub struct Observation {
     pub words: String,
 }
 
-/// Where the baseline residuals concentrate.
+/// Where the baseline residuals concentrate, over the scored samples ([`Observed::scored`]).
 pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
     let d = &observed.data;
     let n = residuals.len();
+    let from = observed.known_state_from.min(n);
     let rms_of = |keep: &dyn Fn(usize) -> bool| {
         let (sum, count) =
-            (0..n).filter(|&i| keep(i)).fold((0.0, 0usize), |(s, c), i| (s + residuals[i] * residuals[i], c + 1));
+            (from..n).filter(|&i| keep(i)).fold((0.0, 0usize), |(s, c), i| (s + residuals[i] * residuals[i], c + 1));
         if count == 0 {
             f64::NAN
         } else {
@@ -61,7 +62,7 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
     }
 
     let mean_of = |keep: &dyn Fn(usize) -> bool| {
-        let (sum, count) = (0..n).filter(|&i| keep(i)).fold((0.0, 0usize), |(s, c), i| (s + residuals[i], c + 1));
+        let (sum, count) = (from..n).filter(|&i| keep(i)).fold((0.0, 0usize), |(s, c), i| (s + residuals[i], c + 1));
         if count == 0 {
             0.0
         } else {
@@ -81,8 +82,8 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
     });
 
     if let Some(rate) = &observed.rate {
-        let slope = regression_slope(rate, residuals);
-        let peak_rate = rate.iter().map(|r| r.abs()).fold(0.0, f64::max);
+        let slope = regression_slope(&rate[from..], &residuals[from..]);
+        let peak_rate = rate[from..].iter().map(|r| r.abs()).fold(0.0, f64::max);
         out.push(Observation {
             pattern: "rate",
             value: slope,
@@ -98,7 +99,7 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
         let (order, amplitude) = (1..=6)
             .map(|k| {
                 let (mut c, mut s, mut cc, mut ss) = (0.0, 0.0, 0.0, 0.0);
-                for i in 0..n {
+                for i in from..n {
                     let (cos, sin) = ((k as f64 * angle[i]).cos(), (k as f64 * angle[i]).sin());
                     c += cos * residuals[i];
                     s += sin * residuals[i];
@@ -121,21 +122,22 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
     }
 
     if let Some(time) = &observed.time {
-        let slope = regression_slope(time, residuals);
+        let time = &time[from..];
+        let slope = regression_slope(time, &residuals[from..]);
         let span = time.last().copied().unwrap_or(0.0) - time.first().copied().unwrap_or(0.0);
         out.push(Observation {
             pattern: "time",
             value: slope,
             unit: "N·m/s",
             words: format!(
-                "over time: the residual drifts by {} N·m over the {span:.1} s recording",
+                "over time: the residual drifts by {} N·m over the {span:.1} s scored",
                 torque(slope * span)
             ),
         });
     }
     if let Some(warming) = &observed.warming {
-        let load: Vec<f64> = (0..n).map(|i| warming[i] * d.theta[i]).collect();
-        let slope = regression_slope(&load, residuals);
+        let load: Vec<f64> = (from..n).map(|i| warming[i] * d.theta[i]).collect();
+        let slope = regression_slope(&load, &residuals[from..]);
         out.push(Observation {
             pattern: "temperature",
             value: slope,

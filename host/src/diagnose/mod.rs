@@ -350,9 +350,8 @@ pub fn diagnose_dataset(
     };
     // The diagnosis holds the samples once: moved from `prepared`, not copied.
     let data = std::mem::take(&mut prepared.data);
-    let mut observed = Observed::with_data(dataset, &prepared, data);
+    let mut observed = Observed::with_data(dataset, &prepared, data, known_state_from);
     observed.rest_torque = rest_torque;
-    observed.known_state_from = known_state_from;
     if let Some(RunOrigin { zero_rad, zero_se_rad, source: OriginSource::Fitted, .. }) = origin {
         // A zero fitted where no rest reads it moves the loop as an offset does (by K·Δθ0): a
         // measured run cut before its rest read 4.2 N·m of offset about a zero fitted 1.6 mrad

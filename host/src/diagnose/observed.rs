@@ -103,6 +103,30 @@ impl HeldOut {
 }
 
 impl Observed {
+    /// The samples whose hysteresis state is known, from [`Observed::known_state_from`]: the
+    /// ones every fit weighs and every figure counts.
+    pub fn scored(&self) -> std::ops::Range<usize> {
+        let n = self.data.theta.len();
+        self.known_state_from.min(n)..n
+    }
+
+    /// How many samples [`Observed::scored`] holds.
+    pub fn scored_count(&self) -> usize {
+        self.scored().len()
+    }
+
+    /// `weights` with the samples before the known state at 0: weighed by nothing.
+    pub fn unweigh_unknown(&self, weights: &mut [f64]) {
+        weights.iter_mut().take(self.known_state_from).for_each(|w| *w = 0.0);
+    }
+
+    /// Σ (torque − predicted)² over the scored samples, (N·m)².
+    pub fn rss(&self, predicted: &[f64]) -> f64 {
+        let scored = self.scored();
+        let torque = self.data.torque.get(scored.clone()).unwrap_or(&[]);
+        torque.iter().zip(predicted.get(scored).unwrap_or(&[])).map(|(t, p)| (t - p).powi(2)).sum()
+    }
+
     /// Every sample, in order.
     pub fn samples(&self) -> &[usize] {
         &self.samples
@@ -150,7 +174,8 @@ impl Observed {
     /// What `dataset` offers the diagnosis, with `data`, its prepared samples (moved out of
     /// `prepared`: the diagnosis holds them once). A recording's time and input angle are
     /// moved in, and its other columns dropped.
-    pub fn with_data(dataset: Dataset, prepared: &Prepared, data: FitData) -> Observed {
+    /// `known_state_from`: the first sample whose hysteresis state is known (0 from rest).
+    pub fn with_data(dataset: Dataset, prepared: &Prepared, data: FitData, known_state_from: usize) -> Observed {
         let n = data.theta.len();
         let mut observed = Observed {
             noise: prepared.noise,
@@ -168,7 +193,7 @@ impl Observed {
             split: HeldOut::Spans(Vec::new()),
             cannot_reveal: Vec::new(),
             rest_torque: None,
-            known_state_from: 0,
+            known_state_from,
             leg_ends: None,
             data,
         };
@@ -208,7 +233,8 @@ impl Observed {
         self.parts = interleaved_cycles(n, prepared.segmentation.as_ref().map_or(&[][..], |s| &s.turning_points));
         if let Some(segmentation) = &prepared.segmentation {
             let reversals = segmentation.reversals();
-            let run = RunShape { theta: &self.data.theta, reversals: &reversals, scored_from: 0 };
+            // Neither fitted nor judged before the state is known.
+            let run = RunShape { theta: &self.data.theta, reversals: &reversals, scored_from: self.known_state_from };
             let (folds, _) = hold_out(&[run]);
             if let Some(spans) = folds.into_iter().next().and_then(|fold| fold.into_iter().next()) {
                 self.split = HeldOut::Spans(spans);

@@ -31,7 +31,7 @@ pub struct DiagnoseReport {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rest_torque_nm: Option<f64>,
     /// Samples of a recording that does not say `# start: rest` before its motion's extremes
-    /// wiped out the unknown start state: run through, in no fit (as `fit` reports them).
+    /// wiped out the unknown start state between them: run through, in no fit (as `fit` reports them).
     pub start_state_samples: usize,
     pub locate: Vec<Observation>,
     /// The effects the data can reveal: searched for, and each named or refused.
@@ -72,6 +72,8 @@ pub struct DiagnoseReport {
 
 #[derive(Clone, Debug, Serialize)]
 pub struct ModelSummary {
+    /// RSS (N·m)², RMS (N·m) and the number of samples they are over: the scored ones (a
+    /// recording that starts mid-motion: from its known state on).
     pub rss: f64,
     pub rms: f64,
     pub n: usize,
@@ -156,10 +158,12 @@ impl DiagnoseReport {
             known_state_from,
             remanent_start: _,
         } = outcome;
+        // The figures count the scored samples: before the known state nothing is fitted.
+        let from = *known_state_from;
         DiagnoseReport {
             input,
             kind,
-            baseline: ModelSummary::new(&diagnosis.baseline, before, None, 0.0),
+            baseline: ModelSummary::new(&diagnosis.baseline, before.get(from..).unwrap_or(&[]), None, 0.0),
             noise: observed.noise,
             origin: *origin,
             rest_torque_nm: observed.rest_torque.map(|(torque, _)| torque),
@@ -188,7 +192,7 @@ impl DiagnoseReport {
             rejected: diagnosis.rejected.clone(),
             final_model: ModelSummary::new(
                 &diagnosis.final_fit,
-                after,
+                after.get(from..).unwrap_or(&[]),
                 diagnosis.final_form.as_ref(),
                 origin.map_or(0.0, |o| o.zero_rad),
             ),
@@ -236,7 +240,8 @@ impl DiagnoseReport {
         let report = self;
         let mut s = String::new();
         let b = &report.baseline;
-        let _ = writeln!(s, "{} ({}, {} samples)", report.input, report.kind.replace('_', " "), b.n);
+        let samples = b.n + report.start_state_samples;
+        let _ = writeln!(s, "{} ({}, {samples} samples)", report.input, report.kind.replace('_', " "));
         if let Some(noise) = &report.noise {
             let _ = writeln!(
                 s,
@@ -250,8 +255,8 @@ impl DiagnoseReport {
         if report.start_state_samples > 0 {
             let _ = writeln!(
                 s,
-                "{} samples before the motion's extremes wiped out the unknown start state (no `# start: rest`): run \
-                 through, not fitted",
+                "{} samples before the motion's extremes wiped out the unknown start state between them (no `# start: rest`): run \
+                 through, not fitted, and not in the figures below",
                 report.start_state_samples
             );
         }

@@ -38,7 +38,12 @@ impl RunsReport {
                 .unexplained
                 .as_ref()
                 .map_or(String::new(), |u| format!("; structure remains: {:.1}× the noise", u.rms / u.noise_rms));
-            let _ = writeln!(s, "run {}: {} ({} samples)", k + 1, run.input, run.baseline.n);
+            let unknown = match run.start_state_samples {
+                0 => String::new(),
+                count => format!(", the first {count} before its extremes not fitted"),
+            };
+            let samples = run.baseline.n + run.start_state_samples;
+            let _ = writeln!(s, "run {}: {} ({samples} samples{unknown})", k + 1, run.input);
             let active = if run.passivity.as_ref().is_some_and(|p| p.active) {
                 "; active loop: energy no passive gear gives back (see its full report)"
             } else {

@@ -349,7 +349,7 @@ impl FitReport {
                 if run.start_state_samples > 0 {
                     let _ = writeln!(
                         s,
-                        "    {} samples before the motion's extremes wiped out the unknown start state (no `# start: \
+                        "    {} samples before the motion's extremes wiped out the unknown start state between them (no `# start: \
                          rest`): run through, not fitted or scored",
                         run.start_state_samples
                     );
