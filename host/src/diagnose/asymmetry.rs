@@ -107,11 +107,15 @@ pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], zero_se: O
     let needed = crate::fit::spring::KNOT_SPACING_IN_NOISE * noise.deflection_rad;
     if !(extent > needed) {
         // The measured spring's 1 A runs reach −0.72 and +0.53 mrad, with 20σθ = 0.59 mrad.
+        let reach = if extent > 0.0 {
+            format!("the motion's shorter side reaches {:.3} mrad from the zero", 1e3 * extent)
+        } else {
+            format!("the motion stays on one side of the zero ({:+.3} … {:+.3} mrad)", 1e3 * lo, 1e3 * hi)
+        };
         return AsymmetryCheck::No {
             why: format!(
-                "the motion's shorter side reaches {:.3} mrad from the zero, not beyond the {:.3} mrad ({} times \
-                 the deflection's noise) a side needs for a stiffness of its own: record a larger amplitude",
-                1e3 * extent,
+                "{reach}, not beyond the {:.3} mrad ({} times the deflection's noise) a side needs for a stiffness \
+                 of its own: record a larger amplitude",
                 1e3 * needed,
                 crate::fit::spring::KNOT_SPACING_IN_NOISE
             ),

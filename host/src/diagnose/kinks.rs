@@ -178,10 +178,11 @@ pub fn check(observed: &Observed, weights: &[f64], final_fit: &ExtendedFit) -> K
                 ))
             }
             Some(sharpness) if sharpness.abs() <= MIN_BIC_DROP => {
+                let (way, by) = if sharpness >= 0.0 { ("lower", sharpness) } else { ("higher", -sharpness) };
                 return untested(format!(
-                    "{step}, and fits as well spread over {wide:.3} mrad (χ² within {MIN_BIC_DROP}: {sharpness:+.1}), \
-                     so it cannot be told from a gradual change of stiffness"
-                ))
+                    "{step}, and fits as well spread over {wide:.3} mrad (sharp, its χ² is {way} by {by:.1}, within \
+                     {MIN_BIC_DROP}), so it cannot be told from a gradual change of stiffness"
+                ));
             }
             Some(_) => {}
         }

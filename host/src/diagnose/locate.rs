@@ -36,9 +36,9 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
             value: near_rms / far_rms,
             unit: "ratio",
             words: format!(
-                "near the turning points (|θ| ≥ 0.9·A) the residual RMS is {} N·m, {:.1}× the {} N·m elsewhere",
+                "near the turning points (|θ| ≥ 0.9·A) the residual RMS is {} N·m, {}× the {} N·m elsewhere",
                 torque(near_rms),
-                near_rms / far_rms,
+                ratio(near_rms / far_rms),
                 torque(far_rms)
             ),
         });
@@ -53,9 +53,9 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
             value: low_rms / high_rms,
             unit: "ratio",
             words: format!(
-                "around zero torque (|T| < 10 % of the peak) the residual RMS is {} N·m, {:.1}× the {} N·m at load",
+                "around zero torque (|T| < 10 % of the peak) the residual RMS is {} N·m, {}× the {} N·m at load",
                 torque(low_rms),
-                low_rms / high_rms,
+                ratio(low_rms / high_rms),
                 torque(high_rms)
             ),
         });
@@ -89,7 +89,9 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
             value: slope,
             unit: "N·m·s/rad",
             words: format!(
-                "with rate: the residual grows by {slope:.4e} N·m per rad/s of deflection rate ({} N·m at the fastest {peak_rate:.3e} rad/s)",
+                "with rate: the residual {} by {:.4e} N·m per rad/s of deflection rate ({} N·m at the fastest {peak_rate:.3e} rad/s)",
+                if slope >= 0.0 { "grows" } else { "falls" },
+                slope.abs(),
                 torque(slope * peak_rate)
             ),
         });
@@ -146,6 +148,15 @@ pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
         });
     }
     out
+}
+
+/// A ratio for the report: one decimal, two significant digits below 0.1 (not 0.0×).
+fn ratio(value: f64) -> String {
+    if value >= 0.095 {
+        format!("{value:.1}")
+    } else {
+        format!("{value:.2}")
+    }
 }
 
 /// A torque in N·m for the report: four decimals, or four significant digits when smaller

@@ -118,9 +118,10 @@ impl RunsReport {
                 let started = match found.remanent_starts {
                     0 => String::new(),
                     n => format!(
-                        "; both forms estimate the start state of the {n} run{} that start at a standstill \
+                        "; both forms estimate the start state of the {n} run{} that start{} at a standstill \
                          found in the data (a remanence the motion before may have left)",
-                        if n == 1 { "" } else { "s" }
+                        if n == 1 { "" } else { "s" },
+                        if n == 1 { "s" } else { "" }
                     ),
                 };
                 let figures = format!(
