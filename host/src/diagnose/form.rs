@@ -472,7 +472,7 @@ pub fn judge(
                 words: format!(
                     "rate-independent hysteresis with memory: the genetic loop's shape does not match; the \
                      micro-slip model{kept_words} fits to RMS {form_rms:.4} N·m against {rms:.4} N·m for {effects} \
-                     (the noise alone leaves {noise_rms:.4} N·m)"
+                     (the noise alone leaves {noise_rms:.4} N·m), both weighed by the genetic model's stiffness"
                 ),
                 rss_before: rss,
                 rss_after: form_rss,

@@ -52,7 +52,8 @@ pub struct Observed {
     /// sensor's offset reads there as it does everywhere.
     pub rest_torque: Option<(f64, f64)>,
     /// The first sample whose hysteresis state is known (0 from rest): the samples before it,
-    /// of a recording that starts mid-motion, carry no weight in any fit.
+    /// of a recording that starts mid-motion, carry no weight in any fit and count in no figure
+    /// ([`Observed::scored`]).
     pub known_state_from: usize,
     /// The ends of a recording's legs as (deflection, sample index): the first sample, every
     /// turning point, the last sample. Leg k (from end k to end k + 1) holds the samples after
