@@ -16,7 +16,7 @@ pub struct Observation {
 pub fn locate(observed: &Observed, residuals: &[f64]) -> Vec<Observation> {
     let d = &observed.data;
     let n = residuals.len();
-    let from = observed.known_state_from.min(n);
+    let from = observed.scored().start.min(n);
     let rms_of = |keep: &dyn Fn(usize) -> bool| {
         let (sum, count) =
             (from..n).filter(|&i| keep(i)).fold((0.0, 0usize), |(s, c), i| (s + residuals[i] * residuals[i], c + 1));

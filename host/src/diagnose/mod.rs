@@ -245,8 +245,6 @@ pub struct DiagnoseOutcome {
     pub non_masing: non_masing::NonMasingCheck,
     /// Whether loops run over and over drift.
     pub ratcheting: ratcheting::RatchetingCheck,
-    /// The first sample from which the hysteresis state is known: 0 from rest.
-    pub known_state_from: usize,
     /// Whether the recording starts at a standstill found in the data, not declared
     /// ([`OfflineRun::remanent_start`]): its hysteresis may start at a remanence.
     pub remanent_start: bool,
@@ -388,7 +386,7 @@ pub fn diagnose_dataset(
     // Side by side: the kinks' scan runs on one core (one run's normal equations).
     let (kinks, non_masing) = rayon::join(
         || kinks::check(&observed, &diagnosis.weights, &diagnosis.final_fit),
-        || non_masing::check(&observed, &diagnosis.weights, &beside, known_state_from),
+        || non_masing::check(&observed, &diagnosis.weights, &beside),
     );
     let ratcheting = match (&observed.time, &observed.noise) {
         // A torque that drifts with the temperature drifts at the turning points too: where the
@@ -421,7 +419,6 @@ pub fn diagnose_dataset(
         kinks,
         non_masing,
         ratcheting,
-        known_state_from,
         remanent_start: start.remanent,
     })
 }

@@ -152,9 +152,10 @@ impl Pair {
 
 /// Tests the loops of `observed` against Masing's rule, with the accepted effects `active` beside
 /// both forms and the search's `weights` (1/σ² of each sample's noise), on the samples from
-/// `known_state_from` on: the forms run from rest, and before that sample a recording that does
+/// [`Observed::known_state_from`] on: the forms run from rest, and before that sample a recording that does
 /// not start at rest holds a hysteresis state they do not know.
-pub fn check(observed: &Observed, weights: &[f64], active: &[Effect], known_state_from: usize) -> NonMasingCheck {
+pub fn check(observed: &Observed, weights: &[f64], active: &[Effect]) -> NonMasingCheck {
+    let known_state_from = observed.known_state_from;
     let untested = |why: &str| NonMasingCheck::No { why: why.to_string() };
     if observed.time.is_none() {
         return untested("a loop table holds one loop, which both forms follow alike");
@@ -252,13 +253,13 @@ fn not_in_each(parts: [[f64; 2]; 2], which: &str) -> Option<String> {
     })
 }
 
-/// One run of [`check_runs`]: its observations, the search's weights, the effects accepted on it,
-/// the first sample whose hysteresis state is known and whether it may start at a remanence.
+/// One run of [`check_runs`]: its observations (with the first sample whose hysteresis state is
+/// known), the search's weights, the effects accepted on it and whether it may start at a
+/// remanence.
 pub struct RunOfMany<'a> {
     pub observed: &'a Observed,
     pub weights: &'a [f64],
     pub active: &'a [Effect],
-    pub known_state_from: usize,
     /// Whether it starts at a standstill found in the data, its start state estimated
     /// ([`crate::prepare::OfflineRun::remanent_start`]).
     pub remanent_start: bool,
@@ -294,7 +295,7 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
     let extents: Vec<[f64; 2]> = runs
         .iter()
         .map(|run| {
-            let theta = &run.observed.data.theta[run.known_state_from.min(run.observed.data.theta.len())..];
+            let theta = &run.observed.data.theta[run.observed.known_state_from.min(run.observed.data.theta.len())..];
             theta.iter().fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], &t| [lo.min(t), hi.max(t)])
         })
         .collect();
@@ -305,7 +306,7 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
         let tolerance = SAME_LOOP * (hi - lo);
         members.iter().all(|&k| {
             let run = &runs[k];
-            one_loop(&run.observed.data.theta, &reversals[k].indices, run.known_state_from)
+            one_loop(&run.observed.data.theta, &reversals[k].indices, run.observed.known_state_from)
                 && (extents[k][0] - lo).abs() <= tolerance
                 && (hi - extents[k][1]).abs() <= tolerance
         })
@@ -332,7 +333,7 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
         })
         .collect();
     let known_weights: Vec<Vec<f64>> =
-        runs.iter().map(|run| weights_on(run.weights, run.known_state_from..run.weights.len())).collect();
+        runs.iter().map(|run| weights_on(run.weights, run.observed.known_state_from..run.weights.len())).collect();
     // The forms with the runs `fitted` weighted and the others followed at weight 0.
     let pair = |fitted: &[usize]| -> Option<Pair> {
         let zeros: Vec<Vec<f64>> = runs.iter().map(|run| vec![0.0; run.weights.len()]).collect();
@@ -370,7 +371,9 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
         .collect();
     let scored = || {
         runs.iter().enumerate().flat_map(|(k, run)| {
-            (run.known_state_from..run.weights.len()).filter(move |&i| run.weights[i] > 0.0).map(move |i| (k, i))
+            (run.observed.known_state_from..run.weights.len())
+                .filter(move |&i| run.weights[i] > 0.0)
+                .map(move |i| (k, i))
         })
     };
     let (sum, count) = scored().fold((0.0, 0usize), |(sum, count), (k, i)| {
@@ -395,7 +398,7 @@ pub fn check_runs(runs: &[RunOfMany]) -> NonMasingCheck {
                     // each form's residual is taken about its mean over the run.
                     let run = &runs[k];
                     let at: Vec<usize> =
-                        (run.known_state_from..run.weights.len()).filter(|&i| run.weights[i] > 0.0).collect();
+                        (run.observed.known_state_from..run.weights.len()).filter(|&i| run.weights[i] > 0.0).collect();
                     let spread = |predicted: &[f64]| {
                         let residual: Vec<f64> =
                             at.iter().map(|&i| run.observed.data.torque[i] - predicted[starts[k] + i]).collect();

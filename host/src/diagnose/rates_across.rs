@@ -166,7 +166,7 @@ fn verdict(runs: &[RunOfMany], frequencies: &[Option<f64>]) -> RateVerdict {
     });
     let reversals: Vec<Reversals> = runs.iter().map(|run| reversals(&run.observed.data.theta)).collect();
     let weights: Vec<Vec<f64>> =
-        runs.iter().map(|run| weights_on(run.weights, run.known_state_from..run.weights.len())).collect();
+        runs.iter().map(|run| weights_on(run.weights, run.observed.known_state_from..run.weights.len())).collect();
     let own: Vec<Vec<Vec<f64>>> = runs
         .iter()
         .map(|run| {

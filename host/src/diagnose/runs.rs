@@ -145,7 +145,6 @@ pub fn diagnose_runs(
             observed: &outcome.observed,
             weights: &outcome.diagnosis.weights,
             active: beside,
-            known_state_from: outcome.known_state_from,
             remanent_start: outcome.remanent_start,
         })
         .collect();

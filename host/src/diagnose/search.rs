@@ -983,9 +983,10 @@ fn unweighted_rise(
 fn unweighted_rss(observed: &Observed, fit: &ExtendedFit, subset: &[usize]) -> Result<f64, model_core::Error> {
     // Summed in order as they come: the sum over [`ExtendedFit::residuals`], without the vector.
     let prediction = fit.prediction(observed)?;
+    let scored = observed.scored();
     subset
         .iter()
-        .filter(|&&i| i >= observed.known_state_from)
+        .filter(|&&i| scored.contains(&i))
         .map(|&i| {
             let r = observed.data.torque[i] - prediction.at(i)?;
             Ok(r * r)

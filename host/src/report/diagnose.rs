@@ -155,11 +155,10 @@ impl DiagnoseReport {
             kinks,
             non_masing,
             ratcheting,
-            known_state_from,
             remanent_start: _,
         } = outcome;
         // The figures count the scored samples: before the known state nothing is fitted.
-        let from = *known_state_from;
+        let from = observed.known_state_from;
         DiagnoseReport {
             input,
             kind,
@@ -167,7 +166,7 @@ impl DiagnoseReport {
             noise: observed.noise,
             origin: *origin,
             rest_torque_nm: observed.rest_torque.map(|(torque, _)| torque),
-            start_state_samples: *known_state_from,
+            start_state_samples: from,
             locate: locate.clone(),
             revealable: observed
                 .revealable()
