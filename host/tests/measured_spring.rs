@@ -117,19 +117,8 @@ fn the_measured_runs_follow_masings_rule_once_each_starts_at_its_remanence() {
 /// not start there left 47× the noise.
 #[test]
 fn a_measured_run_cut_before_its_rest_names_no_offset_and_fits_its_known_part() {
-    let text = std::fs::read_to_string(run("3-6")).unwrap();
-    let kept: String = text
-        .lines()
-        .filter(|line| {
-            line.starts_with('#')
-                || line.starts_with("time_s")
-                || line.split(',').next().unwrap().parse::<f64>().unwrap() >= 7.0
-        })
-        .map(|line| format!("{line}\n"))
-        .collect();
     let dir = tempfile::tempdir().unwrap();
-    let cut = dir.path().join("cut.csv");
-    std::fs::write(&cut, kept).unwrap();
+    let cut = cut_from(&run("3-6"), 7.0, dir.path());
     let report = json(&swg_host(&["diagnose", cut.to_str().unwrap(), "--json"]));
     assert_eq!(report["origin"]["source"], "fitted", "{:#}", report["origin"]);
     assert!(report["start_state_samples"].as_u64().unwrap() > 0, "{report:#}");
@@ -142,4 +131,50 @@ fn a_measured_run_cut_before_its_rest_names_no_offset_and_fits_its_known_part() 
     assert!(rms < 1.5 * form["noise_rms"].as_f64().unwrap(), "{rms} N·m: {form:#}");
     let counted = report["final"]["n"].as_u64().unwrap();
     assert_eq!(counted + report["start_state_samples"].as_u64().unwrap(), 2589, "{:#}", report["final"]);
+}
+
+/// `name`'s samples from `from_s` on (its rest cut away), written into `dir`.
+fn cut_from(path: &str, from_s: f64, dir: &std::path::Path) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(path).unwrap();
+    let kept: String = text
+        .lines()
+        .filter(|line| {
+            line.starts_with('#')
+                || line.starts_with("time_s")
+                || line.split(',').next().unwrap().parse::<f64>().unwrap() >= from_s
+        })
+        .map(|line| format!("{line}\n"))
+        .collect();
+    let cut = dir.join("cut.csv");
+    std::fs::write(&cut, kept).unwrap();
+    cut
+}
+
+/// Without its rest, the 1 A run does not fix its zero: the kinds `auto` tries place θ0 over
+/// 1.1 mrad (the rest reads −8.42), more than twice the chosen kind's own uncertainty, which is
+/// its misfit profile alone. The report gives each kind's θ0 beside its held-out error, and the
+/// chosen run's line says how far apart they are.
+#[test]
+fn fit_auto_shows_where_each_kind_places_a_zero_the_data_do_not_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let cut = cut_from(&run("1-4"), 6.5, dir.path());
+    let cut = cut.to_str().unwrap();
+    let report = json(&swg_host(&["fit", cut, "--model", "auto", "--json"]));
+    let origin = &report["runs"][0]["origin"];
+    assert_eq!(origin["source"], "fitted", "{origin:#}");
+    let zeros: Vec<f64> = report["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["fitted_zero_rad"].as_f64().unwrap_or_else(|| panic!("no θ0: {c:#}")))
+        .collect();
+    assert_eq!(zeros.len(), 4, "{:#}", report["candidates"]);
+    let chosen = report["candidates"].as_array().unwrap().iter().find(|c| c["chosen"] == true).unwrap();
+    assert_eq!(chosen["fitted_zero_rad"], origin["zero_rad"], "the chosen kind keeps the θ0 it was judged with");
+    let spread =
+        zeros.iter().copied().fold(f64::NEG_INFINITY, f64::max) - zeros.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(spread > 2.0 * origin["zero_se_rad"].as_f64().unwrap(), "{spread} rad apart: {origin:#}");
+    let text = ok(swg_host(&["fit", cut, "--model", "auto"]));
+    assert!(text.contains("kinds tried place it over"), "{text}");
+    assert!(text.contains("θ0 mrad"), "{text}");
 }

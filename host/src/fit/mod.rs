@@ -29,7 +29,7 @@ use held_out::{HeldOutRule, RunShape};
 use model_core::{GearModel, Identifiable, Kind, Model, Params};
 pub use motion::MotionFit;
 use motion::{Motion, Run};
-use zero::{fit_with_zero, FinalSolve, RunOrigin};
+use zero::{fit_with_zero, FinalSolve, OriginSource, RunOrigin};
 
 #[derive(Clone, Debug)]
 pub struct FitOptions {
@@ -187,6 +187,10 @@ pub struct MotionOutcome {
     /// Every kind fitted, in [`AUTO_KINDS`] order: with `auto` once per fold without its
     /// held-out samples and judged on them, pooled over the folds; else the one kind named.
     pub candidates: Vec<MotionFit>,
+    /// The θ0 each candidate fitted, rad, in their order: none where every run starts at rest.
+    /// With `auto`, its first fold's: where the kinds place a zero the data do not fix, they
+    /// disagree (the measured spring without its rest: by up to 3 mrad), and the report shows it.
+    pub candidate_zeros: Vec<Option<f64>>,
     /// The kinds `auto` could not fit without the held-out samples of some fold, with why:
     /// not judged, not chosen.
     pub not_judged: Vec<(Kind, FitError)>,
@@ -390,9 +394,12 @@ fn fit_recordings(
         fit.model.zero = origins.first().map_or(0.0, |o| o.zero_rad);
         (fit, origins)
     };
-    let motion_outcome = |chosen, candidates, held_out_rule, origins, not_judged| MotionOutcome {
+    let fitted_zero =
+        |origins: &[RunOrigin]| origins.iter().find(|o| o.source == OriginSource::Fitted).map(|o| o.zero_rad);
+    let motion_outcome = |chosen, candidates, candidate_zeros, held_out_rule, origins, not_judged| MotionOutcome {
         chosen,
         candidates,
+        candidate_zeros,
         not_judged,
         held_out_rule,
         noise: Some(noise),
@@ -412,7 +419,14 @@ fn fit_recordings(
                 with_zero(fit_with_zero(kind, &all_fitted, &at_rest, &options, FinalSolve::EverySample)?);
             (
                 None,
-                Identified::Motion(Box::new(motion_outcome(chosen.clone(), vec![chosen], None, origins, Vec::new()))),
+                Identified::Motion(Box::new(motion_outcome(
+                    chosen.clone(),
+                    vec![chosen],
+                    vec![fitted_zero(&origins)],
+                    None,
+                    origins,
+                    Vec::new(),
+                ))),
             )
         }
         ModelChoice::Auto => {
@@ -477,9 +491,20 @@ fn fit_recordings(
             let known: Vec<Option<RunOrigin>> = best_origins.iter().copied().map(Some).collect();
             let (chosen, origins) =
                 with_zero(fit_with_zero(kind, &all_fitted, &known, &refit, FinalSolve::EverySample)?);
+            let candidate_zeros = candidates.iter().map(|(_, origins)| fitted_zero(origins)).collect();
             let candidates = candidates.into_iter().map(|(fit, _)| fit).collect();
             held_out_spans = Some(folds);
-            (None, Identified::Motion(Box::new(motion_outcome(chosen, candidates, Some(rule), origins, not_judged))))
+            (
+                None,
+                Identified::Motion(Box::new(motion_outcome(
+                    chosen,
+                    candidates,
+                    candidate_zeros,
+                    Some(rule),
+                    origins,
+                    not_judged,
+                ))),
+            )
         }
     };
     let (lines, three_segment) = match &prepared {

@@ -85,6 +85,9 @@ pub struct CandidateReport {
     /// RMS on the held-out samples, N·m.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub held_out_rms: Option<f64>,
+    /// The θ0 this kind fitted, rad (with `auto`: on its first fold), where a run's is fitted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fitted_zero_rad: Option<f64>,
     pub chosen: bool,
 }
 
@@ -166,6 +169,17 @@ pub const MEMORY_CONVENTION: &str = "genetic model with Madelung's rules: every 
 pub const CONVENTION: &str = "only h and r are identifiable: (s*alpha, s*beta, s*omega) gives the same torque for any s != 0; params are the point with omega = 1";
 
 impl FitReport {
+    /// Where the kinds tried fitted θ0 apart: "; the kinds tried place it over a … b mrad (each
+    /// below)", beside the chosen kind's own uncertainty, which is its misfit profile alone.
+    fn kinds_zero_spread(&self) -> String {
+        let zeros: Vec<f64> = self.candidates.iter().filter_map(|c| c.fitted_zero_rad).collect();
+        let (lo, hi) = zeros.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &z| (lo.min(z), hi.max(z)));
+        if zeros.len() < 2 || hi <= lo {
+            return String::new();
+        }
+        format!("; the {} kinds tried place it over {:.4} … {:.4} mrad (each below)", zeros.len(), lo * 1e3, hi * 1e3)
+    }
+
     pub fn new(
         input: InputSummary,
         runs: Vec<RunReport>,
@@ -197,13 +211,14 @@ impl FitReport {
                     r: id.r,
                     amplitude_rad: outcome.reference_amplitude,
                 });
-                let candidate = |fit: &MotionFit| CandidateReport {
+                let candidate = |(fit, zero): (&MotionFit, &Option<f64>)| CandidateReport {
                     model: fit.model.kind().name(),
                     parameters: fit.parameters,
                     n: fit.n,
                     rss: fit.rss,
                     rms: fit.rms,
                     held_out_rms: fit.held_out_rms,
+                    fitted_zero_rad: *zero,
                     chosen: fit.model.kind() == model.kind(),
                 };
                 let held_out =
@@ -231,7 +246,7 @@ impl FitReport {
                     compared,
                     reversals: Some("offline"),
                     held_out,
-                    candidates: outcome.candidates.iter().map(candidate).collect(),
+                    candidates: outcome.candidates.iter().zip(&outcome.candidate_zeros).map(candidate).collect(),
                     not_judged: outcome
                         .not_judged
                         .iter()
@@ -341,8 +356,9 @@ impl FitReport {
                         OriginSource::Fitted => writeln!(
                             s,
                             "    θ0 {:.4}{se} mrad fitted (where the spring's torque is 0; no rest at its start), torque \
-                             offset taken as 0",
-                            origin.zero_rad * 1e3
+                             offset taken as 0{}",
+                            origin.zero_rad * 1e3,
+                            self.kinds_zero_spread()
                         ),
                     };
                 }
@@ -367,17 +383,27 @@ impl FitReport {
             let _ = writeln!(s, "model kind named: fitted on every sample");
         }
         if !self.candidates.is_empty() {
+            // Each kind's own θ0 where it is fitted: where the data do not fix the zero, the
+            // kinds place it apart, and the chosen one's uncertainty (its misfit profile) does
+            // not show that.
+            let zeros = self.candidates.iter().any(|c| c.fitted_zero_rad.is_some());
+            let zero_head = if zeros { format!(" {:>14}", "θ0 mrad") } else { String::new() };
             let _ = writeln!(
                 s,
-                "  {:<20} {:>10} {:>12} {:>14} {:>14}",
+                "  {:<20} {:>10} {:>12} {:>14} {:>14}{zero_head}",
                 "model", "parameters", "samples", "training RMS", "held-out RMS"
             );
             for c in &self.candidates {
                 let held_out = c.held_out_rms.map_or("—".to_string(), |r| format!("{r:.4}"));
+                let zero = match (zeros, c.fitted_zero_rad) {
+                    (false, _) => String::new(),
+                    (true, Some(zero)) => format!(" {:>14.4}", zero * 1e3),
+                    (true, None) => format!(" {:>14}", "—"),
+                };
                 let mark = if c.chosen { "  ← chosen" } else { "" };
                 let _ = writeln!(
                     s,
-                    "  {:<20} {:>10} {:>12} {:>14.4} {:>14}{mark}",
+                    "  {:<20} {:>10} {:>12} {:>14.4} {:>14}{zero}{mark}",
                     c.model, c.parameters, c.n, c.rms, held_out
                 );
             }
