@@ -818,7 +818,7 @@ impl<F: Real, const M: usize> SlipElements<F, M> {
         }
         let delta = theta - self.theta;
         for (e, d) in self.elastic.iter_mut().zip(self.slip.iter()) {
-            (*e, _) = slide::<F, true>(*e, delta, *d);
+            (*e, _) = slide::<F, { Heading::Either as u8 }>(*e, delta, *d);
         }
         self.theta = theta;
         Ok(())
@@ -850,31 +850,47 @@ impl<F: Real, const M: usize> SlipElements<F, M> {
     }
 }
 
+/// Which way Δθ moves the elements: [`slide`]'s limits to test.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Heading {
+    /// Δθ > 0: only +d can be reached.
+    Up,
+    /// Δθ < 0: only −d can be reached.
+    Down,
+    /// Δθ = 0: none; e stays.
+    Still,
+    /// Any Δθ: both.
+    Either,
+}
+
 /// Element e moved by Δθ: clamp(e + Δθ, −d, d), and whether it sticks there (|e| < d) or slips
 /// (at ±d). The one formula of [`SlipElements::step`] and [`MicroSlip`]'s step, so the fit's
 /// columns are what the joint evaluates. Finite θs make Δθ finite or ±∞, never NaN, so
 /// e + Δθ is never NaN and e stays finite; then this is exactly the clamp (e + Δθ = ±d gives
 /// ±d either way).
 ///
-/// `RISING` says which limit to test first: the one the motion heads for (Δθ ≥ 0: +d), so that
-/// an element that slips costs one comparison, not a comparison and a choice of sign (the M4F's
-/// tick, where most elements may slip). The value is the same either way.
+/// `HEADING` says which limits Δθ can reach. An element lies within [−d, d], so one moved up
+/// stays above −d (at most rounded to it: it left the limit, and sticks) and needs one
+/// comparison, not two: on the M4F's tick that is 4 instructions an element that sticks.
 #[inline(always)]
-fn slide<F: Real, const RISING: bool>(e: F, delta: F, d: F) -> (F, bool) {
+fn slide<F: Real, const HEADING: u8>(e: F, delta: F, d: F) -> (F, bool) {
     let moved = e + delta;
-    if RISING {
+    if HEADING == Heading::Up as u8 {
         if moved >= d {
             return (d, false);
         }
+    } else if HEADING == Heading::Down as u8 {
         if moved <= -d {
             return (-d, false);
         }
+    } else if HEADING == Heading::Still as u8 {
+        return (e, e.abs() < d);
     } else {
-        if moved <= -d {
-            return (-d, false);
-        }
         if moved >= d {
             return (d, false);
+        }
+        if moved <= -d {
+            return (-d, false);
         }
     }
     (moved, true)
@@ -884,12 +900,13 @@ fn slide<F: Real, const RISING: bool>(e: F, delta: F, d: F) -> (F, bool) {
 /// series with a slider that slips when the spring's deflection reaches d_i (each element its
 /// own d_i); the gear's spring is added by its model ([`crate::GearModel`]).
 ///
-/// H = Σ k_i·e_i; dH/dθ = Σ k_i over the sticking elements (|e_i| < d_i). Madelung's rules hold
-/// exactly; the loops are rate-independent and point-symmetric (Masing's rule).
+/// H = Σ k_i·e_i; dH/dθ = Σ k_i over the sticking elements (|e_i| < d_i, or moved off its limit
+/// by less than e_i's rounding). Madelung's rules hold exactly; the loops are rate-independent
+/// and point-symmetric (Masing's rule).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MicroSlip<F, const M: usize> {
-    slip: [F; M],
-    stiffness: [F; M],
+    /// Each element's d and k side by side: the tick loads the two of an element at once.
+    elements: [SlipElement<F>; M],
     elastic: [F; M],
     theta: F,
     /// Elements in use: the first `count`.
@@ -905,33 +922,35 @@ impl<F: Real, const M: usize> MicroSlip<F, M> {
         if elements.len() > M {
             return Err(Error::InvalidSlipRange);
         }
-        let (mut slip, mut stiffness) = ([F::one(); M], [F::zero(); M]);
-        for (i, ((element, d), k)) in elements.iter().zip(slip.iter_mut()).zip(stiffness.iter_mut()).enumerate() {
+        let mut stored = [SlipElement { slip: F::one(), stiffness: F::zero() }; M];
+        for (i, (element, slot)) in elements.iter().zip(stored.iter_mut()).enumerate() {
             if !(element.slip.is_finite() && element.slip > F::zero()) {
                 return Err(Error::InvalidSlipRange);
             }
             if !(element.stiffness.is_finite() && element.stiffness >= F::zero()) {
                 return Err(Error::InvalidSlipStiffness(i));
             }
-            (*d, *k) = (element.slip, element.stiffness);
+            *slot = *element;
         }
-        Ok(MicroSlip { slip, stiffness, elastic: [F::zero(); M], theta: F::zero(), count: elements.len(), slipping: 0 })
+        Ok(MicroSlip {
+            elements: stored,
+            elastic: [F::zero(); M],
+            theta: F::zero(),
+            count: elements.len(),
+            slipping: 0,
+        })
     }
 
     /// No elements (H = 0 everywhere).
     pub(crate) fn none() -> Self {
         let zero = F::zero();
-        MicroSlip { slip: [F::one(); M], stiffness: [zero; M], elastic: [zero; M], theta: zero, count: 0, slipping: 0 }
+        let unused = SlipElement { slip: F::one(), stiffness: zero };
+        MicroSlip { elements: [unused; M], elastic: [zero; M], theta: zero, count: 0, slipping: 0 }
     }
 
-    /// The elements' slip deflections d_i, rad.
-    pub fn slip(&self) -> &[F] {
-        self.slip.get(..self.count).unwrap_or(&[])
-    }
-
-    /// The elements' stiffnesses k_i, N·m/rad.
-    pub fn stiffness(&self) -> &[F] {
-        self.stiffness.get(..self.count).unwrap_or(&[])
+    /// The elements in use: each d_i (rad) and k_i (N·m/rad).
+    pub fn elements(&self) -> &[SlipElement<F>] {
+        self.elements.get(..self.count).unwrap_or(&[])
     }
 
     /// The elements' elastic deflections e_i, rad.
@@ -964,10 +983,12 @@ impl<F: Real, const M: usize> MicroSlip<F, M> {
         }
         let delta = theta - self.theta;
         let mut elastic = self.elastic;
-        let (total, slipping) = if delta >= F::zero() {
-            self.slide_all::<true>(&mut elastic, delta)
+        let (total, slipping) = if delta > F::zero() {
+            self.slide_all::<{ Heading::Up as u8 }>(&mut elastic, delta)
+        } else if delta < F::zero() {
+            self.slide_all::<{ Heading::Down as u8 }>(&mut elastic, delta)
         } else {
-            self.slide_all::<false>(&mut elastic, delta)
+            self.slide_all::<{ Heading::Still as u8 }>(&mut elastic, delta)
         };
         let evaluation = finish.finish(total)?;
         self.elastic = elastic;
@@ -978,37 +999,53 @@ impl<F: Real, const M: usize> MicroSlip<F, M> {
 }
 
 impl<F: Real, const M: usize> MicroSlip<F, M> {
-    /// `elastic` moved by Δθ = `delta`, element by element ([`slide`] with the limit Δθ heads
-    /// for tested first): H, dH/dθ and how many elements slip.
+    /// `elastic` moved by Δθ = `delta`, element by element ([`slide`], testing the limit Δθ
+    /// heads for): H, dH/dθ and how many elements slip.
     #[inline(always)]
-    fn slide_all<const RISING: bool>(&self, elastic: &mut [F; M], delta: F) -> (Evaluation<F>, usize) {
+    fn slide_all<const HEADING: u8>(&self, elastic: &mut [F; M], delta: F) -> (Evaluation<F>, usize) {
         let mut total = Evaluation { torque: F::zero(), stiffness: F::zero() };
         let mut slipping = 0;
-        let mut one = |e: &mut F, d: F, k: F| {
-            let sticks;
-            (*e, sticks) = slide::<F, RISING>(*e, delta, d);
-            total.torque = total.torque + k * *e;
-            if sticks {
-                total.stiffness = total.stiffness + k;
-            } else {
-                slipping += 1;
-            }
-        };
+        let elements = &self.elements;
         // Every slot, the unused too (k = 0, d = 1 rad: they never slip): the worst case, all M
-        // in use, is what the tick is budgeted for. By index over the fixed arrays: zipped
-        // iterators left `Zip::new` a call of its own once the joint's tick held four kinds, and
-        // the loop unrolled no more (+145 instructions a tick, `bench/firmware.sh`).
+        // in use, is what the tick is budgeted for. Four slots a pass, written out here: a loop
+        // of one slot a pass is not unrolled where the tick is compiled for size, and zipped
+        // iterators left `Zip::new` a call of its own (`bench/firmware.sh`).
         let mut at = 0;
-        while at < M {
-            // Four a pass, written out by the compiler (no counting and addressing per element).
-            for i in at..at + 4 {
-                if let (Some(e), Some(d), Some(k)) = (elastic.get_mut(i), self.slip.get(i), self.stiffness.get(i)) {
-                    one(e, *d, *k);
-                }
-            }
+        while at + 4 <= M {
+            slide_slot::<F, HEADING, M>(elastic, elements, at, delta, &mut total, &mut slipping);
+            slide_slot::<F, HEADING, M>(elastic, elements, at + 1, delta, &mut total, &mut slipping);
+            slide_slot::<F, HEADING, M>(elastic, elements, at + 2, delta, &mut total, &mut slipping);
+            slide_slot::<F, HEADING, M>(elastic, elements, at + 3, delta, &mut total, &mut slipping);
             at += 4;
         }
+        while at < M {
+            slide_slot::<F, HEADING, M>(elastic, elements, at, delta, &mut total, &mut slipping);
+            at += 1;
+        }
         (total, slipping)
+    }
+}
+
+/// Slot `i` of the elements moved by Δθ = `delta` ([`slide`]), added to H and dH/dθ, counted
+/// when it slips.
+#[inline(always)]
+fn slide_slot<F: Real, const HEADING: u8, const M: usize>(
+    elastic: &mut [F; M],
+    elements: &[SlipElement<F>; M],
+    i: usize,
+    delta: F,
+    total: &mut Evaluation<F>,
+    slipping: &mut usize,
+) {
+    if let (Some(e), Some(&SlipElement { slip: d, stiffness: k })) = (elastic.get_mut(i), elements.get(i)) {
+        let sticks;
+        (*e, sticks) = slide::<F, HEADING>(*e, delta, d);
+        total.torque = total.torque + k * *e;
+        if sticks {
+            total.stiffness = total.stiffness + k;
+        } else {
+            *slipping += 1;
+        }
     }
 }
 

@@ -342,12 +342,16 @@ impl<F: Real> PreparedSpring<F> {
             None => {
                 // How many pieces end at or before x: the index of x's piece (the ends increase,
                 // the last piece in use and those after it end at +∞).
-                let mut index = 0;
-                for step in [16, 8, 4, 2, 1] {
+                // Written out, not a loop over the steps: where the tick is compiled for size, the
+                // loop is not unrolled (`bench/firmware.sh`).
+                let past = |index: usize, step: usize| {
                     if self.segments.get(index + step).is_some_and(|s| x >= s.start) {
-                        index += step;
+                        index + step
+                    } else {
+                        index
                     }
-                }
+                };
+                let index = past(past(past(past(past(0, 16), 8), 4), 2), 1);
                 self.cursor = index;
                 match self.segments.get(index) {
                     Some(segment) => segment,

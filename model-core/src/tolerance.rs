@@ -5,7 +5,7 @@
 //! relative, the rounding of θ/A in f32: near the turning points |θ| = A the model is steep
 //! in θ/A, and no f32 evaluation can do better than that.
 use crate::gear::{Hysteresis, HysteresisState};
-use crate::memory::{branch, TurningPoint};
+use crate::memory::{branch, SlipElement, TurningPoint};
 use crate::{Direction, Evaluation, Evaluator, GearModel, Model};
 #[allow(unused_imports)]
 use num_traits::Float;
@@ -162,7 +162,7 @@ impl Evaluator<f64> {
                 rounding.stiffness += stiffness;
             }
             HysteresisState::MicroSlip(slip) => {
-                for ((k, e), d) in slip.stiffness().iter().zip(slip.elastic()).zip(slip.slip()) {
+                for (&SlipElement { slip: d, stiffness: k }, e) in slip.elements().iter().zip(slip.elastic()) {
                     let margin = 1.0e-5 * d + 2.0 * ROUNDING * (x.abs() + d);
                     if d - e.abs() <= margin {
                         rounding.memory += 1;

@@ -441,13 +441,29 @@ fn micro_slip_counts_its_slipping_elements() {
     let mut seen = std::collections::BTreeSet::new();
     for theta in grid_path(&deep_motion(), A / 1000.0) {
         slip.step(theta).unwrap();
-        let at_limit = slip.elastic().iter().zip(slip.slip()).filter(|(e, d)| e.abs() == **d).count();
+        let at_limit =
+            slip.elastic().iter().zip(slip.elements()).filter(|(e, element)| e.abs() == element.slip).count();
         assert_eq!(slip.slipping(), at_limit);
         seen.insert(slip.slipping());
     }
     assert!(seen.len() > 4, "{seen:?}");
     slip.reset();
     assert_eq!(slip, micro_slip());
+}
+
+/// An element at its lower limit that the motion moves up by less than e's rounding stays at
+/// −d but sticks: the motion reversed, so its spring adds to the stiffness again. (Each heading
+/// tests only the limit it can reach: `slide`.) Standing still, it still slips.
+#[test]
+fn an_element_moved_off_its_limit_by_less_than_its_rounding_sticks() {
+    let mut slip = MicroSlip::<f64, 1>::new(&[SlipElement { slip: 1.0, stiffness: 100.0 }]).unwrap();
+    slip.step(2.0).unwrap();
+    let down = slip.step(1.0e-20).unwrap();
+    assert_eq!((slip.elastic(), slip.slipping(), down.stiffness), (&[-1.0][..], 1, 0.0));
+    let still = slip.step(1.0e-20).unwrap();
+    assert_eq!((slip.slipping(), still.stiffness), (1, 0.0), "no motion, no reversal");
+    let up = slip.step(2.0e-20).unwrap();
+    assert_eq!((slip.elastic(), slip.slipping(), up.stiffness), (&[-1.0][..], 0, 100.0));
 }
 
 #[test]
@@ -756,8 +772,8 @@ proptest! {
         prop_assert_eq!(relays.step(far).unwrap(), virgin.step(far).unwrap());
         prop_assert_eq!(relays.depth(), 0);
         let limit = if sign { 1.0 } else { -1.0 };
-        for (e, d) in slip.elastic().iter().zip(slip.slip()) {
-            prop_assert_eq!(*e, limit * d);
+        for (e, element) in slip.elastic().iter().zip(slip.elements()) {
+            prop_assert_eq!(*e, limit * element.slip);
         }
     }
 
