@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Long fuzz runs (figures, not a test) of the targets in fuzz/: the CSV readers (loop table,
-# recording), the params-file parser and the protocol's frame decoder. Needs a nightly
+# recording), the params-file and plan-file parsers and the protocol's frame decoder. Needs a nightly
 # toolchain and cargo-fuzz (`rustup toolchain install nightly; cargo install cargo-fuzz`).
 # Each target runs SECONDS (default 300) from the checked-in corpus (fuzz/corpus/<target>/,
 # which it grows in a copy under bench/out/fuzz/); a crash is kept in fuzz/artifacts/<target>/.
@@ -12,7 +12,7 @@ seconds=${1:-300}
 shift || true
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(csv_loop_table csv_recording params frame_decode)
+    targets=(csv_loop_table csv_recording params plan frame_decode)
 fi
 if ! cargo +nightly fuzz --version >/dev/null 2>&1; then
     echo "bench/fuzz.sh needs nightly and cargo-fuzz: rustup toolchain install nightly && cargo install cargo-fuzz" >&2

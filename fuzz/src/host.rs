@@ -1,9 +1,11 @@
-//! Harness for the host's readers: the CSV tables (loop table and recording, one reader) and
-//! the params-file parser. Any input gives a dataset that keeps the documented invariants, or
+//! Harness for the host's readers: the CSV tables (loop table and recording, one reader), the
+//! params-file parser and the plan-file parser. Any input gives a dataset that keeps the documented invariants, or
 //! an error that names the file.
 use std::path::Path;
+use swg_host::input::plan::parse_plan;
 use swg_host::input::{parse, Dataset, MAX_DEFLECTION_RAD, MAX_TORQUE_NM};
 use swg_host::report::params::parse_model;
+use swg_protocol::plan::Channel;
 
 const NAME: &str = "fuzz.csv";
 
@@ -54,5 +56,32 @@ pub fn params(data: &[u8]) {
     match parse_model(Path::new("fuzz.json"), text) {
         Ok(model) => assert!(model.validate().is_ok()),
         Err(error) => assert!(error.to_string().starts_with("fuzz.json"), "{error}"),
+    }
+}
+
+/// One plan file: refused with the file named, or checked at two rates and its first ticks
+/// played within its channel's limit, finite.
+pub fn plan(data: &[u8]) {
+    let Ok(text) = std::str::from_utf8(data) else { return };
+    let spec = match parse_plan(Path::new("fuzz.json"), text) {
+        Ok(spec) => spec,
+        Err(error) => return assert!(error.to_string().starts_with("fuzz.json"), "{error}"),
+    };
+    for rate in [1000.0, 20_000.0] {
+        match spec.at_rate(rate) {
+            Ok(plan) => {
+                assert_eq!(plan.check(), Ok(()));
+                let limits = plan.limits();
+                let limit = f64::from(match plan.channel() {
+                    Channel::Deflection => limits.deflection_rad,
+                    Channel::Torque => limits.torque_nm,
+                });
+                for setpoint in plan.player::<f64>().take(2000) {
+                    assert!(setpoint.value.is_finite() && setpoint.slope.is_finite(), "{setpoint:?}");
+                    assert!(setpoint.value.abs() <= limit * (1.0 + 1e-6), "{setpoint:?} beyond {limit}");
+                }
+            }
+            Err(error) => assert!(error.to_string().starts_with("fuzz.json"), "{error}"),
+        }
     }
 }

@@ -20,7 +20,7 @@ const MUTATIONS: u64 = 300;
 
 type Target = fn(&[u8]);
 
-fn targets() -> [(&'static str, Target); 4] {
+fn targets() -> [(&'static str, Target); 5] {
     [
         ("csv_loop_table", |data| host::csv(data, None)),
         ("csv_recording", |data| {
@@ -28,6 +28,7 @@ fn targets() -> [(&'static str, Target); 4] {
             host::csv(data, Some(50.0));
         }),
         ("params", host::params),
+        ("plan", host::plan),
         ("frame_decode", frames::frames),
     ]
 }

@@ -399,3 +399,86 @@ fn an_active_genetic_gear_under_a_motion_other_than_the_sine_is_said_to_be_no_ge
     let passive = ok(swg_host(&[&["simulate", "--out", &out("passive.csv")][..], &args].concat()));
     assert!(!passive.contains(note), "{passive}");
 }
+
+/// The default plan of an identification experiment (what the joint's experiment will play):
+/// three amplitudes, each at two rates, then a dithered hold, from rest back to rest. Played
+/// through a micro-slip gear with a torque sensor offset and damping, it gives `diagnose` what
+/// it needs to name both: the offset read at rest, and the damping told from hysteresis and
+/// friction by the two rates.
+#[test]
+fn the_default_plan_records_what_diagnose_needs_to_name_an_offset_and_a_damping() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "--motion",
+        "plan",
+        "--physics",
+        "micro-slip",
+        "--effect",
+        "torque_offset=0.3",
+        "--effect",
+        "viscous_damping=20",
+    ];
+    let rec = simulate(dir.path(), "plan.csv", &args);
+    assert_eq!(rec.time.len(), 28_501, "28.5 s at 1 kHz");
+    assert_eq!(meta(&rec, "motion"), Some("plan: the default plan"));
+    assert!(meta(&rec, "plan")
+        .unwrap()
+        .starts_with("deflection (rad): sine 0.000292 at 0.5 Hz × 3; sine 0.000292 at 2 Hz × 3"));
+    let peak = rec.deflection.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+    assert!((peak - A).abs() < 1e-3 * A, "{peak}");
+    assert!(rec.deflection.first().unwrap().abs() < 1e-12 && rec.deflection.last().unwrap().abs() < 1e-9);
+    let report = common::json(&swg_host(&["diagnose", dir.path().join("plan.csv").to_str().unwrap(), "--json"]));
+    let named = |effect: &str| {
+        report["findings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|f| f["effect"] == effect)
+            .map(|f| f["magnitude"].as_f64().unwrap())
+    };
+    let offset = named("torque_offset").unwrap_or_else(|| panic!("{report:#}"));
+    let damping = named("viscous_damping").unwrap_or_else(|| panic!("{report:#}"));
+    assert!((offset - 0.3).abs() < 0.01 && (damping - 20.0).abs() < 1.0, "{offset} {damping}");
+    assert_eq!(report["findings"].as_array().unwrap().len(), 2, "{:#}", report["findings"]);
+}
+
+#[test]
+fn a_plan_file_is_played_and_a_bad_one_names_file_line_and_column_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("plan.json");
+    let plan = r#"{
+  "channel": "deflection",
+  "limits": { "torque_nm": 60, "deflection_rad": 0.0015 },
+  "segments": [
+    { "ramp": { "to": 0.0006, "seconds": 2 } },
+    { "hold": { "seconds": 4, "dither_amplitude": 0.00002, "dither_hz": 5 } },
+    { "ramp": { "to": 0, "seconds": 2 } }
+  ]
+}"#;
+    std::fs::write(&path, plan).unwrap();
+    let file = path.to_str().unwrap();
+    let rec = simulate(dir.path(), "played.csv", &["--motion", file, "--physics", "bouc-wen", "--rate", "500"]);
+    assert_eq!(rec.time.len(), 4001, "8 s at 500 Hz");
+    assert_eq!(meta(&rec, "motion"), Some(format!("plan: {file}").as_str()));
+    let held = rec.deflection[2000];
+    assert!((held - 6e-4).abs() <= 2e-5 + 1e-9, "{held}");
+
+    let out = dir.path().join("out.csv");
+    std::fs::write(&path, plan.replace("0.0006", "0.0016")).unwrap();
+    let stderr = fails(&out, &["--motion", file]);
+    assert!(
+        stderr.contains(&format!("{file}:5: column 5: segment 0 reaches 0.0016, beyond the plan's limit of 0.0015")),
+        "{stderr}"
+    );
+    std::fs::write(&path, plan.replace("\"dither_hz\": 5", "\"dither_hz\": 30")).unwrap();
+    let stderr = fails(&out, &["--motion", file, "--rate", "500"]);
+    assert!(
+        stderr.contains(&format!("{file}:6: column 5: segment 1: the frequency must be positive and at most 25 Hz")),
+        "{stderr}"
+    );
+    std::fs::write(&path, plan.replace("\"deflection\"", "\"torque\"")).unwrap();
+    assert!(fails(&out, &["--motion", file]).contains("simulate prescribes the deflection"));
+    std::fs::write(&path, plan.replace("\"seconds\": 4,", "\"seconds\": 4, \"speed\": 1,")).unwrap();
+    let stderr = fails(&out, &["--motion", file]);
+    assert!(stderr.contains(&format!("{file}:6: column")) && stderr.contains("unknown field `speed`"), "{stderr}");
+}

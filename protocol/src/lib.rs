@@ -695,6 +695,8 @@ macro_rules! endpoints {
 }
 
 /// The link's endpoints: each request paired with its response.
+pub mod plan;
+
 pub mod endpoint {
     use crate::TickStatus;
     use crate::{ControlOutput, ControlSample, ControllerConfig, DeviceInfo, EncoderSample, Feedforward, JointParams};

@@ -4,12 +4,14 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use swg_host::diagnose::effects::EffectValue;
+use swg_host::input::plan::{read_plan, PlanSpec};
 use swg_host::report::output::Outputs;
 use swg_host::report::params::{parse_model, read_model};
 use swg_host::simulate::{
     read_physics_params, read_trajectory, simulate_experiment, BoucWen, Catalogue, Experiment, MicroSlip, Motion,
     Physics, Preisach, Simulation,
 };
+use swg_protocol::plan::{Channel, Limits};
 
 /// The fit of the paper's table that ships with the tool (`data/seed/lht-20-50-fit.json`).
 pub const SEED_FIT: &str = include_str!("../../../data/seed/lht-20-50-fit.json");
@@ -66,8 +68,11 @@ pub struct SimulateArgs {
     /// in by s over 1/f, scaled to a peak of exactly A. hold: ramp to b − 0.02·A, then
     /// x = b − 0.02·A·cos 10φ (a dither about the load b). FILE.csv: the columns time_s (strictly
     /// increasing) and deflection_rad, played at those times (--rate, --cycles, --frequency
-    /// unused). All but sine start at rest (x = 0, gear unstressed).
-    #[arg(long, default_value = "sine", value_name = "sine|biased|nested|random|hold|FILE.csv", value_parser = parse_motion)]
+    /// unused). plan: the default plan of an identification experiment (what `fit` and
+    /// `diagnose` need: sines of ¼·A, ½·A and A, each at f and 4·f, three cycles each, then a
+    /// dithered hold at 0.6·A; --cycles unused). PLAN.json: a plan file (README: "Plan files"),
+    /// played at --rate. All but sine start at rest (x = 0, gear unstressed).
+    #[arg(long, default_value = "sine", value_name = "sine|biased|nested|random|hold|plan|FILE.csv|PLAN.json", value_parser = parse_motion)]
     motion: MotionArg,
     /// The bias b of `--motion biased` and the load of `--motion hold`, rad [default: 0.6·A].
     #[arg(long, value_name = "RAD", allow_hyphen_values = true)]
@@ -163,6 +168,8 @@ enum MotionArg {
     Random,
     Hold,
     File(PathBuf),
+    /// A plan file, or the default plan.
+    Plan(Option<PathBuf>),
 }
 
 fn parse_motion(text: &str) -> Result<MotionArg, String> {
@@ -172,14 +179,21 @@ fn parse_motion(text: &str) -> Result<MotionArg, String> {
         "nested" => MotionArg::Nested,
         "random" => MotionArg::Random,
         "hold" => MotionArg::Hold,
+        "plan" => MotionArg::Plan(None),
+        _ if text.ends_with(".json") => MotionArg::Plan(Some(text.into())),
         _ if text.ends_with(".csv") || text.contains(std::path::MAIN_SEPARATOR) => MotionArg::File(text.into()),
-        _ => return Err("expected sine, biased, nested, random, hold or a CSV file (FILE.csv)".into()),
+        _ => {
+            return Err(
+                "expected sine, biased, nested, random, hold, plan, a CSV file (FILE.csv) or a plan file (PLAN.json)"
+                    .into(),
+            )
+        }
     })
 }
 
 pub fn run(args: SimulateArgs) -> Result<()> {
     let motion_file = match &args.motion {
-        MotionArg::File(path) => Some(path.as_path()),
+        MotionArg::File(path) | MotionArg::Plan(Some(path)) => Some(path.as_path()),
         _ => None,
     };
     let inputs = args.params.as_deref().into_iter().chain(args.physics_params.as_deref()).chain(motion_file);
@@ -207,6 +221,17 @@ pub fn run(args: SimulateArgs) -> Result<()> {
         MotionArg::Random => Motion::Random,
         MotionArg::Hold => Motion::Hold { load_rad: args.bias },
         MotionArg::File(path) => Motion::File(read_trajectory(path).context("--motion")?),
+        MotionArg::Plan(Some(path)) => Motion::Plan(read_plan(path).context("--motion")?),
+        MotionArg::Plan(None) => {
+            let amplitude = args.amplitude;
+            let Some(&slow) = args.frequencies.first() else {
+                bail!("--motion plan plays at the first --frequency: give one")
+            };
+            // The deflection's limit a quarter beyond the largest loop; the torque's is the
+            // joint's (simulate prescribes the deflection).
+            let limits = Limits { torque_nm: f32::MAX, deflection_rad: (1.25 * amplitude) as f32 };
+            Motion::Plan(PlanSpec::default_plan(Channel::Deflection, amplitude, slow, limits))
+        }
     };
     let physics = match (args.physics, &args.physics_params) {
         (PhysicsArg::Genetic, None) => Physics::Model,
@@ -297,6 +322,8 @@ impl MotionArg {
             MotionArg::Random => "random",
             MotionArg::Hold => "hold",
             MotionArg::File(_) => "FILE.csv",
+            MotionArg::Plan(None) => "plan",
+            MotionArg::Plan(Some(_)) => "PLAN.json",
         }
     }
 }

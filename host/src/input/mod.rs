@@ -1,4 +1,5 @@
 //! The two input formats: the paper's loop table and the bench recording (format v1).
+pub mod plan;
 pub mod table;
 
 use model_core::Direction;

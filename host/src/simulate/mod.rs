@@ -9,10 +9,10 @@ pub mod motion;
 pub mod physics;
 
 use crate::diagnose::effects::{backlash, kinematic_error, Effect, EffectValue};
-use crate::input::{deflection, Angles, Recording, MAX_DEFLECTION_RAD, MAX_TORQUE_NM};
+use crate::input::{deflection, Angles, InputError, Recording, MAX_DEFLECTION_RAD, MAX_TORQUE_NM};
 use model_core::{Direction, Evaluator, GearModel, Hysteretic, Model};
 pub use motion::{read_trajectory, Motion, Trajectory};
-use motion::{Played, Timing};
+use motion::{PlayError, Played, Timing};
 use physics::Gear;
 pub use physics::{read_physics_params, BoucWen, Catalogue, MicroSlip, Physics, PhysicsParamError, Preisach};
 use rand::{Rng, SeedableRng};
@@ -63,6 +63,8 @@ pub enum SimulateError {
     TorqueBeyondAnyGear { torque: f64, time: f64 },
     #[error(transparent)]
     PhysicsParam(#[from] PhysicsParamError),
+    #[error("the motion's plan: {0}")]
+    Plan(InputError),
 }
 
 /// A simulation with the motion it plays, the gear's truth physics and where the encoders were
@@ -212,7 +214,10 @@ fn run(experiment: &Experiment) -> Result<Recording, SimulateError> {
         sample_rate_hz: sim.sample_rate_hz,
         seed: sim.seed,
     };
-    let played = Played::new(motion, &timing, MAX_SAMPLES).map_err(SimulateError::TooLong)?;
+    let played = Played::new(motion, &timing, MAX_SAMPLES).map_err(|e| match e {
+        PlayError::TooLong(samples) => SimulateError::TooLong(samples),
+        PlayError::Plan(error) => SimulateError::Plan(error),
+    })?;
     let n = played.len;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(sim.seed);
     // Phases from their own stream, so that adding an effect leaves the noise unchanged.
@@ -241,6 +246,10 @@ fn run(experiment: &Experiment) -> Result<Recording, SimulateError> {
             let peak = trajectory.deflection().iter().fold(0.0, |m: f64, x| m.max(x.abs()));
             metadata.push(("amplitude_rad".into(), peak.to_string()));
         }
+        Motion::Plan(_) => {
+            let peak = (0..n).map(|i| played.sample(i).x.abs()).fold(0.0, f64::max);
+            metadata.push(("amplitude_rad".into(), peak.to_string()));
+        }
         _ => {
             metadata.push(("amplitude_rad".into(), sim.amplitude_rad.to_string()));
             metadata.push((
@@ -257,6 +266,10 @@ fn run(experiment: &Experiment) -> Result<Recording, SimulateError> {
     match motion {
         Motion::Sine => {}
         Motion::File(trajectory) => metadata.push(("motion".into(), format!("file {}", trajectory.name()))),
+        Motion::Plan(spec) => {
+            metadata.push(("motion".into(), format!("plan: {}", spec.source())));
+            metadata.push(("plan".into(), spec.describe()));
+        }
         _ => metadata.push(("motion".into(), motion.name().into())),
     }
     if !matches!(physics, Physics::Model) {

@@ -1,10 +1,12 @@
 //! The deflection the bench drives: today's sine, and motions that start at rest and leave
 //! the symmetric loop (a bias, nested reversals, random, a held load, a file).
+use crate::input::plan::PlanSpec;
 use crate::input::table::{read_text, Table};
 use crate::input::InputError;
 use rand::{Rng, SeedableRng};
 use std::f64::consts::TAU;
 use std::path::Path;
+use swg_protocol::plan::Channel;
 
 /// The motion of the deflection x(t). A is `--amplitude`, f the frequency of the block being
 /// played (the frequencies play in turn, `cycles` periods each), φ = 2π·f·(time in the block).
@@ -28,6 +30,9 @@ pub enum Motion {
     Hold { load_rad: Option<f64> },
     /// Deflections at given times (`time_s,deflection_rad`), reached from rest.
     File(Trajectory),
+    /// An experiment's plan of the deflection, played at the sample rate by the joint's own
+    /// player (`swg_protocol::plan`): a plan file, or the default plan.
+    Plan(PlanSpec),
 }
 
 /// The ramp from rest, s(u) = 10u³ − 15u⁴ + 6u⁵ (zero slope and curvature at both ends).
@@ -68,6 +73,7 @@ impl Motion {
             Motion::Random => "random",
             Motion::Hold { .. } => "hold",
             Motion::File(_) => "file",
+            Motion::Plan(_) => "plan",
         }
     }
 }
@@ -179,11 +185,32 @@ pub(crate) struct Played<'a> {
 
 enum Shape<'a> {
     Sine,
-    Biased { bias: f64, swing: f64 },
+    Biased {
+        bias: f64,
+        swing: f64,
+    },
     Nested,
-    Random { components: Vec<(f64, f64)>, window: f64, scale: f64 },
-    Hold { load: f64, dither: f64 },
+    Random {
+        components: Vec<(f64, f64)>,
+        window: f64,
+        scale: f64,
+    },
+    Hold {
+        load: f64,
+        dither: f64,
+    },
     File(&'a Trajectory),
+    /// Each sample's deflection and rate, as the plan's player made them.
+    Plan(Vec<(f64, f64)>),
+}
+
+/// Why a motion cannot be played.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum PlayError {
+    /// It would take this many samples, more than allowed.
+    TooLong(f64),
+    /// Its plan cannot be played at the sample rate, or is not one of the deflection.
+    Plan(InputError),
 }
 
 /// Parameters of the played motion that the sampling depends on.
@@ -206,8 +233,8 @@ fn sample_count(duration: f64, rate: f64, max: f64) -> Result<usize, f64> {
 }
 
 impl<'a> Played<'a> {
-    /// The motion sampled as `timing` says; `Err(samples)` when longer than `max_samples`.
-    pub fn new(motion: &'a Motion, timing: &Timing, max_samples: f64) -> Result<Self, f64> {
+    /// The motion sampled as `timing` says.
+    pub fn new(motion: &'a Motion, timing: &Timing, max_samples: f64) -> Result<Self, PlayError> {
         let a = timing.amplitude;
         let frequencies = timing.frequencies_hz;
         let first = frequencies.first().copied().unwrap_or(1.0);
@@ -222,15 +249,34 @@ impl<'a> Played<'a> {
             start += timing.cycles as f64 / f;
         }
         let duration = ramp + start;
+        // A plan's samples, as its player makes them.
+        let mut planned = Vec::new();
         let len = match motion {
             Motion::File(trajectory) => {
                 let len = trajectory.time.len();
                 if len as f64 > max_samples {
-                    return Err(len as f64);
+                    return Err(PlayError::TooLong(len as f64));
                 }
                 len
             }
-            _ => sample_count(duration, timing.sample_rate_hz, max_samples)?,
+            Motion::Plan(spec) => {
+                let plan = spec.at_rate(timing.sample_rate_hz).map_err(PlayError::Plan)?;
+                if plan.channel() != Channel::Deflection {
+                    return Err(PlayError::Plan(InputError::file(
+                        std::path::Path::new("--motion"),
+                        "the plan is of the torque: simulate prescribes the deflection, and plays deflection plans \
+                         (the joint plays either)",
+                    )));
+                }
+                if f64::from(plan.ticks()) > max_samples {
+                    return Err(PlayError::TooLong(f64::from(plan.ticks())));
+                }
+                let samples: Vec<(f64, f64)> = plan.player::<f64>().map(|s| (s.value, s.slope)).collect();
+                let len = samples.len();
+                planned = samples;
+                len
+            }
+            _ => sample_count(duration, timing.sample_rate_hz, max_samples).map_err(PlayError::TooLong)?,
         };
         let shape = match motion {
             Motion::Sine => Shape::Sine,
@@ -242,6 +288,7 @@ impl<'a> Played<'a> {
                 Shape::Hold { load: load_rad.unwrap_or(DEFAULT_BIAS * a), dither: HOLD_DITHER * a }
             }
             Motion::File(trajectory) => Shape::File(trajectory),
+            Motion::Plan(_) => Shape::Plan(planned),
             Motion::Random => {
                 let lowest = frequencies.iter().copied().fold(f64::INFINITY, f64::min);
                 let highest = frequencies.iter().copied().fold(0.0, f64::max);
@@ -319,6 +366,10 @@ impl<'a> Played<'a> {
                 Sample { t, x: scale * w * sum, rate: scale * (dw * sum + w * slope) }
             }
             Shape::File(trajectory) => Sample { t, x: trajectory.deflection[i], rate: trajectory.rate(i) },
+            Shape::Plan(samples) => {
+                let (x, rate) = samples[i];
+                Sample { t, x, rate }
+            }
         }
     }
 }
