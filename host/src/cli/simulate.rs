@@ -70,7 +70,7 @@ pub struct SimulateArgs {
     /// increasing) and deflection_rad, played at those times (--rate, --cycles, --frequency
     /// unused). plan: the default plan of an identification experiment (what `fit` and
     /// `diagnose` need: sines of ¼·A, ½·A and A, each at f and 4·f, three cycles each, then a
-    /// dithered hold at 0.6·A; --cycles unused). PLAN.json: a plan file (README: "Plan files"),
+    /// dithered hold at 0.6·A; --cycles unused). PLAN.json: a plan file (README, "Plan"),
     /// played at --rate. All but sine start at rest (x = 0, gear unstressed).
     #[arg(long, default_value = "sine", value_name = "sine|biased|nested|random|hold|plan|FILE.csv|PLAN.json", value_parser = parse_motion)]
     motion: MotionArg,
