@@ -419,11 +419,11 @@ fn the_default_plan_records_what_diagnose_needs_to_name_an_offset_and_a_damping(
         "viscous_damping=20",
     ];
     let rec = simulate(dir.path(), "plan.csv", &args);
-    assert_eq!(rec.time.len(), 28_501, "28.5 s at 1 kHz");
+    assert_eq!(rec.time.len(), 30_501, "30.5 s at 1 kHz");
     assert_eq!(meta(&rec, "motion"), Some("plan: the default plan"));
-    assert!(meta(&rec, "plan")
-        .unwrap()
-        .starts_with("deflection (rad): sine 0.000292 at 0.5 Hz × 3; sine 0.000292 at 2 Hz × 3"));
+    let plan = meta(&rec, "plan").unwrap();
+    assert!(plan.starts_with("deflection (rad): hold 2 s, dither 0 at 0 Hz; sine 0.000292 at 0.5 Hz × 3"), "{plan}");
+    assert_eq!(meta(&rec, "amplitude_rad"), Some("0.001168"));
     let peak = rec.deflection.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
     assert!((peak - A).abs() < 1e-3 * A, "{peak}");
     assert!(rec.deflection.first().unwrap().abs() < 1e-12 && rec.deflection.last().unwrap().abs() < 1e-9);
@@ -466,18 +466,18 @@ fn a_plan_file_is_played_and_a_bad_one_names_file_line_and_column_and_writes_not
     let out = dir.path().join("out.csv");
     std::fs::write(&path, plan.replace("0.0006", "0.0016")).unwrap();
     let stderr = fails(&out, &["--motion", file]);
-    assert!(
-        stderr.contains(&format!("{file}:5: column 5: segment 0 reaches 0.0016, beyond the plan's limit of 0.0015")),
-        "{stderr}"
-    );
+    assert!(stderr.contains(&format!("{file}:5: column 5: segment 1 reaches 0.001600")), "{stderr}");
     std::fs::write(&path, plan.replace("\"dither_hz\": 5", "\"dither_hz\": 30")).unwrap();
     let stderr = fails(&out, &["--motion", file, "--rate", "500"]);
-    assert!(
-        stderr.contains(&format!("{file}:6: column 5: segment 1: the frequency must be positive and at most 25 Hz")),
-        "{stderr}"
-    );
+    assert!(stderr.contains(&format!("{file}:6: column 5: segment 2: its frequency, 30 Hz, must be")), "{stderr}");
     std::fs::write(&path, plan.replace("\"deflection\"", "\"torque\"")).unwrap();
-    assert!(fails(&out, &["--motion", file]).contains("simulate prescribes the deflection"));
+    let stderr = fails(&out, &["--motion", file]);
+    assert!(stderr.contains(&format!("{file}: the plan is of the torque")), "{stderr}");
+    // The joint would stop where the torque passes the plan's limit: simulate says where.
+    std::fs::write(&path, plan.replace("\"torque_nm\": 60", "\"torque_nm\": 5")).unwrap();
+    let stderr = fails(&out, &["--motion", file, "--physics", "bouc-wen"]);
+    assert!(stderr.contains(&format!("{file}: the gear's torque reaches")), "{stderr}");
+    assert!(stderr.contains("beyond the plan's limit of 5 N·m"), "{stderr}");
     std::fs::write(&path, plan.replace("\"seconds\": 4,", "\"seconds\": 4, \"speed\": 1,")).unwrap();
     let stderr = fails(&out, &["--motion", file]);
     assert!(stderr.contains(&format!("{file}:6: column")) && stderr.contains("unknown field `speed`"), "{stderr}");

@@ -17,6 +17,9 @@ pub const PLAN_SEGMENTS: usize = 12;
 pub const MAX_PLAN_SECONDS: f32 = 600.0;
 /// A segment's frequencies stay below this fraction of the tick rate: twenty ticks a period.
 pub const MAX_FREQUENCY_PER_RATE: f32 = 0.05;
+/// A ramp, or a hold without dither, lasts at least this many ticks (a ramp over fewer is a
+/// step of rate).
+pub const MIN_TICKS: f32 = 20.0;
 
 /// What a plan's references are.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -69,7 +72,7 @@ impl Segment {
         match *self {
             Segment::Ramp { .. } => None,
             Segment::Sine { frequency_hz, .. } => Some(frequency_hz),
-            Segment::Hold { dither_hz, .. } => Some(dither_hz),
+            Segment::Hold { dither_amplitude, dither_hz, .. } => (dither_amplitude > 0.0).then_some(dither_hz),
         }
     }
 
@@ -103,21 +106,23 @@ impl Segment {
     fn fault(&self, rate_hz: f32) -> Option<SegmentFault> {
         let nyquist = MAX_FREQUENCY_PER_RATE * rate_hz;
         let frequency = |f: f32| !(f.is_finite() && f > 0.0 && f <= nyquist);
+        let length = |seconds: f32, min_s: f32| {
+            (!(seconds.is_finite() && seconds >= min_s)).then_some(SegmentFault::Seconds { seconds, min_s })
+        };
         match *self {
             Segment::Ramp { to, seconds } => {
                 if !to.is_finite() {
                     return Some(SegmentFault::NotFinite("to"));
                 }
-                if !(seconds.is_finite() && seconds * rate_hz >= 1.0) {
-                    return Some(SegmentFault::Seconds);
-                }
+                // Eased over twenty ticks at least: fewer is a step of rate.
+                return length(seconds, MIN_TICKS / rate_hz);
             }
             Segment::Sine { amplitude, frequency_hz, cycles } => {
                 if !(amplitude.is_finite() && amplitude > 0.0) {
                     return Some(SegmentFault::Amplitude);
                 }
                 if frequency(frequency_hz) {
-                    return Some(SegmentFault::Frequency { max_hz: nyquist });
+                    return Some(SegmentFault::Frequency { hz: frequency_hz, max_hz: nyquist });
                 }
                 if cycles < 3 {
                     return Some(SegmentFault::Cycles);
@@ -127,12 +132,14 @@ impl Segment {
                 if !(dither_amplitude.is_finite() && dither_amplitude >= 0.0) {
                     return Some(SegmentFault::Amplitude);
                 }
+                if dither_amplitude == 0.0 {
+                    // No dither: its frequency unused.
+                    return length(seconds, MIN_TICKS / rate_hz);
+                }
                 if frequency(dither_hz) {
-                    return Some(SegmentFault::Frequency { max_hz: nyquist });
+                    return Some(SegmentFault::Frequency { hz: dither_hz, max_hz: nyquist });
                 }
-                if !(seconds.is_finite() && seconds * dither_hz >= 3.0) {
-                    return Some(SegmentFault::Seconds);
-                }
+                return length(seconds, 3.0 / dither_hz);
             }
         }
         None
@@ -168,12 +175,14 @@ pub struct Plan {
 pub enum SegmentFault {
     /// The named field is not a finite number.
     NotFinite(&'static str),
-    /// Its length is not finite, or shorter than a tick (a ramp) or three dither periods (a hold).
-    Seconds,
+    /// Its length, `seconds`, is not a number of at least `min_s`: [`MIN_TICKS`] ticks for a
+    /// ramp or a hold without dither, three dither periods for a hold with one.
+    Seconds { seconds: f32, min_s: f32 },
     /// The amplitude is not finite and positive (a dither's: not negative).
     Amplitude,
-    /// The frequency is not positive, or above [`MAX_FREQUENCY_PER_RATE`] of the tick rate.
-    Frequency { max_hz: f32 },
+    /// The frequency `hz` is not positive, or above `max_hz` ([`MAX_FREQUENCY_PER_RATE`] of the
+    /// tick rate).
+    Frequency { hz: f32, max_hz: f32 },
     /// Fewer than 3 cycles.
     Cycles,
 }
@@ -182,15 +191,18 @@ impl fmt::Display for SegmentFault {
     fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
         match self {
             SegmentFault::NotFinite(field) => write!(f, "{field} is not a finite number"),
-            SegmentFault::Seconds => {
-                f.write_str("its length must be finite: at least one tick for a ramp, three dither periods for a hold")
-            }
+            SegmentFault::Seconds { seconds, min_s } => write!(
+                f,
+                "it lasts {seconds} s; it must last at least {min_s} s (twenty ticks for a ramp or a hold \
+                 without dither, three periods of its dither for a hold with one)"
+            ),
             SegmentFault::Amplitude => {
                 f.write_str("the amplitude must be finite and positive (a dither's: at least 0)")
             }
-            SegmentFault::Frequency { max_hz } => write!(
+            SegmentFault::Frequency { hz, max_hz } => write!(
                 f,
-                "the frequency must be positive and at most {max_hz} Hz (twenty ticks a period at the plan's tick rate)"
+                "its frequency, {hz} Hz, must be positive and at most {max_hz} Hz (twenty ticks a period at the rate \
+                 the plan is played at)"
             ),
             SegmentFault::Cycles => f.write_str("a sine needs at least 3 cycles: one to fade in, one to fade out"),
         }
@@ -210,7 +222,7 @@ pub enum PlanError {
     Rate,
     /// A limit is not finite and positive.
     Limits,
-    /// Segment `index` (from 0) cannot be played.
+    /// Segment `index` (from 0; messages count from 1) cannot be played.
     Segment { index: usize, fault: SegmentFault },
     /// Segment `index` reaches `peak`, beyond the limit of the plan's channel.
     BeyondLimit { index: usize, peak: f32, limit: f32 },
@@ -225,10 +237,13 @@ impl fmt::Display for PlanError {
             PlanError::TooManySegments(n) => write!(f, "{n} segments: a plan holds at most {PLAN_SEGMENTS}"),
             PlanError::Rate => f.write_str("the tick rate must be finite and positive"),
             PlanError::Limits => f.write_str("the torque and deflection limits must be finite and positive"),
-            PlanError::Segment { index, fault } => write!(f, "segment {index}: {fault}"),
-            PlanError::BeyondLimit { index, peak, limit } => {
-                write!(f, "segment {index} reaches {peak}, beyond the plan's limit of {limit} in its channel")
-            }
+            PlanError::Segment { index, fault } => write!(f, "segment {}: {fault}", index + 1),
+            PlanError::BeyondLimit { index, peak, limit } => write!(
+                f,
+                "segment {} reaches {peak:.6} (in size, from the level the segments before it left), beyond the \
+                 plan's limit of {limit} in its channel",
+                index + 1
+            ),
             PlanError::TooLong { seconds } => {
                 write!(f, "the plan plays {seconds} s, longer than the {MAX_PLAN_SECONDS} s a plan may")
             }
@@ -307,6 +322,16 @@ impl Plan {
 
     pub fn segments(&self) -> &[Segment] {
         self.segments.get(..usize::from(self.count)).unwrap_or(&[])
+    }
+
+    /// The largest |reference| the plan plays, its channel's unit.
+    pub fn peak(&self) -> f32 {
+        let (mut level, mut peak) = (0.0f32, 0.0f32);
+        for segment in self.segments() {
+            peak = peak.max(segment.peak(level));
+            level = segment.end(level);
+        }
+        peak
     }
 
     /// Ticks the plan plays, the first at rest included.
@@ -516,18 +541,28 @@ mod tests {
         assert_eq!(fault(with(Segment::Sine { amplitude: A, frequency_hz: 2.0, cycles: 2 })), SegmentFault::Cycles);
         assert_eq!(
             fault(with(Segment::Sine { amplitude: A, frequency_hz: 60.0, cycles: 3 })),
-            SegmentFault::Frequency { max_hz: 50.0 }
+            SegmentFault::Frequency { hz: 60.0, max_hz: 50.0 }
         );
         assert_eq!(
             fault(with(Segment::Sine { amplitude: f32::NAN, frequency_hz: 2.0, cycles: 3 })),
             SegmentFault::Amplitude
         );
         assert_eq!(fault(with(Segment::Ramp { to: f32::INFINITY, seconds: 1.0 })), SegmentFault::NotFinite("to"));
-        assert_eq!(fault(with(Segment::Ramp { to: 0.0, seconds: 1e-4 })), SegmentFault::Seconds);
+        assert_eq!(
+            fault(with(Segment::Ramp { to: 0.0, seconds: 0.019 })),
+            SegmentFault::Seconds { seconds: 0.019, min_s: 0.02 }
+        );
         assert_eq!(
             fault(with(Segment::Hold { seconds: 0.2, dither_amplitude: 1e-5, dither_hz: 10.0 })),
-            SegmentFault::Seconds
+            SegmentFault::Seconds { seconds: 0.2, min_s: 0.3 }
         );
+        // Without a dither its frequency is unused, and the level is held.
+        let still = Segment::Hold { seconds: 0.5, dither_amplitude: 0.0, dither_hz: 0.0 };
+        let plan = with(still).unwrap();
+        assert!(plan
+            .player::<f64>()
+            .filter(|s| s.segment == 1)
+            .all(|s| s.value == f64::from(0.5 * A) && s.slope == 0.0));
         // From the 0.5·A the ramp left, a sine of 1.6·A reaches 2.1·A, beyond the 2 mrad limit.
         match with(Segment::Sine { amplitude: 1.6 * A, frequency_hz: 2.0, cycles: 3 }) {
             Err(PlanError::BeyondLimit { index: 1, peak, limit }) => {

@@ -69,9 +69,10 @@ pub struct SimulateArgs {
     /// x = b − 0.02·A·cos 10φ (a dither about the load b). FILE.csv: the columns time_s (strictly
     /// increasing) and deflection_rad, played at those times (--rate, --cycles, --frequency
     /// unused). plan: the default plan of an identification experiment (what `fit` and
-    /// `diagnose` need: sines of ¼·A, ½·A and A, each at f and 4·f, three cycles each, then a
-    /// dithered hold at 0.6·A; --cycles unused). PLAN.json: a plan file (README, "Plan"),
-    /// played at --rate. All but sine start at rest (x = 0, gear unstressed).
+    /// `diagnose` need: a rest, sines of ¼·A, ½·A and A, each at f and 4·f, three cycles each,
+    /// a dithered hold at 0.6·A and back to rest; --cycles unused). PLAN.json: a plan file
+    /// (README, "Plan"), played at --rate (--amplitude, --frequency, --cycles unused). All but
+    /// sine start at rest (x = 0, gear unstressed).
     #[arg(long, default_value = "sine", value_name = "sine|biased|nested|random|hold|plan|FILE.csv|PLAN.json", value_parser = parse_motion)]
     motion: MotionArg,
     /// The bias b of `--motion biased` and the load of `--motion hold`, rad [default: 0.6·A].
@@ -180,7 +181,7 @@ fn parse_motion(text: &str) -> Result<MotionArg, String> {
         "random" => MotionArg::Random,
         "hold" => MotionArg::Hold,
         "plan" => MotionArg::Plan(None),
-        _ if text.ends_with(".json") => MotionArg::Plan(Some(text.into())),
+        _ if text.to_ascii_lowercase().ends_with(".json") => MotionArg::Plan(Some(text.into())),
         _ if text.ends_with(".csv") || text.contains(std::path::MAIN_SEPARATOR) => MotionArg::File(text.into()),
         _ => {
             return Err(

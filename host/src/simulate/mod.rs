@@ -63,8 +63,13 @@ pub enum SimulateError {
     TorqueBeyondAnyGear { torque: f64, time: f64 },
     #[error(transparent)]
     PhysicsParam(#[from] PhysicsParamError),
-    #[error("the motion's plan: {0}")]
+    #[error(transparent)]
     Plan(InputError),
+    #[error(
+        "{plan}: the gear's torque reaches {torque:.4} N·m at t = {time} s, beyond the plan's limit of {limit} N·m: the \
+         joint would stop the experiment there; lower the plan's deflection or raise its torque limit"
+    )]
+    PlanTorqueLimit { plan: String, torque: f64, time: f64, limit: f32 },
 }
 
 /// A simulation with the motion it plays, the gear's truth physics and where the encoders were
@@ -246,8 +251,9 @@ fn run(experiment: &Experiment) -> Result<Recording, SimulateError> {
             let peak = trajectory.deflection().iter().fold(0.0, |m: f64, x| m.max(x.abs()));
             metadata.push(("amplitude_rad".into(), peak.to_string()));
         }
-        Motion::Plan(_) => {
-            let peak = (0..n).map(|i| played.sample(i).x.abs()).fold(0.0, f64::max);
+        Motion::Plan(spec) => {
+            // The plan's own peak, in the plan's numbers (f32, as the wire carries them).
+            let peak = spec.at_rate(sim.sample_rate_hz).map_err(SimulateError::Plan)?.peak();
             metadata.push(("amplitude_rad".into(), peak.to_string()));
         }
         _ => {
@@ -330,11 +336,21 @@ fn run(experiment: &Experiment) -> Result<Recording, SimulateError> {
     if delay != 0.0 {
         rec.torque = delayed(&rec.time, &rec.torque, delay);
     }
+    // A plan's torque limit, on what the joint's torque sensor reads: beyond it the joint stops.
+    let plan_limit = match motion {
+        Motion::Plan(spec) => Some((spec.source(), spec.limits.torque_nm)),
+        _ => None,
+    };
     for (torque, &time) in rec.torque.iter_mut().zip(&rec.time) {
         *torque = *torque + offset + torque_noise.sample(&mut rng);
         // A recording the readers would refuse is not written.
         if !(torque.abs() <= MAX_TORQUE_NM) {
             return Err(SimulateError::TorqueBeyondAnyGear { torque: *torque, time });
+        }
+        if let Some((source, limit)) = plan_limit {
+            if torque.abs() > f64::from(limit) {
+                return Err(SimulateError::PlanTorqueLimit { plan: source.to_owned(), torque: *torque, time, limit });
+            }
         }
     }
     Ok(rec)

@@ -260,16 +260,18 @@ impl<'a> Played<'a> {
                 len
             }
             Motion::Plan(spec) => {
+                // Counted in f64 first: at an absurd rate the plan's tick count saturates.
+                let samples = spec.segments.iter().map(|s| f64::from(s.seconds())).sum::<f64>() * timing.sample_rate_hz;
+                if samples > max_samples {
+                    return Err(PlayError::TooLong(samples.floor() + 1.0));
+                }
                 let plan = spec.at_rate(timing.sample_rate_hz).map_err(PlayError::Plan)?;
                 if plan.channel() != Channel::Deflection {
                     return Err(PlayError::Plan(InputError::file(
-                        std::path::Path::new("--motion"),
-                        "the plan is of the torque: simulate prescribes the deflection, and plays deflection plans \
-                         (the joint plays either)",
+                        std::path::Path::new(spec.source()),
+                        "the plan is of the torque (\"channel\": \"torque\"): simulate prescribes the deflection, and \
+                         plays deflection plans (the joint plays either)",
                     )));
-                }
-                if f64::from(plan.ticks()) > max_samples {
-                    return Err(PlayError::TooLong(f64::from(plan.ticks())));
                 }
                 let samples: Vec<(f64, f64)> = plan.player::<f64>().map(|s| (s.value, s.slope)).collect();
                 let len = samples.len();
