@@ -1513,3 +1513,19 @@ fn a_friction_the_form_leaves_at_a_trace_beside_its_damping_is_withdrawn() {
     let friction = rejected.iter().find(|r| r["effect"] == "coulomb_friction").expect("friction refused");
     assert!(friction["reason"].as_str().unwrap().contains("stands in for viscous_damping"), "{friction:#}");
 }
+
+/// A thermal drift found on the micro-slip form gives its halves in its own unit, 1/K, as its
+/// magnitude: they were the column's raw coefficients (N·m/(rad·K)), thousands of times it.
+#[test]
+fn a_thermal_drift_found_on_the_form_gives_its_halves_in_its_unit() {
+    let dir = tempfile::tempdir().unwrap();
+    let args =
+        ["--motion", "plan", "--effect", "thermal_drift=0.005", "--temperature", "25", "--temperature-rise", "1"];
+    let json = micro_slip_diagnosed(dir.path(), "warming.csv", &args);
+    let finding = json["findings"].as_array().unwrap().iter().find(|f| f["effect"] == "thermal_drift").unwrap();
+    let magnitude = finding["magnitude"].as_f64().unwrap();
+    for half in finding["evidence"]["halves"].as_array().unwrap() {
+        let half = half.as_f64().unwrap();
+        assert!((half / magnitude - 1.0).abs() < 0.2, "half {half} against {magnitude}: {finding:#}");
+    }
+}

@@ -257,7 +257,7 @@ pub fn search(
                 ))
             } else {
                 held_out_check(&form, &columns, &with)
-                    .or_else(|| halves_check(&form, &with, &mut evidence))
+                    .or_else(|| halves_check(&form, &with, effect, c1, &mut evidence))
                     .or_else(|| rate_check(&form, &with, effect))
                     .or_else(|| {
                         observed.rest_torque.and_then(|at_rest| rest_check(at_rest, effect, solve.last, evidence.z))
@@ -411,12 +411,14 @@ fn held_out_check(form: &Form, without: &[&[f64]], with: &[&[f64]]) -> Option<St
     })
 }
 
-/// Each interleaved half alone shows the effect, with one magnitude; `None` when it does.
-fn halves_check(form: &Form, with: &[&[f64]], evidence: &mut Evidence) -> Option<String> {
+/// Each interleaved half alone shows `effect`, with one magnitude (in its unit, as the finding's;
+/// `c1` as [`in_its_unit`] takes it); `None` when it does.
+fn halves_check(form: &Form, with: &[&[f64]], effect: Effect, c1: f64, evidence: &mut Evidence) -> Option<String> {
     let [a, b] = &form.observed.parts;
     let (Some((ma, za)), Some((mb, zb))) = (form.estimate(with, a), form.estimate(with, b)) else {
         return Some("on the micro-slip form it could not be fitted on each half alone".into());
     };
+    let (ma, mb) = (in_its_unit(effect, ma, c1), in_its_unit(effect, mb, c1));
     evidence.halves = Some([ma, mb]);
     evidence.halves_z = Some([za, zb]);
     if za.abs() < MIN_HALF_Z || zb.abs() < MIN_HALF_Z {
