@@ -1,5 +1,5 @@
 //! The deflection the bench drives: today's sine, and motions that start at rest and leave
-//! the symmetric loop (a bias, nested reversals, random, a held load, a file).
+//! the symmetric loop (a bias, nested reversals, random, a held load, a file, a plan).
 use crate::input::plan::PlanSpec;
 use crate::input::table::{read_text, Table};
 use crate::input::InputError;
@@ -7,6 +7,9 @@ use rand::{Rng, SeedableRng};
 use std::f64::consts::TAU;
 use std::path::Path;
 use swg_protocol::plan::Channel;
+// The ramp from rest, s(u) = 10u³ − 15u⁴ + 6u⁵ (zero slope and curvature at both ends): the
+// plans' own, one copy.
+pub use swg_protocol::plan::{smoothstep, smoothstep_slope};
 
 /// The motion of the deflection x(t). A is `--amplitude`, f the frequency of the block being
 /// played (the frequencies play in turn, `cycles` periods each), φ = 2π·f·(time in the block).
@@ -33,20 +36,6 @@ pub enum Motion {
     /// An experiment's plan of the deflection, played at the sample rate by the joint's own
     /// player (`swg_protocol::plan`): a plan file, or the default plan.
     Plan(PlanSpec),
-}
-
-/// The ramp from rest, s(u) = 10u³ − 15u⁴ + 6u⁵ (zero slope and curvature at both ends).
-pub fn smoothstep(u: f64) -> f64 {
-    let u = u.clamp(0.0, 1.0);
-    u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
-}
-
-fn smoothstep_slope(u: f64) -> f64 {
-    if (0.0..=1.0).contains(&u) {
-        30.0 * u * u * (1.0 - u) * (1.0 - u)
-    } else {
-        0.0
-    }
 }
 
 /// Oscillation amplitude of `biased`, and the dither of `hold`, relative to A.
