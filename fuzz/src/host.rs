@@ -5,7 +5,6 @@ use std::path::Path;
 use swg_host::input::plan::parse_plan;
 use swg_host::input::{parse, Dataset, MAX_DEFLECTION_RAD, MAX_TORQUE_NM};
 use swg_host::report::params::parse_model;
-use swg_protocol::plan::Channel;
 
 const NAME: &str = "fuzz.csv";
 
@@ -71,11 +70,7 @@ pub fn plan(data: &[u8]) {
         match spec.at_rate(rate) {
             Ok(plan) => {
                 assert_eq!(plan.check(), Ok(()));
-                let limits = plan.limits();
-                let limit = f64::from(match plan.channel() {
-                    Channel::Deflection => limits.deflection_rad,
-                    Channel::Torque => limits.torque_nm,
-                });
+                let limit = f64::from(plan.limit());
                 for setpoint in plan.player::<f64>().take(2000) {
                     assert!(setpoint.value.is_finite() && setpoint.slope.is_finite(), "{setpoint:?}");
                     assert!(setpoint.value.abs() <= limit * (1.0 + 1e-6), "{setpoint:?} beyond {limit}");

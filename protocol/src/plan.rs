@@ -285,10 +285,7 @@ impl Plan {
         if segments.is_empty() {
             return Err(PlanError::Empty);
         }
-        let limit = match self.channel {
-            Channel::Deflection => deflection_rad,
-            Channel::Torque => torque_nm,
-        };
+        let limit = self.limit();
         let (mut level, mut seconds) = (0.0f32, 0.0f32);
         for (index, segment) in segments.iter().enumerate() {
             if let Some(fault) = segment.fault(rate) {
@@ -313,6 +310,14 @@ impl Plan {
 
     pub fn limits(&self) -> Limits {
         self.limits
+    }
+
+    /// The limit of the plan's own channel, its unit: what every segment must stay within.
+    pub fn limit(&self) -> f32 {
+        match self.channel {
+            Channel::Deflection => self.limits.deflection_rad,
+            Channel::Torque => self.limits.torque_nm,
+        }
     }
 
     /// Ticks a second the plan is played at.
