@@ -80,6 +80,9 @@ SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host
 echo "== closed loop in lockstep under QEMU (swg-host hil)"
 SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host --test hil_e2e -- --ignored --nocapture
 
+echo "== the joint records, then fit, predict, diagnose, push and hil on its recording (swg-host record)"
+SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host --test record_e2e -- --ignored --nocapture
+
 echo "== the control tick under link traffic (QEMU -icount shift=0)"
 SWG_FIRMWARE_ELF="$elf_dir/joint-qemu" cargo test --locked --release -p swg-host --test tick_e2e -- --ignored --nocapture
 

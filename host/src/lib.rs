@@ -15,5 +15,6 @@ pub mod link;
 pub mod numeric;
 pub mod predict;
 pub mod prepare;
+pub mod record;
 pub mod report;
 pub mod simulate;

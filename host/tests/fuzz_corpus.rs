@@ -156,7 +156,13 @@ fn frame_seeds() -> Vec<(String, Vec<u8>)> {
         Request::Replay(EncoderSample { input_angle: 0.05, output_angle: 0.0, path: EvalPath::Fast }),
         Request::Configure(config),
         Request::SetReference(5.0),
-        Request::Control(ControlSample { input_angle: 0.05, output_angle: 0.0, reference: 5.0 }),
+        Request::Control(ControlSample {
+            input_angle: 0.05,
+            output_angle: 0.0,
+            reference: 5.0,
+            torque: 2.5,
+            temperature: Some(31.0),
+        }),
         Request::GetStatus,
     ];
     let version = Version { major: 0, minor: 1, patch: 0 };

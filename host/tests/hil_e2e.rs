@@ -44,7 +44,13 @@ fn the_firmware_closes_the_loop_in_lockstep() {
     assert!(model < open, "model {model} N·m vs open loop {open} N·m");
     // The device is left with its controller off.
     let out = link
-        .call::<endpoint::Control>(&swg_protocol::ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 5.0 })
+        .call::<endpoint::Control>(&swg_protocol::ControlSample {
+            input_angle: 0.0,
+            output_angle: 0.0,
+            reference: 5.0,
+            torque: 0.0,
+            temperature: None,
+        })
         .unwrap();
     assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));
     // Every lockstep sample ran in the firmware's control tick, and no tick came late.

@@ -46,7 +46,13 @@ fn config() -> ControllerConfig {
 fn sample(k: usize) -> ControlSample {
     let phase = std::f32::consts::TAU * k as f32 / 400.0;
     let deflection = 1.5e-3 * (0.75 * phase.sin() + 0.25 * (9.0 * phase).sin());
-    ControlSample { input_angle: 50.0 * deflection, output_angle: 0.0, reference: 8.0 * phase.sin() }
+    ControlSample {
+        input_angle: 50.0 * deflection,
+        output_angle: 0.0,
+        reference: 8.0 * phase.sin(),
+        torque: 0.0,
+        temperature: None,
+    }
 }
 
 /// The outputs of one lockstep run from rest; `between` runs before every sample.

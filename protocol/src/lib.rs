@@ -57,8 +57,13 @@ use serde::{Deserialize, Serialize};
 /// deflection's zero, the free-form spring, the micro-slip kind's elements each with its own slip
 /// deflection); frames up to [`MAX_FRAME_LEN`] = 512 bytes. Version 7: the Bouc–Wen kind.
 /// Version 8: the Preisach kind (its index 3, its reach and 36 weights; [`ParamName`]'s
-/// `PreisachReach` and `PreisachWeight`).
-pub const PROTOCOL_VERSION: u16 = 8;
+/// `PreisachReach` and `PreisachWeight`). Version 9: the identification experiment
+/// ([`Request::StartExperiment`], [`Request::FetchSamples`], [`Request::StopExperiment`],
+/// [`Response::ExperimentStarted`], [`Response::Samples`]; the error replies
+/// [`ErrorReply::InvalidPlan`], [`ErrorReply::ControllerOff`],
+/// [`ErrorReply::ExperimentRunning`]), and the torque sensor's and temperature's readings in
+/// [`ControlSample`].
+pub const PROTOCOL_VERSION: u16 = 9;
 
 /// Largest encoded frame, delimiter included: the longest message (a micro-slip
 /// [`Response::Params`] with 17 knots, 16 elements and every varint at its maximum, the request
@@ -536,8 +541,8 @@ impl ControllerConfig {
     }
 }
 
-/// One lockstep control tick: both encoders' angles (as [`EncoderSample`]) and the joint
-/// torque reference.
+/// One lockstep control tick: both encoders' angles (as [`EncoderSample`]), the joint torque
+/// reference, and what the board's other sensors read (recorded by an experiment).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ControlSample {
@@ -545,8 +550,20 @@ pub struct ControlSample {
     pub input_angle: f32,
     /// Output side, rad.
     pub output_angle: f32,
-    /// T_ref, N·m at the joint.
+    /// T_ref, N·m at the joint; while an experiment runs, its plan's reference is used instead.
     pub reference: f32,
+    /// The joint torque sensor's reading, N·m.
+    pub torque: f32,
+    /// The board's temperature reading, °C, when it has one.
+    pub temperature: Option<f32>,
+}
+
+impl ControlSample {
+    /// Every reading finite (the temperature when there is one).
+    pub fn is_finite(&self) -> bool {
+        let temperature = self.temperature.unwrap_or(0.0);
+        [self.input_angle, self.output_angle, self.reference, self.torque, temperature].iter().all(|v| v.is_finite())
+    }
 }
 
 /// What one control tick commanded.
@@ -594,12 +611,18 @@ pub enum RequestOf<P> {
     Control(ControlSample),
     /// The control tick's timing counters.
     GetStatus,
+    /// Check the plan and play it from the next tick, recording every tick.
+    StartExperiment(plan::Plan),
+    /// The experiment's next batch of recorded ticks; keeps its watchdog fed.
+    FetchSamples,
+    /// Stop the experiment at the next tick (motor command zero).
+    StopExperiment,
 }
 
 /// Device → host, one per request: its endpoint's response, or [`Response::Error`].
 // As for Request: the parameter set stays inline.
 #[allow(clippy::large_enum_variant)]
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Response {
     DeviceInfo(DeviceInfo),
@@ -614,6 +637,9 @@ pub enum Response {
     ControlAccepted,
     Control(ControlOutput),
     Status(TickStatus),
+    /// The experiment starts at the next tick and plays this many ticks.
+    ExperimentStarted(u32),
+    Samples(experiment::SampleBatch),
 }
 
 /// One request type and its response type: what the host sends and what the device answers
@@ -667,7 +693,7 @@ macro_rules! endpoints {
                     }
                 }
                 fn reply(response: Self::Response) -> $crate::Response {
-                    endpoints!(@wrap $crate::Response::$response, (&response) $(, $response_type)?)
+                    endpoints!(@move $crate::Response::$response, response $(, $response_type)?)
                 }
             }
         )*
@@ -688,16 +714,24 @@ macro_rules! endpoints {
         $variant
     }};
     (@wrap $variant:path, $value:expr, $payload:ty) => { $variant(*$value) };
+    (@move $variant:path, $value:expr) => {{
+        let () = $value;
+        $variant
+    }};
+    (@move $variant:path, $value:expr, $payload:ty) => { $variant($value) };
     (@pattern $variant:path, $value:ident) => { $variant };
     (@pattern $variant:path, $value:ident, $payload:ty) => { $variant($value) };
     (@value $value:ident) => { () };
     (@value $value:ident, $payload:ty) => { $value };
 }
 
-/// The link's endpoints: each request paired with its response.
+pub mod experiment;
 pub mod plan;
 
+/// The link's endpoints: each request paired with its response.
 pub mod endpoint {
+    use crate::experiment::SampleBatch;
+    use crate::plan::Plan;
     use crate::TickStatus;
     use crate::{ControlOutput, ControlSample, ControllerConfig, DeviceInfo, EncoderSample, Feedforward, JointParams};
 
@@ -720,6 +754,12 @@ pub mod endpoint {
         Control: Request::Control(ControlSample) => Response::Control(ControlOutput);
         /// The control tick's timing counters.
         GetStatus: Request::GetStatus => Response::Status(TickStatus);
+        /// Checks a plan and plays it from the next tick; answers the ticks it plays.
+        StartExperiment: Request::StartExperiment(Plan) => Response::ExperimentStarted(u32);
+        /// The experiment's next batch of recorded ticks, with its state.
+        FetchSamples: Request::FetchSamples => Response::Samples(SampleBatch);
+        /// Stops the experiment at the next tick; the motor command goes to zero.
+        StopExperiment: Request::StopExperiment => Response::ControlAccepted;
     }
 }
 
@@ -794,6 +834,12 @@ pub enum ErrorReply {
     /// The control tick has not yet taken the link's previous command (the link waits for it
     /// before it reads another request, so only a tick that stopped leads here).
     Busy,
+    /// A plan that does not pass [`plan::Plan::check`] (the host checks it first, and names why).
+    InvalidPlan,
+    /// An experiment needs the controller configured to drive (a mode other than `Off`).
+    ControllerOff,
+    /// An experiment runs: stop it first.
+    ExperimentRunning,
 }
 
 impl fmt::Display for ErrorReply {
@@ -829,6 +875,11 @@ impl fmt::Display for ErrorReply {
                 f.write_str("this board ticks on its own encoders: replay and lockstep control are refused")
             }
             ErrorReply::Busy => f.write_str("the control tick has not taken the previous command"),
+            ErrorReply::InvalidPlan => f.write_str("the plan does not pass the device's checks"),
+            ErrorReply::ControllerOff => {
+                f.write_str("an experiment needs the controller configured to drive the motor (not off)")
+            }
+            ErrorReply::ExperimentRunning => f.write_str("an experiment is running: stop it first"),
         }
     }
 }

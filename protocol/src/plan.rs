@@ -9,6 +9,7 @@
 //! are continuous: a motor asked for a step of rate jerks the gear.
 use core::fmt;
 use model_core::Real;
+use num_traits::ToPrimitive;
 use serde::{Deserialize, Serialize};
 
 /// Segments a plan holds at most.
@@ -164,8 +165,43 @@ pub struct Plan {
     channel: Channel,
     limits: Limits,
     rate_hz: f32,
+    #[serde(with = "segment_array")]
     segments: [Segment; PLAN_SEGMENTS],
     count: u8,
+}
+
+/// A plan's segments as serde's arrays are (a tuple of [`PLAN_SEGMENTS`]), read in a loop:
+/// serde's own impl reads each element in a call of its own, and its twelve copies of a
+/// segment's decoding took 2.2 KB of the joint's flash (`bench/firmware.sh`).
+mod segment_array {
+    use super::{Segment, PLAN_SEGMENTS};
+    use core::fmt;
+    use serde::de::{Error, SeqAccess, Visitor};
+    use serde::{Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(segments: &[Segment; PLAN_SEGMENTS], serializer: S) -> Result<S::Ok, S::Error> {
+        segments.serialize(serializer)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<[Segment; PLAN_SEGMENTS], D::Error> {
+        struct Segments;
+        impl<'de> Visitor<'de> for Segments {
+            type Value = [Segment; PLAN_SEGMENTS];
+
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                write!(f, "{PLAN_SEGMENTS} segments")
+            }
+
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+                let mut segments = [Segment::Ramp { to: 0.0, seconds: 0.0 }; PLAN_SEGMENTS];
+                for (index, segment) in segments.iter_mut().enumerate() {
+                    *segment = seq.next_element()?.ok_or_else(|| A::Error::invalid_length(index, &self))?;
+                }
+                Ok(segments)
+            }
+        }
+        deserializer.deserialize_tuple(PLAN_SEGMENTS, Segments)
+    }
 }
 
 /// Why a segment cannot be played.
@@ -269,6 +305,7 @@ impl Plan {
     }
 
     /// The checks of [`Plan::new`], again: what a board runs on a plan it received.
+    #[inline(never)]
     pub fn check(&self) -> Result<(), PlanError> {
         let rate = self.rate_hz;
         if !(rate.is_finite() && rate > 0.0) {
@@ -384,6 +421,13 @@ pub struct Player<F> {
     started: bool,
 }
 
+impl<F> Player<F> {
+    /// The plan it plays.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+}
+
 impl<F: Real> Iterator for Player<F> {
     type Item = Setpoint<F>;
 
@@ -419,9 +463,11 @@ impl<F: Real> Iterator for Player<F> {
     }
 }
 
-/// `value` in `F` (exact: every f32 is an f64).
-fn of<F: Real>(value: impl Into<f64>) -> F {
-    F::from(value.into()).unwrap_or_else(F::nan)
+/// `value` in `F`: exact for every f32 and u32 in f64, and converted without a detour through
+/// f64 in f32 (which the M4F has no instructions for: its soft-float calls took 180 of a tick's
+/// instructions while a plan played, `bench/firmware.sh`).
+fn of<F: Real>(value: impl ToPrimitive) -> F {
+    F::from(value).unwrap_or_else(F::nan)
 }
 
 /// `segment`'s reference and its rate at time `t` of its `length` s, from `level`, its
@@ -447,16 +493,57 @@ fn play<F: Real>(segment: &Segment, level: F, length: F, t: F, cycle: F) -> (F, 
             } else {
                 (F::one(), F::zero())
             };
-            let phase = F::TAU() * cycle;
-            let (sin, cos) = (phase.sin(), phase.cos());
+            let (sin, cos) = turn(cycle);
             (level + a * w * sin, a * (dw * sin + w * F::TAU() * f * cos))
         }
     }
 }
 
+/// 1 − x²/k₁·(1 − x²/k₂·(1 − …)): the Taylor series of sin x / x or cos x in Horner's form,
+/// from the ratios k of its successive terms, written out so that each 1/k is a constant of `F`.
+macro_rules! series {
+    ($x2:expr; $k:expr) => { F::one() - $x2 * of::<F>(1.0 / $k) };
+    ($x2:expr; $k:expr, $($rest:expr),+) => { F::one() - $x2 * of::<F>(1.0 / $k) * series!($x2; $($rest),+) };
+}
+
+/// sin and cos of 2π·`cycle`, `cycle` in [0, 1): the nearest quarter turn leaves an angle x in
+/// [−π/4, π/4], where the Taylor series to x⁹ (f32) or x¹⁷ (f64) is exact to `F`'s rounding
+/// (the first term left out is below 3·10⁻⁸ or 2·10⁻¹⁸). Written out rather than libm's
+/// `sinf`/`cosf`, whose reduction of any angle (`rem_pio2f`, and their kernels in f64,
+/// soft-float on the M4F) took 5.6 KB of the joint's flash.
+fn turn<F: Real>(cycle: F) -> (F, F) {
+    let quarters = cycle * of::<F>(4.0);
+    // cycle ∈ [0, 1): `quarters + ½` is not negative, so truncation is the floor.
+    let nearest = (quarters + of::<F>(0.5)).to_u32().unwrap_or(0);
+    let x = (quarters - of::<F>(nearest)) * F::FRAC_PI_2();
+    let x2 = x * x;
+    let (sin, cos) = if F::epsilon() > of::<F>(1.0e-10) {
+        (series!(x2; 6.0, 20.0, 42.0, 72.0), series!(x2; 2.0, 12.0, 30.0, 56.0))
+    } else {
+        (
+            series!(x2; 6.0, 20.0, 42.0, 72.0, 110.0, 156.0, 210.0, 272.0),
+            series!(x2; 2.0, 12.0, 30.0, 56.0, 90.0, 132.0, 182.0, 240.0),
+        )
+    };
+    let sin = x * sin;
+    match nearest % 4 {
+        0 => (sin, cos),
+        1 => (cos, -sin),
+        2 => (-sin, -cos),
+        _ => (-cos, sin),
+    }
+}
+
 /// s(u) = 10u³ − 15u⁴ + 6u⁵ on [0, 1] (0 and 1 beyond): zero slope and curvature at both ends.
 pub fn smoothstep<F: Real>(u: F) -> F {
-    let u = u.max(F::zero()).min(F::one());
+    // By comparisons: `max`/`min` are calls on the M4F (`fmaxf`/`fminf`), in the tick.
+    let u = if u < F::zero() {
+        F::zero()
+    } else if u > F::one() {
+        F::one()
+    } else {
+        u
+    };
     u * u * u * (of::<F>(10.0) + u * (of::<F>(-15.0) + of::<F>(6.0) * u))
 }
 
@@ -474,6 +561,21 @@ mod tests {
     extern crate std;
     use super::*;
     use std::vec::Vec;
+
+    #[test]
+    fn a_turn_is_sin_and_cos_to_the_rounding_of_each_type() {
+        for k in 0..=4096 {
+            let cycle = k as f64 / 4097.0;
+            let (sin, cos) = turn(cycle);
+            let exact = (core::f64::consts::TAU * cycle).sin_cos();
+            // A few units in the last place of each: the reference's 2π·cycle is rounded too.
+            assert!((sin - exact.0).abs() < 1e-15 && (cos - exact.1).abs() < 1e-15, "{cycle}");
+            let (sin, cos) = turn(cycle as f32);
+            let exact = (core::f64::consts::TAU * f64::from(cycle as f32)).sin_cos();
+            let errors = (f64::from(sin) - exact.0, f64::from(cos) - exact.1);
+            assert!(errors.0.abs() < 2.5e-7 && errors.1.abs() < 2.5e-7, "{cycle} {errors:?}");
+        }
+    }
 
     const LIMITS: Limits = Limits { torque_nm: 50.0, deflection_rad: 2.0e-3 };
     const A: f32 = 1.0e-3;

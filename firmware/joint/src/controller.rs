@@ -102,18 +102,23 @@ impl Controller {
         self.config
     }
 
-    /// Sets T_ref, N·m, for [`Controller::tick_stored`]; a value that is not finite is refused.
+    /// T_ref, N·m: the last one set or played.
+    pub fn reference(&self) -> f32 {
+        self.reference
+    }
+
+    /// Not configured, u = 0, as at boot: an experiment's end or stop.
+    pub(crate) fn halt(&mut self) {
+        *self = Controller::new();
+    }
+
+    /// Sets T_ref, N·m, for the board's own ticks; a value that is not finite is refused.
     pub fn set_reference(&mut self, reference: f32) -> Result<(), ErrorReply> {
         if !reference.is_finite() {
             return Err(ErrorReply::NonFiniteSample);
         }
         self.reference = reference;
         Ok(())
-    }
-
-    /// One tick at the stored reference (a board's own timer tick).
-    pub fn tick_stored(&mut self, compensator: &mut Ticker<'_>, input_angle: f32, output_angle: f32) -> ControlOutput {
-        self.tick(compensator, input_angle, output_angle, self.reference)
     }
 
     /// One control tick: steps the compensator's model (in every mode, so that its memory

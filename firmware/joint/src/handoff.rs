@@ -16,6 +16,7 @@
 //! link never waits on the tick with interrupts masked; the tick never waits at all (its answer
 //! queue cannot be full: the link hands over one sample at a time).
 use crate::compensator::{Compensator, Stager, Ticker};
+use crate::experiment::{LinkSide, Mailbox, TickSide};
 use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
 use heapless::spsc::{Consumer, Producer, Queue};
 use swg_protocol::{
@@ -154,6 +155,7 @@ pub struct Handoff {
     answers: Queue<Answer, 2>,
     counters: Counters,
     timing: TickTiming,
+    experiment: Mailbox,
 }
 
 impl Handoff {
@@ -164,6 +166,7 @@ impl Handoff {
             answers: Queue::new(),
             counters: Counters::new(),
             timing,
+            experiment: Mailbox::new(),
         }
     }
 
@@ -173,9 +176,24 @@ impl Handoff {
         let (command_in, command_out) = self.commands.split();
         let (answer_in, answer_out) = self.answers.split();
         let (counters, timing) = (&self.counters, &self.timing);
+        let (link_experiment, tick_experiment) = self.experiment.split();
         (
-            LinkPort { stager, commands: command_in, answers: answer_out, counters, timing },
-            TickPort { ticker, commands: command_out, answers: answer_in, counters, timing },
+            LinkPort {
+                stager,
+                commands: command_in,
+                answers: answer_out,
+                counters,
+                timing,
+                experiment: link_experiment,
+            },
+            TickPort {
+                ticker,
+                commands: command_out,
+                answers: answer_in,
+                counters,
+                timing,
+                experiment: tick_experiment,
+            },
         )
     }
 }
@@ -187,9 +205,10 @@ pub struct LinkPort<'a> {
     answers: Consumer<'a, Answer>,
     counters: &'a Counters,
     timing: &'a TickTiming,
+    experiment: LinkSide<'a>,
 }
 
-impl LinkPort<'_> {
+impl<'a> LinkPort<'a> {
     /// Whether the tick has taken the last command and the last parameter set.
     pub fn has_room(&self) -> bool {
         self.commands.ready() && self.stager.has_room()
@@ -197,14 +216,19 @@ impl LinkPort<'_> {
 
     /// Validates `params` and prepares them for the next tick (the compensator's
     /// [`Stager::stage`]); [`ErrorReply::Busy`] if the tick has not taken the last set.
-    pub(crate) fn stage(&mut self, params: &JointParams) -> Result<(), ErrorReply> {
+    pub fn stage(&mut self, params: &JointParams) -> Result<(), ErrorReply> {
         self.stager.stage(params)
     }
 
     /// Hands `command` to the next tick; [`ErrorReply::Busy`] if the tick has not taken the
     /// last one.
-    pub(crate) fn post(&mut self, command: Command) -> Result<(), ErrorReply> {
+    pub fn post(&mut self, command: Command) -> Result<(), ErrorReply> {
         self.commands.enqueue(command).map_err(|_| ErrorReply::Busy)
+    }
+
+    /// The experiment's side of the link.
+    pub fn experiment(&mut self) -> &mut LinkSide<'a> {
+        &mut self.experiment
     }
 
     /// The tick's answer to a lockstep sample, once it ran.
@@ -243,6 +267,7 @@ pub struct TickPort<'a> {
     answers: Producer<'a, Answer>,
     counters: &'a Counters,
     timing: &'a TickTiming,
+    experiment: TickSide<'a>,
 }
 
 impl<'a> TickPort<'a> {
@@ -272,6 +297,11 @@ impl<'a> TickPort<'a> {
     /// The compensator's tick half.
     pub(crate) fn compensator(&mut self) -> &mut Ticker<'a> {
         &mut self.ticker
+    }
+
+    /// The experiment's side of the tick, and the compensator's (for the gear ratio).
+    pub(crate) fn experiment(&mut self) -> (&mut TickSide<'a>, &Ticker<'a>) {
+        (&mut self.experiment, &self.ticker)
     }
 
     /// Answers a lockstep sample. The queue always has room: the link hands over one sample

@@ -9,8 +9,10 @@ use crate::tick::Joint;
 use crate::{storage::ParamStore, FIRMWARE_VERSION};
 use embedded_storage::nor_flash::NorFlash;
 use swg_protocol::endpoint::{
-    Commit, Configure, Control, GetDeviceInfo, GetStatus, ReadParams, Replay, SetReference, WriteParams,
+    Commit, Configure, Control, FetchSamples, GetDeviceInfo, GetStatus, ReadParams, Replay, SetReference,
+    StartExperiment, StopExperiment, WriteParams,
 };
+use swg_protocol::plan::Plan;
 use swg_protocol::{
     decode_request, encode_response, ControlMode, ControllerConfig, Deferred, DeviceInfo, Endpoint, Envelope,
     ErrorReply, FrameError, FrameReader, JointParams, RequestId, RequestOf, Response, MAX_FRAME_LEN, MODEL_VERSION,
@@ -32,13 +34,24 @@ pub struct Server<F> {
     driving: bool,
     /// The request whose lockstep sample the tick has been handed: its answer is due.
     awaiting: Option<RequestId>,
+    /// The experiment's next batch number, and the plan tick after the last batch's samples.
+    batch_sequence: u32,
+    next_tick: u32,
 }
 
 impl<F: NorFlash> Server<F> {
     /// A server on `store`, with no set yet: [`Server::boot`] stages the stored one. (Two
     /// steps, so that a board builds the server in its static and boots it there.)
     pub const fn new(store: ParamStore<F>) -> Self {
-        Server { reader: FrameReader::new(), store, params: None, driving: false, awaiting: None }
+        Server {
+            reader: FrameReader::new(),
+            store,
+            params: None,
+            driving: false,
+            awaiting: None,
+            batch_sequence: 0,
+            next_tick: 0,
+        }
     }
 
     /// Stages the newest valid parameter set in the store, if any, through `port` for the
@@ -91,7 +104,10 @@ impl<F: NorFlash> Server<F> {
         };
         match request {
             Ok((Envelope { id, message: Request::WriteParams(Deferred) }, set)) => {
-                let accepted = self.write_params(set, port);
+                let accepted = match port.experiment().state().is_running() {
+                    true => Err(ErrorReply::ExperimentRunning),
+                    false => self.write_params(set, port),
+                };
                 self.accept(id, accepted)
             }
             Ok((Envelope { id, message }, _)) => self.handle(id, &message, port),
@@ -160,10 +176,17 @@ impl<F: NorFlash> Server<F> {
                 let finite = sample.input_angle.is_finite() && sample.output_angle.is_finite();
                 self.lockstep(id, finite, Sample::Replay(sample), port)?
             }
-            Request::Control(sample) => {
-                let finite = [sample.input_angle, sample.output_angle, sample.reference];
-                let finite = finite.iter().all(|value| value.is_finite());
-                self.lockstep(id, finite, Sample::Control(sample), port)?
+            Request::Control(sample) => self.lockstep(id, sample.is_finite(), Sample::Control(sample), port)?,
+            Request::StartExperiment(plan) => answer::<StartExperiment>(self.start_experiment(&plan, port)),
+            Request::FetchSamples => {
+                let batch = port.experiment().fetch(self.batch_sequence, self.next_tick);
+                self.batch_sequence = self.batch_sequence.wrapping_add(1);
+                self.next_tick = batch.end_tick();
+                FetchSamples::reply(batch)
+            }
+            Request::StopExperiment => {
+                port.experiment().stop();
+                StopExperiment::reply(())
             }
         };
         self.reply(id, &response)
@@ -197,9 +220,30 @@ impl<F: NorFlash> Server<F> {
 
     fn configure(&mut self, config: ControllerConfig, port: &mut LinkPort) -> Result<(), ErrorReply> {
         config.validate()?;
+        if port.experiment().state().is_running() {
+            return Err(ErrorReply::ExperimentRunning);
+        }
         port.post(Command::Configure(config))?;
         self.driving = config.mode != ControlMode::Off;
         Ok(())
+    }
+
+    /// Checks `plan` and what an experiment needs (no other running, a parameter set for the
+    /// deflection, the controller driving), then hands it to the tick; the ticks it plays.
+    fn start_experiment(&mut self, plan: &Plan, port: &mut LinkPort) -> Result<u32, ErrorReply> {
+        plan.check().map_err(|_| ErrorReply::InvalidPlan)?;
+        if port.experiment().state().is_running() {
+            return Err(ErrorReply::ExperimentRunning);
+        }
+        if self.params.is_none() {
+            return Err(ErrorReply::NoParams);
+        }
+        if !self.driving {
+            return Err(ErrorReply::ControllerOff);
+        }
+        port.experiment().start(plan)?;
+        (self.batch_sequence, self.next_tick) = (0, 0);
+        Ok(plan.ticks())
     }
 
     fn lockstep(&mut self, id: RequestId, finite: bool, sample: Sample, port: &mut LinkPort) -> Option<Response> {
@@ -339,10 +383,10 @@ mod tests {
     /// One request, one reply, carrying the request's id.
     fn request<D: MotorDrive>(device: &mut Test<D>, request: &Request) -> Response {
         let id = RequestId(0x5EED);
-        let replies = exchange(device, &frame(id, request));
+        let mut replies = exchange(device, &frame(id, request));
         assert_eq!(replies.len(), 1);
         assert_eq!(replies[0].0, id, "the reply echoes the request's id");
-        replies[0].1
+        replies.swap_remove(0).1
     }
 
     fn replay<D: MotorDrive>(device: &mut Test<D>) -> Response {
@@ -457,7 +501,8 @@ mod tests {
     #[test]
     fn control_requests_configure_tick_and_drive() {
         let mut device = Device::new(ParamStore::new(RamFlash::new()).unwrap(), Recorder::default());
-        let sample = ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 10.0 };
+        let sample =
+            ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 10.0, torque: 0.0, temperature: None };
         // Not configured, no parameters: Off, zero command, applied.
         let Response::Control(out) = request(&mut device, &Request::Control(sample)) else { panic!() };
         assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));
@@ -552,5 +597,175 @@ mod tests {
         }
         let Response::Status(status) = request(&mut device, &Request::GetStatus) else { panic!() };
         assert_eq!((status.rate_hz, status.ticks, status.overruns, status.late), (0, 3, 0, 0));
+    }
+
+    // The experiment (crate::experiment): the device's side, tick by tick in lockstep.
+
+    use swg_protocol::experiment::{ExperimentState, SampleBatch, StopReason, BATCH_SAMPLES};
+    use swg_protocol::plan::{Channel, Limits, Plan, Segment};
+
+    const LIMITS: Limits = Limits { torque_nm: 20.0, deflection_rad: 0.01 };
+
+    /// Up to 5 N·m and back in 0.1 s at `rate_hz`.
+    fn torque_plan(rate_hz: f32) -> Plan {
+        let segments = [Segment::Ramp { to: 5.0, seconds: 0.05 }, Segment::Ramp { to: 0.0, seconds: 0.05 }];
+        Plan::new(Channel::Torque, LIMITS, rate_hz, &segments).unwrap()
+    }
+
+    /// A device with a set and the controller open-loop (u = T_ref/N, so that each command shows
+    /// the reference the tick played), its experiment started.
+    fn experimenting(plan: &Plan) -> Test<Recorder> {
+        let mut device = Device::new(ParamStore::new(RamFlash::new()).unwrap(), Recorder::default());
+        assert_eq!(request(&mut device, &Request::WriteParams(params())), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &Request::Configure(CONFIG)), Response::ControlAccepted);
+        assert_eq!(request(&mut device, &Request::StartExperiment(*plan)), Response::ExperimentStarted(plan.ticks()));
+        device
+    }
+
+    /// One lockstep tick reading `torque`, N·m, at rest; its command.
+    fn tick(device: &mut Test<Recorder>, torque: f32) -> f32 {
+        let sample =
+            ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 3.0, torque, temperature: Some(40.0) };
+        let Response::Control(output) = request(device, &Request::Control(sample)) else { panic!() };
+        output.command
+    }
+
+    fn fetch<D: MotorDrive>(device: &mut Test<D>) -> SampleBatch {
+        let Response::Samples(batch) = request(device, &Request::FetchSamples) else { panic!() };
+        batch
+    }
+
+    #[test]
+    fn an_experiment_plays_its_plan_records_every_tick_and_stops_the_motor_at_its_end() {
+        let plan = torque_plan(1000.0);
+        let mut device = experimenting(&plan);
+        let (mut batches, mut commands) = (Vec::<SampleBatch>::new(), Vec::new());
+        for k in 0..plan.ticks() + 5 {
+            commands.push(tick(&mut device, 0.01 * k as f32));
+            if k % BATCH_SAMPLES as u32 == 0 {
+                batches.push(fetch(&mut device));
+            }
+        }
+        // The last samples come in a batch of a finished experiment; then an empty one.
+        loop {
+            let batch = fetch(&mut device);
+            let done = batch.samples.is_empty();
+            batches.push(batch);
+            if done {
+                break;
+            }
+        }
+        for (index, batch) in batches.iter().enumerate() {
+            let previous = index.checked_sub(1).map(|i| &batches[i]);
+            assert_eq!(batch.follows(previous), Ok(()), "batch {index}");
+            assert_eq!(batch.dropped, 0);
+        }
+        let samples: Vec<_> = batches.iter().flat_map(|b| b.samples.iter().copied()).collect();
+        assert_eq!(samples.len() as u32, plan.ticks());
+        for (k, sample) in samples.iter().enumerate() {
+            assert_eq!((sample.torque, sample.temperature), (0.01 * k as f32, Some(40.0)));
+        }
+        assert_eq!(batches.last().unwrap().state, ExperimentState::Finished);
+        // Open loop: u = T_ref/N, the plan's reference, not the sample's 3 N·m; zero once it ended.
+        let played: Vec<f32> = plan.player::<f32>().map(|setpoint| setpoint.value / 100.0).collect();
+        let ticks = plan.ticks() as usize;
+        assert_eq!(commands[..ticks], played[..]);
+        assert!(commands[50] > 0.049, "{}", commands[50]);
+        assert_eq!(commands[ticks..], [0.0; 5]);
+        // The controller is off: the sample's reference does not drive the motor any more.
+        assert_eq!(tick(&mut device, 0.0), 0.0);
+    }
+
+    #[test]
+    fn a_reading_beyond_a_limit_stops_the_experiment_and_the_motor() {
+        for (torque, input_angle, reason) in
+            [(20.5, 0.0, StopReason::TorqueLimit), (0.0, 100.0 * 0.0105, StopReason::DeflectionLimit)]
+        {
+            let mut device = experimenting(&torque_plan(1000.0));
+            // The first tick plays the rest the plan starts from.
+            assert_eq!(tick(&mut device, 1.0), 0.0);
+            for _ in 0..30 {
+                assert_ne!(tick(&mut device, 1.0), 0.0);
+            }
+            let sample = ControlSample { input_angle, output_angle: 0.0, reference: 0.0, torque, temperature: None };
+            let Response::Control(output) = request(&mut device, &Request::Control(sample)) else { panic!() };
+            assert_eq!((output.command, output.mode), (0.0, ControlMode::Off), "{reason:?}");
+            let mut recorded = Vec::new();
+            let state = loop {
+                let batch = fetch(&mut device);
+                if batch.samples.is_empty() {
+                    break batch.state;
+                }
+                recorded.extend(batch.samples);
+            };
+            assert_eq!(state, ExperimentState::Stopped(reason));
+            // The tick beyond the limit is recorded, the last one.
+            assert_eq!((recorded.len(), recorded.last().map(|s| s.torque)), (32, Some(torque)));
+            assert_eq!(tick(&mut device, 1.0), 0.0);
+        }
+    }
+
+    #[test]
+    fn a_silent_link_stops_the_motor_within_the_timeout() {
+        // 40 ms at 1 kHz: the 41st tick without a fetch (40 ms after the first) stops it.
+        let mut device = experimenting(&torque_plan(1000.0));
+        let commands: Vec<f32> = (0..45).map(|_| tick(&mut device, 1.0)).collect();
+        // The first tick plays the rest (0) the plan starts from; the ramp runs until the stop.
+        let stopped = commands.iter().skip(1).position(|&u| u == 0.0).map(|i| i + 1);
+        assert_eq!(stopped, Some(40), "{commands:?}");
+        assert!(commands[40..].iter().all(|&u| u == 0.0));
+        assert_eq!(fetch(&mut device).state, ExperimentState::Stopped(StopReason::LinkLost));
+    }
+
+    #[test]
+    fn a_full_queue_drops_samples_and_counts_them() {
+        // 10 kHz: 400 silent ticks allowed, and 50 ticks without a fetch overflow the queue of 32.
+        let mut device = experimenting(&torque_plan(10_000.0));
+        for _ in 0..50 {
+            tick(&mut device, 1.0);
+        }
+        let first = fetch(&mut device);
+        let second = fetch(&mut device);
+        assert_eq!((first.dropped, first.samples.len(), second.samples.len()), (18, 16, 16));
+        assert_eq!(second.follows(Some(&first)), Ok(()));
+        tick(&mut device, 1.0);
+        let third = fetch(&mut device);
+        assert_eq!(third.first_tick, 50);
+        assert_eq!(
+            third.follows(Some(&second)),
+            Err(swg_protocol::experiment::BatchGap::Ticks { from: 32, to: 50 }),
+            "the drop shows where it happened"
+        );
+    }
+
+    #[test]
+    fn an_experiment_is_refused_without_what_it_needs_and_guards_the_joint_while_it_runs() {
+        let plan = torque_plan(1000.0);
+        let mut device = device();
+        let start = Request::StartExperiment(plan);
+        assert_eq!(request(&mut device, &start), Response::Error(ErrorReply::NoParams));
+        assert_eq!(request(&mut device, &Request::WriteParams(params())), Response::ParamsAccepted);
+        assert_eq!(request(&mut device, &start), Response::Error(ErrorReply::ControllerOff));
+        // A plan that does not pass the checks: its rate made NaN on the wire.
+        let mut bytes = [0u8; 256];
+        let len = postcard::to_slice(&plan, &mut bytes).unwrap().len();
+        let rate = 1000f32.to_le_bytes();
+        let at = bytes[..len].windows(4).position(|w| w == rate).unwrap();
+        bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        let broken: Plan = postcard::from_bytes(&bytes[..len]).unwrap();
+        assert_eq!(request(&mut device, &Request::Configure(CONFIG)), Response::ControlAccepted);
+        assert_eq!(request(&mut device, &Request::StartExperiment(broken)), Response::Error(ErrorReply::InvalidPlan));
+        assert_eq!(request(&mut device, &start), Response::ExperimentStarted(plan.ticks()));
+        // Before its first tick as after: another start, a new set, new gains are refused.
+        for refused in [start, Request::WriteParams(params()), Request::Configure(CONFIG)] {
+            assert_eq!(request(&mut device, &refused), Response::Error(ErrorReply::ExperimentRunning));
+        }
+        assert_eq!(request(&mut device, &Request::StopExperiment), Response::ControlAccepted);
+        let sample =
+            ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 3.0, torque: 0.0, temperature: None };
+        let Response::Control(output) = request(&mut device, &Request::Control(sample)) else { panic!() };
+        assert_eq!(output.command, 0.0);
+        assert_eq!(fetch(&mut device).state, ExperimentState::Stopped(StopReason::Host));
+        assert_eq!(request(&mut device, &Request::Configure(CONFIG)), Response::ControlAccepted);
     }
 }

@@ -3,10 +3,12 @@
 //! interrupt. The link ([`crate::Server`]) hands it work through the handoff; nothing else
 //! touches it.
 use crate::drive::{self, MotorDrive};
+use crate::experiment::{Readings, Step};
 use crate::handoff::{Answer, Command, Sample, TickPort};
 use crate::sensor;
 use crate::Controller;
-use swg_protocol::ErrorReply;
+use swg_protocol::experiment::StopReason;
+use swg_protocol::{ControlOutput, ErrorReply};
 
 /// When a tick started, from the board's timer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -19,7 +21,8 @@ pub struct TickStart {
     pub now: u32,
 }
 
-/// The controller, run by the control tick with the compensator's tick half.
+/// The controller, run by the control tick with the compensator's and the experiment's tick
+/// halves.
 #[derive(Clone, Debug, Default)]
 pub struct Joint {
     controller: Controller,
@@ -44,41 +47,82 @@ impl Joint {
                 Answer::Replay(port.compensator().tick(sample.input_angle, sample.output_angle, sample.path))
             }
             Sample::Control(sample) => {
-                let output =
-                    self.controller.tick(port.compensator(), sample.input_angle, sample.output_angle, sample.reference);
+                let readings = Readings {
+                    input_angle: sample.input_angle,
+                    output_angle: sample.output_angle,
+                    torque: Some(sample.torque),
+                    temperature: sample.temperature,
+                };
+                let output = self.control(port, &readings, sample.reference, None);
                 match drive.apply(output.command) {
                     Ok(()) => Answer::Control(output),
-                    Err(error) => Answer::Refused(ErrorReply::MotorDrive(drive::Error::kind(&error))),
+                    Err(error) => {
+                        self.abort(port, StopReason::DriveFault);
+                        Answer::Refused(ErrorReply::MotorDrive(drive::Error::kind(&error)))
+                    }
                 }
             }
         };
         port.answer(answer);
     }
 
-    /// One tick of a board on its own encoders (input and output angles, rad, multi-turn, or
-    /// why they could not be read) at the reference set over the link: the command goes to
-    /// `drive`. A failed reading commands zero torque; failures are counted with their kind.
+    /// One tick of a board on its own sensors (the encoders' input and output angles, rad,
+    /// multi-turn, and the other readings, or why they could not be read) at the reference set
+    /// over the link, or an experiment's: the command goes to `drive`. A failed reading
+    /// commands zero torque; failures are counted with their kind, and stop an experiment.
     /// Lockstep samples are refused ([`ErrorReply::NotLockstep`]): they would fight the
     /// encoders over the model's memory and the controller's state.
     pub fn own_tick<D: MotorDrive, E: sensor::Error>(
         &mut self,
         port: &mut TickPort,
         start: TickStart,
-        angles: Result<(f32, f32), E>,
+        readings: Result<Readings, E>,
         drive: &mut D,
     ) {
         if self.begin(port, Some(start)).is_some() {
             port.answer(Answer::Refused(ErrorReply::NotLockstep));
         }
-        let command = match angles {
-            Ok((input, output)) => self.controller.tick_stored(port.compensator(), input, output).command,
+        let timing = port.timing();
+        let rate = timing.clock_hz.checked_div(timing.period);
+        let command = match readings {
+            Ok(readings) => self.control(port, &readings, self.controller.reference(), rate).command,
             Err(error) => {
                 port.sensor_fault(error.kind());
+                self.abort(port, StopReason::SensorFault);
                 0.0
             }
         };
         if let Err(error) = drive.apply(command) {
             port.drive_fault(drive::Error::kind(&error));
+            self.abort(port, StopReason::DriveFault);
+        }
+    }
+
+    /// The controller's tick at `reference`, or at the experiment's (which records the
+    /// readings, and may end at this tick: the controller is then off, its command zero).
+    fn control(
+        &mut self,
+        port: &mut TickPort,
+        readings: &Readings,
+        reference: f32,
+        rate: Option<u32>,
+    ) -> ControlOutput {
+        let (side, ticker) = port.experiment();
+        let reference = match side.step(ticker, readings, self.controller.config(), rate) {
+            Step::Idle => reference,
+            Step::Play(planned) => planned,
+            Step::Halt => {
+                self.controller.halt();
+                0.0
+            }
+        };
+        self.controller.tick(port.compensator(), readings.input_angle, readings.output_angle, reference)
+    }
+
+    /// Stops a running experiment for `reason`, and the motor with it.
+    fn abort(&mut self, port: &mut TickPort, reason: StopReason) {
+        if port.experiment().0.halt(reason) {
+            self.controller.halt();
         }
     }
 
@@ -120,6 +164,7 @@ mod tests {
     use swg_protocol::{ControlMode, ControlSample, ControllerConfig, DriveErrorKind, SensorErrorKind};
 
     const TIMING: TickTiming = TickTiming { clock_hz: 1_000_000, period: 100, late_bound: 5 };
+    const AT_REST: Readings = Readings { input_angle: 0.0, output_angle: 0.0, torque: Some(0.0), temperature: None };
 
     #[test]
     fn late_ticks_and_missed_periods_are_counted() {
@@ -162,21 +207,87 @@ mod tests {
             period: 5.0e-5,
         };
         link.post(Command::Configure(config)).unwrap();
-        joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>((0.0, 0.0)), &mut drive);
+        joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
         // Without parameters the controller is off: zero.
         assert_eq!(drive.applied, [0.0]);
         joint.own_tick(&mut tick, start, Err(SensorErrorKind::Corrupt), &mut drive);
         assert_eq!(drive.applied, [0.0, 0.0]);
         drive.refuse = Some(DriveErrorKind::Fault);
-        joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>((0.0, 0.0)), &mut drive);
-        let sample = ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 1.0 };
+        joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
+        let sample =
+            ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 1.0, torque: 0.0, temperature: None };
         link.post(Command::Sample(Sample::Control(sample))).unwrap();
         drive.refuse = None;
-        joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>((0.0, 0.0)), &mut drive);
+        joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
         assert_eq!(link.answer(), Some(Answer::Refused(ErrorReply::NotLockstep)));
         let status = link.status();
         assert_eq!((status.sensor_faults, status.last_sensor_fault), (1, Some(SensorErrorKind::Corrupt)));
         assert_eq!((status.drive_faults, status.last_drive_fault), (1, Some(DriveErrorKind::Fault)));
         assert_eq!(drive.applied, [0.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn own_ticks_stop_an_experiment_at_another_rate_or_without_a_torque_reading() {
+        use model_core::Params;
+        use swg_protocol::experiment::ExperimentState;
+        use swg_protocol::plan::{Channel, Limits, Plan, Segment};
+        use swg_protocol::{GearModel, JointParams, MODEL_VERSION};
+        let params = JointParams {
+            model_version: MODEL_VERSION,
+            model: GearModel::paper(Params { c1: 9.0e3, c2: 1.2e10, c3: 0.0, alpha: 68.0, beta: -2.298, omega: 1.0 }),
+            gear_ratio: 100.0,
+            torque_limit: 50.0,
+            direction_band: 2.0e-6,
+        };
+        let config = ControllerConfig {
+            mode: ControlMode::OpenLoop,
+            kp: 0.0,
+            ki: 0.0,
+            integral_deadband: 0.0,
+            damping: 0.0,
+            torsion_damping: 0.0,
+            stiffness: 1.0,
+            command_limit: 1.0,
+            period: 1.0e-4,
+        };
+        let limits = Limits { torque_nm: 20.0, deflection_rad: 0.01 };
+        let plan =
+            |rate| Plan::new(Channel::Torque, limits, rate, &[Segment::Ramp { to: 5.0, seconds: 0.05 }]).unwrap();
+        let start = TickStart { latency: 0, now: 0 };
+        // The board ticks at 10 kHz (TIMING).
+        for (rate, readings, stopped) in [
+            (1000.0, AT_REST, StopReason::PlanRate),
+            (10_000.0, Readings { torque: None, ..AT_REST }, StopReason::SensorFault),
+        ] {
+            let mut handoff = Handoff::new(TIMING);
+            let (mut link, mut tick) = handoff.split();
+            let mut joint = Joint::new();
+            let mut drive = Recorder::default();
+            link.stage(&params).unwrap();
+            link.post(Command::Configure(config)).unwrap();
+            joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
+            link.experiment().start(&plan(rate)).unwrap();
+            for _ in 0..10 {
+                joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(readings), &mut drive);
+            }
+            assert_eq!(link.experiment().state(), ExperimentState::Stopped(stopped));
+            assert!(drive.applied.iter().all(|&u| u == 0.0), "{:?}", drive.applied);
+        }
+        // At the board's rate it plays until a reading fails, then the motor stays at zero.
+        let mut handoff = Handoff::new(TIMING);
+        let (mut link, mut tick) = handoff.split();
+        let (mut joint, mut drive) = (Joint::new(), Recorder::default());
+        link.stage(&params).unwrap();
+        link.post(Command::Configure(config)).unwrap();
+        joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
+        link.experiment().start(&plan(10_000.0)).unwrap();
+        for _ in 0..30 {
+            joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
+        }
+        assert!(drive.applied[30] > 0.0, "{:?}", drive.applied);
+        joint.own_tick(&mut tick, start, Err(SensorErrorKind::Bus), &mut drive);
+        joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
+        assert_eq!(link.experiment().state(), ExperimentState::Stopped(StopReason::SensorFault));
+        assert_eq!(drive.applied[31..], [0.0, 0.0]);
     }
 }

@@ -78,6 +78,7 @@ use stm32f4xx_hal::{
 };
 use swg_joint::handoff::{Handoff, TickPort, TickTiming};
 use swg_joint::handover::HandOver;
+use swg_joint::Readings;
 use swg_joint::{as5047p::As5047p, drive, flash::Region, sensor, storage::ParamStore, AngleSensor, MotorDrive};
 use swg_joint::{Joint, Server, TickStart, TurnCounter};
 
@@ -295,12 +296,19 @@ fn SysTick() {
     let start = TickStart { latency, now: DWT::cycle_count() };
     let Tick { joint, port, drive, syst, input_encoder, output_encoder, input_turns, output_turns } = tick;
     swg_joint::systick::timed(syst, &TIMING, start, port, |port, start| {
-        let angles = input_encoder
+        // No torque sensor wired on this board yet: an experiment stops at its first tick
+        // (StopReason::SensorFault) rather than record without the torque.
+        let readings = input_encoder
             .read_angle()
             .and_then(|input| Ok((input, output_encoder.read_angle()?)))
-            .map(|(input, output)| (input_turns.update(input), output_turns.update(output)))
+            .map(|(input, output)| Readings {
+                input_angle: input_turns.update(input),
+                output_angle: output_turns.update(output),
+                torque: None,
+                temperature: None,
+            })
             .map_err(|error| sensor::Error::kind(&error));
-        joint.own_tick(port, start, angles, drive);
+        joint.own_tick(port, start, readings, drive);
     });
 }
 

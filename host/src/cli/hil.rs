@@ -47,13 +47,24 @@ pub struct HilArgs {
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
-enum PhysicsArg {
+pub(super) enum PhysicsArg {
     /// The genetic model of the bundled seed fit (the simulator's default).
     Genetic,
     /// The simulator's Maxwell-slip/Iwan gear (300 elements).
     MicroSlip,
     /// The simulator's Bouc–Wen gear.
     BoucWen,
+}
+
+impl PhysicsArg {
+    /// The simulator's physics with its defaults.
+    pub(super) fn physics(self) -> Physics {
+        match self {
+            PhysicsArg::Genetic => Physics::Model,
+            PhysicsArg::MicroSlip => Physics::MicroSlip(MicroSlip::default()),
+            PhysicsArg::BoucWen => Physics::BoucWen(BoucWen::default()),
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -90,12 +101,7 @@ pub fn run(args: HilArgs) -> Result<()> {
         }
         None => {
             let seed = parse_model("data/seed/lht-20-50-fit.json (bundled)".as_ref(), super::simulate::SEED_FIT)?;
-            let physics = match args.physics {
-                PhysicsArg::Genetic => Physics::Model,
-                PhysicsArg::MicroSlip => Physics::MicroSlip(MicroSlip::default()),
-                PhysicsArg::BoucWen => Physics::BoucWen(BoucWen::default()),
-            };
-            GearTruth::Physics { physics, model: seed }
+            GearTruth::Physics { physics: args.physics.physics(), model: seed }
         }
     };
     let scenarios = match args.scenario {

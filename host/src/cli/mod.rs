@@ -5,6 +5,7 @@ mod flash;
 mod hil;
 mod predict;
 mod push;
+mod record;
 mod replay;
 mod simulate;
 
@@ -27,6 +28,8 @@ enum Command {
     Simulate(simulate::SimulateArgs),
     /// Find where the model and a recording disagree and which physics the model misses.
     Diagnose(diagnose::DiagnoseArgs),
+    /// Run an identification plan on a joint and write what it measured as a recording.
+    Record(record::RecordArgs),
     /// Send parameters to a joint: check versions, write, read back, store in flash.
     Push(push::PushArgs),
     /// Stream a recording through the joint firmware; compare its T_ff and K with the host model.
@@ -44,6 +47,7 @@ impl Cli {
             Command::Predict(args) => predict::run(args),
             Command::Simulate(args) => simulate::run(args),
             Command::Diagnose(args) => diagnose::run(args),
+            Command::Record(args) => record::run(args),
             Command::Push(args) => push::run(args),
             Command::Replay(args) => replay::run(args),
             Command::Flash(args) => flash::run(args),

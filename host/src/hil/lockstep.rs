@@ -159,13 +159,15 @@ pub fn run(link: &mut Link, model: &GearModel<f64>, options: &HilOptions) -> Res
                 let time = k as f64 * period;
                 let reference = scenario.reference(time, options.seconds);
                 let (input_angle, output_angle) = plant.encoders();
+                let state = plant.state();
                 let sample = ControlSample {
                     input_angle: input_angle as f32,
                     output_angle: output_angle as f32,
                     reference: reference as f32,
+                    torque: state.torque as f32,
+                    temperature: None,
                 };
                 let output = link.call::<endpoint::Control>(&sample)?;
-                let state = plant.state();
                 trace.push(Tick {
                     time,
                     reference,
@@ -337,7 +339,13 @@ mod tests {
         let config = controller_config(ControlMode::Model, &super::super::GAINS, 9000.0, 0.05, 1.0e-3);
         link.call::<endpoint::Configure>(&config).unwrap();
         let out = link
-            .call::<endpoint::Control>(&ControlSample { input_angle: 0.0, output_angle: 0.0, reference: 10.0 })
+            .call::<endpoint::Control>(&ControlSample {
+                input_angle: 0.0,
+                output_angle: 0.0,
+                reference: 10.0,
+                torque: 0.0,
+                temperature: None,
+            })
             .unwrap();
         assert_eq!((out.command, out.mode), (0.0, ControlMode::Off));
     }

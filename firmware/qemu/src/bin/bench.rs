@@ -16,7 +16,10 @@ use model_core::checks::{bouc_wen_set, micro_slip_set, preisach_set, SEED_TABLE_
 use model_core::{Direction, Model};
 use model_core::{Hysteresis, Knot, Spring};
 use swg_joint::budget::{self, CONTROL_TICK_INSTRUCTIONS};
-use swg_joint::{Compensator, Controller, FastModel};
+use swg_joint::handoff::{Command, Handoff, TickTiming};
+use swg_joint::{Compensator, Controller, FastModel, Joint, NoDrive, Readings, TickStart};
+use swg_protocol::experiment::BATCH_SAMPLES;
+use swg_protocol::plan::{Channel, Limits, Plan, Segment};
 use swg_protocol::{
     ControlMode, ControllerConfig, EvalPath, GearModel, JointParams, MODEL_VERSION, SLIP_ELEMENTS, TURNING_POINTS,
 };
@@ -190,10 +193,9 @@ fn installed(params: JointParams) -> Compensator {
     compensator
 }
 
-/// The controller in model mode after a first tick at θ = `last`, with `compensator`.
-fn controlling(compensator: Compensator, last: f32) -> (Controller, Compensator) {
-    let mut controller = Controller::new();
-    let config = ControllerConfig {
+/// The controller in model mode, as `hil` configures it.
+fn controller_config() -> ControllerConfig {
+    ControllerConfig {
         mode: ControlMode::Model,
         kp: 0.06,
         ki: 6.0,
@@ -203,13 +205,81 @@ fn controlling(compensator: Compensator, last: f32) -> (Controller, Compensator)
         stiffness: 9000.0,
         command_limit: 1.0,
         period: 1.0e-3,
-    };
-    if controller.configure(config).is_err() {
+    }
+}
+
+/// The controller in model mode after a first tick at θ = `last`, with `compensator`.
+fn controlling(compensator: Compensator, last: f32) -> (Controller, Compensator) {
+    let mut controller = Controller::new();
+    if controller.configure(controller_config()).is_err() {
         swg_firmware_qemu::exit(false)
     }
     let mut state = (controller, compensator);
     controller_step(&mut state, last);
     state
+}
+
+/// Runs of [`streaming`], each from boot: a tick's figure is the mean of its runs.
+const STREAM_RUNS: u32 = 32;
+/// Ticks of [`streaming`]'s plan, at most.
+const STREAM_TICKS: usize = 1024;
+
+/// Every tick of the board's own tick (`Joint::own_tick`: the controller in model mode with its
+/// evaluator, and an experiment playing, checking and recording each tick) along a deflection
+/// plan of a sine, a ramp and a hold with dither, the joint following it exactly; the link
+/// fetches a batch after every [`BATCH_SAMPLES`] ticks (between ticks, not counted). Each tick
+/// is timed alone, in each of [`STREAM_RUNS`] runs from boot. Without `experiment`, the same
+/// ticks along the same motion with no experiment started: its share is the difference.
+fn streaming(params: JointParams, baseline: u32, experiment: bool) -> Figures {
+    let a = 0.8 * AMPLITUDE;
+    let segments = [
+        Segment::Sine { amplitude: a, frequency_hz: 5.0, cycles: 3 },
+        Segment::Ramp { to: 0.5 * a, seconds: 0.05 },
+        Segment::Hold { seconds: 0.2, dither_amplitude: 0.05 * a, dither_hz: 25.0 },
+        Segment::Ramp { to: 0.0, seconds: 0.05 },
+    ];
+    let limits = Limits { torque_nm: 100.0, deflection_rad: 2.0 * AMPLITUDE };
+    let Ok(plan) = Plan::new(Channel::Deflection, limits, 1000.0, &segments) else { swg_firmware_qemu::exit(false) };
+    let mut sums = [0u32; STREAM_TICKS];
+    let start = TickStart { latency: 0, now: 0 };
+    for _ in 0..STREAM_RUNS {
+        let mut handoff = Handoff::new(TickTiming::UNTIMED);
+        let (mut link, mut tick) = handoff.split();
+        let (mut joint, mut drive) = (Joint::new(), NoDrive);
+        let rest =
+            Readings { input_angle: reading(0.0), output_angle: 0.0, torque: Some(0.0), temperature: Some(30.0) };
+        if link.stage(&params).is_err() || link.post(Command::Configure(controller_config())).is_err() {
+            swg_firmware_qemu::exit(false)
+        }
+        joint.own_tick(&mut tick, start, Ok::<_, core::convert::Infallible>(rest), &mut drive);
+        if experiment && link.experiment().start(&plan).is_err() {
+            swg_firmware_qemu::exit(false)
+        }
+        for (k, setpoint) in plan.player::<f32>().enumerate().take(STREAM_TICKS) {
+            let theta = setpoint.value;
+            let readings = Readings { input_angle: reading(theta), torque: Some(9.0e3 * theta), ..rest };
+            let taken = ticks(|| {
+                joint.own_tick(&mut tick, start, Ok::<_, core::convert::Infallible>(black_box(readings)), &mut drive)
+            });
+            if let Some(sum) = sums.get_mut(k) {
+                *sum += taken.saturating_sub(baseline);
+            }
+            if k % BATCH_SAMPLES == BATCH_SAMPLES - 1 {
+                black_box(link.experiment().fetch(0, 0));
+            }
+        }
+    }
+    let count = (plan.ticks() as usize).min(STREAM_TICKS);
+    let per_tick = |sum: u32| (sum * INSTRUCTIONS_PER_TICK) as f32 / STREAM_RUNS as f32;
+    let (mut max, mut worst, mut total) = (0.0f32, 0, 0.0f32);
+    for (k, &sum) in sums.iter().enumerate().take(count) {
+        let figure = per_tick(sum);
+        if figure > max {
+            (max, worst) = (figure, k);
+        }
+        total += figure;
+    }
+    Figures { max, mean: total / count.max(1) as f32, worst }
 }
 
 /// The compensator after [`deep_motion`] up to its last turning point (the stack full), and
@@ -443,13 +513,33 @@ fn main() -> ! {
             );
         }
     }
+    // The whole own tick while an experiment streams (the board's timer tick: its bookkeeping,
+    // the experiment, the controller and evaluator), each kind.
+    hprintln!("== the board's own tick while an experiment plays and records (model mode, {} runs each)", STREAM_RUNS);
+    let single = crate::ticks(|| {});
+    for (kind, params) in kinds {
+        let (with, without) = (streaming(params, single, true), streaming(params, single, false));
+        hprintln!(
+            "{} own tick, streaming: max {:.1} (tick {}), mean {:.1}; the same ticks without an experiment: max {:.1}, mean {:.1}",
+            kind,
+            with.max,
+            with.worst,
+            with.mean,
+            without.max,
+            without.mean
+        );
+        let budget = budget::STREAMING_TICK_INSTRUCTIONS;
+        budgets.check(format_args!("{} own tick streaming, max", kind), with.max, budget);
+        budgets.check(format_args!("{} own tick streaming, mean", kind), with.mean, budget);
+    }
     hprintln!(
-        "budgets (firmware/joint/src/budget.rs): evaluator {} (genetic) / {} (micro-slip) / {} (bouc-wen) / {} (preisach), controller + evaluator {}: {} of {} instruction figures over",
+        "budgets (firmware/joint/src/budget.rs): evaluator {} (genetic) / {} (micro-slip) / {} (bouc-wen) / {} (preisach), controller + evaluator {}, own tick streaming {}: {} of {} instruction figures over",
         genetic_budget,
         budget::evaluator_tick_instructions(&slip.model),
         budget::evaluator_tick_instructions(&bouc_wen(1.0).model),
         budget::evaluator_tick_instructions(&preisach.model),
         CONTROL_TICK_INSTRUCTIONS,
+        budget::STREAMING_TICK_INSTRUCTIONS,
         budgets.over,
         budgets.checked
     );

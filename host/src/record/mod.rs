@@ -1,0 +1,391 @@
+//! `swg-host record`: the joint plays an identification plan and streams what it measured
+//! (`swg_protocol::experiment`). The host starts the experiment, fetches the recorded ticks in
+//! batches until the experiment has ended, checks that no batch and no tick is missing, and
+//! turns them into a recording (format v1) that `fit` and `diagnose` read.
+//!
+//! A board ticks on its own sensors; the QEMU board ticks in lockstep, and then the host runs
+//! the joint it controls ([`SimulatedJoint`]: `hil`'s plant with its output clamped, a torque
+//! sensor with noise and an offset, a temperature that rises with the motor's losses) and sends
+//! each tick's readings ([`swg_protocol::Request::Control`]).
+use crate::hil::plant::{GearTruth, Plant, PlantParams};
+use crate::hil::scenario::{Environment, EnvironmentKind};
+use crate::hil::{controller_config, linear_stiffness, HilError, GAINS};
+use crate::input::{deflection, Angles, Recording, START_AT_REST, START_KEY};
+use crate::link::{Link, LinkError};
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use std::time::{Duration, Instant};
+use swg_protocol::experiment::{BatchGap, ExperimentState, RecordedSample, SampleBatch, StopReason, BATCH_SAMPLES};
+use swg_protocol::plan::Plan;
+use swg_protocol::{endpoint, ControlMode, ControlSample, DeviceInfo, JointParams, PROTOCOL_VERSION};
+
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RecordError {
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    #[error(
+        "the device speaks protocol version {device}, this tool {}: update the firmware or swg-host",
+        PROTOCOL_VERSION
+    )]
+    Protocol { device: u16 },
+    #[error("the joint has no parameter set, so it knows neither its gear ratio nor its deflection: push one first (swg-host push, or record --params)")]
+    NoParams,
+    #[error("the joint's set: {0}")]
+    Model(String),
+    #[error("the simulated joint: {0}")]
+    Joint(#[from] HilError),
+    #[error("the experiment stopped after {samples} of {ticks} ticks: {reason}; nothing was written")]
+    Stopped { reason: StopReason, samples: usize, ticks: u32 },
+    #[error("{} gap(s) in the recording, the first: {}; nothing was written (--allow-gaps writes it with the gaps listed)", .0.len(), .0[0])]
+    Gaps(Vec<BatchGap>),
+    #[error("the experiment did not end within {0:?} of its plan's length (is the board ticking?)")]
+    Stalled(Duration),
+}
+
+/// The joint the QEMU board controls in lockstep.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimulatedJoint {
+    pub plant: PlantParams,
+    pub truth: GearTruth,
+    /// The torque sensor: its reading is the true torque + `offset_nm` + Gaussian noise.
+    pub torque_offset_nm: f64,
+    pub torque_noise_nm: f64,
+    /// The temperature starts at `ambient_c` and rises with the motor's copper losses,
+    /// `loss_w_per_nm2`·u² W (u the motor command, N·m), through a thermal resistance
+    /// `kelvin_per_w` with time constant `thermal_seconds`.
+    pub ambient_c: f64,
+    pub loss_w_per_nm2: f64,
+    pub kelvin_per_w: f64,
+    pub thermal_seconds: f64,
+    pub seed: u64,
+}
+
+impl SimulatedJoint {
+    /// `truth` on `hil`'s default plant, with a sensor of 0.05 N·m noise and a 0.3 N·m offset,
+    /// and a motor that warms by about 1 K over a minute of the default plan.
+    pub fn new(truth: GearTruth) -> SimulatedJoint {
+        SimulatedJoint {
+            plant: PlantParams::default(),
+            truth,
+            torque_offset_nm: 0.3,
+            torque_noise_nm: 0.05,
+            ambient_c: 25.0,
+            loss_w_per_nm2: 4.0,
+            kelvin_per_w: 2.0,
+            thermal_seconds: 30.0,
+            seed: 1,
+        }
+    }
+
+    /// The output clamped on the bench: a stiff, damped fixture (0.05 kg·m², 2·10⁵ N·m/rad).
+    fn clamp() -> Environment {
+        Environment { inertia: 0.05, damping: 0.0, kind: EnvironmentKind::Spring { stiffness: 2.0e5, damping: 50.0 } }
+    }
+}
+
+/// What to record.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RecordOptions {
+    /// The plan, checked at its rate.
+    pub plan: Plan,
+    /// The plan in words and where it came from, for the recording's metadata.
+    pub plan_text: String,
+    pub plan_source: String,
+    /// A set to write to the joint first (not stored), else the one it has.
+    pub params: Option<JointParams>,
+    /// `None`: a board on its own sensors.
+    pub simulated: Option<SimulatedJoint>,
+    pub allow_gaps: bool,
+}
+
+/// Where the recording stands, for a progress bar.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Progress {
+    /// Ticks recorded so far, and the plan's.
+    pub recorded: u64,
+    pub ticks: u32,
+    /// The segment playing (from 0).
+    pub segment: u8,
+}
+
+/// A finished recording and how it went.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Recorded {
+    pub recording: Recording,
+    pub device: DeviceInfo,
+    /// Batches fetched, and those that came back empty.
+    pub batches: u32,
+    pub empty_batches: u32,
+    /// Ticks the joint dropped (its queue full), and the gaps they and lost batches left.
+    pub dropped: u32,
+    pub gaps: Vec<BatchGap>,
+    /// Wall time from the start to the last batch.
+    pub wall: Duration,
+}
+
+impl Recorded {
+    /// Recorded samples a second of wall time.
+    pub fn samples_per_second(&self) -> f64 {
+        self.recording.time.len() as f64 / self.wall.as_secs_f64().max(1e-9)
+    }
+}
+
+/// Runs `options.plan` on the joint at `link` and collects its recording. Leaves the
+/// controller off.
+pub fn record(
+    link: &mut Link,
+    options: &RecordOptions,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Recorded, RecordError> {
+    let device = link.call::<endpoint::GetDeviceInfo>(&())?;
+    if device.protocol_version != PROTOCOL_VERSION {
+        return Err(RecordError::Protocol { device: device.protocol_version });
+    }
+    if let Some(params) = &options.params {
+        link.call::<endpoint::WriteParams>(params)?;
+    }
+    let params = link.call::<endpoint::ReadParams>(&())?.ok_or(RecordError::NoParams)?;
+    let result = run(link, options, &params, device, progress);
+    // The experiment ends with the controller off; a failure may have left it driving.
+    let off = link.call::<endpoint::Configure>(&off_config());
+    let recorded = result?;
+    off?;
+    Ok(recorded)
+}
+
+fn off_config() -> swg_protocol::ControllerConfig {
+    controller_config(ControlMode::Off, &GAINS, 1.0, 0.0, 1.0e-3)
+}
+
+fn run(
+    link: &mut Link,
+    options: &RecordOptions,
+    params: &JointParams,
+    device: DeviceInfo,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Recorded, RecordError> {
+    let plan = &options.plan;
+    let rate = f64::from(plan.rate_hz());
+    let model = params.model.map(|_, value| f64::from(value));
+    // The linear mode: a deflection plan's reference is stiffness·θ_ref, which it holds θ at.
+    let stiffness = linear_stiffness(&model)?;
+    let ratio = f64::from(params.gear_ratio);
+    let mut joint = match &options.simulated {
+        Some(simulated) => Some(Lockstep::new(simulated, ratio)?),
+        None => None,
+    };
+    let deadband = joint.as_ref().map_or(0.0, |j| stiffness * j.plant_params.deflection_count());
+    link.call::<endpoint::Configure>(&controller_config(ControlMode::Linear, &GAINS, stiffness, deadband, 1.0 / rate))?;
+    let ticks = link.call::<endpoint::StartExperiment>(plan)?;
+    let start = Instant::now();
+    let mut collector = Collector::new();
+    let mut ticked = 0u64;
+    loop {
+        if let Some(joint) = &mut joint {
+            // One batch of ticks (and the one that ends the experiment), then a fetch.
+            for _ in 0..BATCH_SAMPLES {
+                if ticked > u64::from(ticks) || !collector.running() {
+                    break;
+                }
+                joint.tick(link, 1.0 / rate)?;
+                ticked += 1;
+            }
+        }
+        let batch = link.call::<endpoint::FetchSamples>(&())?;
+        let done = !batch.state.is_running() && batch.samples.is_empty();
+        collector.take(batch);
+        progress(Progress { recorded: collector.samples.len() as u64, ticks, segment: collector.segment() });
+        if done {
+            break;
+        }
+        let allowed = Duration::from_secs_f64(f64::from(ticks) / rate * 2.0 + 10.0);
+        if joint.is_none() && start.elapsed() > allowed {
+            return Err(RecordError::Stalled(allowed));
+        }
+    }
+    let wall = start.elapsed();
+    match collector.state {
+        ExperimentState::Finished => {}
+        ExperimentState::Stopped(reason) => {
+            return Err(RecordError::Stopped { reason, samples: collector.samples.len(), ticks });
+        }
+        ExperimentState::Idle | ExperimentState::Running { .. } => {
+            return Err(RecordError::Model(format!("the experiment ended in state {}", collector.state)));
+        }
+    }
+    // Ticks dropped after the last sample show only in the count.
+    if collector.dropped > collector.gap_ticks() {
+        let end = collector.next_tick();
+        collector.gaps.push(BatchGap::Ticks { from: end, to: end + (collector.dropped - collector.gap_ticks()) });
+    }
+    if !collector.gaps.is_empty() && !options.allow_gaps {
+        return Err(RecordError::Gaps(collector.gaps));
+    }
+    let recording = collector.recording(ratio, rate, &device, options);
+    Ok(Recorded {
+        recording,
+        device,
+        batches: collector.batches,
+        empty_batches: collector.empty_batches,
+        dropped: collector.dropped,
+        gaps: collector.gaps,
+        wall,
+    })
+}
+
+/// The batches as they come: checked against the one before, their samples kept with their ticks.
+struct Collector {
+    last: Option<SampleBatch>,
+    samples: Vec<(u32, RecordedSample)>,
+    gaps: Vec<BatchGap>,
+    state: ExperimentState,
+    dropped: u32,
+    batches: u32,
+    empty_batches: u32,
+}
+
+impl Collector {
+    fn new() -> Collector {
+        Collector {
+            last: None,
+            samples: Vec::new(),
+            gaps: Vec::new(),
+            state: ExperimentState::Running { segment: 0 },
+            dropped: 0,
+            batches: 0,
+            empty_batches: 0,
+        }
+    }
+
+    fn running(&self) -> bool {
+        self.state.is_running()
+    }
+
+    fn segment(&self) -> u8 {
+        match self.state {
+            ExperimentState::Running { segment } => segment,
+            _ => 0,
+        }
+    }
+
+    fn next_tick(&self) -> u32 {
+        self.last.as_ref().map_or(0, SampleBatch::end_tick)
+    }
+
+    /// Ticks missing in the gaps found so far.
+    fn gap_ticks(&self) -> u32 {
+        self.gaps
+            .iter()
+            .map(|gap| if let BatchGap::Ticks { from, to } = gap { to.saturating_sub(*from) } else { 0 })
+            .sum()
+    }
+
+    fn take(&mut self, batch: SampleBatch) {
+        if let Err(gap) = batch.follows(self.last.as_ref()) {
+            self.gaps.push(gap);
+        }
+        self.batches += 1;
+        self.empty_batches += u32::from(batch.samples.is_empty());
+        self.state = batch.state;
+        self.dropped = batch.dropped;
+        let first = batch.first_tick;
+        self.samples.extend(batch.samples.iter().enumerate().map(|(i, s)| (first + i as u32, *s)));
+        self.last = Some(batch);
+    }
+
+    fn recording(&self, ratio: f64, rate: f64, device: &DeviceInfo, options: &RecordOptions) -> Recording {
+        let n = self.samples.len();
+        let mut angles = Angles { input: Vec::with_capacity(n), output: Vec::with_capacity(n) };
+        let (mut time, mut torque, mut deflections) =
+            (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+        let mut temperature = Some(Vec::with_capacity(n));
+        for &(tick, sample) in &self.samples {
+            let (input, output) = (f64::from(sample.input_angle), f64::from(sample.output_angle));
+            time.push(f64::from(tick) / rate);
+            angles.input.push(input);
+            angles.output.push(output);
+            deflections.push(deflection(input, output, ratio));
+            torque.push(f64::from(sample.torque));
+            temperature = match (temperature, sample.temperature) {
+                (Some(mut values), Some(value)) => {
+                    values.push(f64::from(value));
+                    Some(values)
+                }
+                _ => None,
+            };
+        }
+        let board = match options.simulated {
+            Some(_) => "QEMU mps2-an386, in lockstep with swg-host's simulated joint",
+            None => "a joint board on its own sensors",
+        };
+        let mut metadata = vec![
+            (START_KEY.to_owned(), START_AT_REST.to_owned()),
+            ("board".to_owned(), board.to_owned()),
+            (
+                "firmware".to_owned(),
+                format!(
+                    "{}, protocol {}, model {}",
+                    device.firmware_version, device.protocol_version, device.model_version
+                ),
+            ),
+            ("motion".to_owned(), format!("record: {}", options.plan_source)),
+            ("plan".to_owned(), options.plan_text.clone()),
+            ("rate_hz".to_owned(), rate.to_string()),
+        ];
+        if !self.gaps.is_empty() {
+            let gaps: Vec<String> = self.gaps.iter().map(ToString::to_string).collect();
+            metadata.push(("gaps".to_owned(), gaps.join("; ")));
+        }
+        Recording { ratio, metadata, time, angles: Some(angles), deflection: deflections, torque, temperature }
+    }
+}
+
+/// The simulated joint with its sensors and its temperature.
+struct Lockstep {
+    plant: Plant,
+    plant_params: PlantParams,
+    noise: Normal<f64>,
+    rng: rand_chacha::ChaCha8Rng,
+    offset: f64,
+    temperature: f64,
+    thermal: (f64, f64, f64, f64),
+    command: f64,
+}
+
+impl Lockstep {
+    fn new(joint: &SimulatedJoint, ratio: f64) -> Result<Lockstep, RecordError> {
+        let plant_params = PlantParams { ratio, ..joint.plant };
+        let noise = Normal::new(0.0, joint.torque_noise_nm)
+            .map_err(|_| RecordError::Model(format!("torque noise {} N·m", joint.torque_noise_nm)))?;
+        Ok(Lockstep {
+            plant: Plant::new(plant_params, &joint.truth, SimulatedJoint::clamp())?,
+            plant_params,
+            noise,
+            rng: rand_chacha::ChaCha8Rng::seed_from_u64(joint.seed),
+            offset: joint.torque_offset_nm,
+            temperature: joint.ambient_c,
+            thermal: (joint.ambient_c, joint.loss_w_per_nm2, joint.kelvin_per_w, joint.thermal_seconds),
+            command: 0.0,
+        })
+    }
+
+    /// One control tick: the readings to the joint, its command held for `period`.
+    fn tick(&mut self, link: &mut Link, period: f64) -> Result<(), RecordError> {
+        let (input_angle, output_angle) = self.plant.encoders();
+        let torque = self.plant.state().torque + self.offset + self.noise.sample(&mut self.rng);
+        let sample = ControlSample {
+            input_angle: input_angle as f32,
+            output_angle: output_angle as f32,
+            reference: 0.0,
+            torque: torque as f32,
+            temperature: Some(self.temperature as f32),
+        };
+        self.command = f64::from(link.call::<endpoint::Control>(&sample)?.command);
+        self.plant.advance(self.command, period)?;
+        let (ambient, loss, resistance, tau) = self.thermal;
+        let target = ambient + resistance * loss * self.command * self.command;
+        self.temperature += (target - self.temperature) * (period / tau).min(1.0);
+        Ok(())
+    }
+}
