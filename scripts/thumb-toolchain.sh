@@ -74,3 +74,21 @@ thumb_firmware_budgets() {
         echo "budget: joint-qemu flash (text + data) $flash B of $flash_budget B, within"
     fi
 }
+
+# Boots the joint firmware (joint-qemu of FIRMWARE_ELF_DIR) under QEMU with `-icount shift=0`
+# and its serial link on a free TCP port; sets JOINT_PORT (tcp://127.0.0.1:N) and JOINT_QEMU
+# (QEMU's pid; the caller kills it, e.g. in an EXIT trap), once the port accepts.
+thumb_joint_qemu() {
+    local port
+    port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+    qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -display none -icount shift=0 \
+        -semihosting-config enable=on,target=native \
+        -serial "tcp:127.0.0.1:$port,server=on,wait=off,nodelay=on" \
+        -kernel "$FIRMWARE_ELF_DIR/joint-qemu" >/dev/null &
+    JOINT_QEMU=$!
+    for _ in $(seq 100); do
+        (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null && break
+        sleep 0.05
+    done
+    JOINT_PORT="tcp://127.0.0.1:$port"
+}

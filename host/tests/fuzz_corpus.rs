@@ -9,6 +9,8 @@ mod frames;
 mod host;
 
 use std::path::{Path, PathBuf};
+use swg_protocol::experiment::{ExperimentState, RecordedSample, SampleBatch};
+use swg_protocol::plan::{Channel, Limits, Plan, Segment};
 use swg_protocol::{
     encode_to_vec, Compensation, ControlMode, ControlOutput, ControlSample, ControllerConfig, DeviceInfo,
     DriveErrorKind, EncoderSample, ErrorReply, EvalPath, Feedforward, GearModel, JointParams, Params, Request,
@@ -148,6 +150,19 @@ fn frame_seeds() -> Vec<(String, Vec<u8>)> {
         command_limit: 1.0,
         period: 1.0e-3,
     };
+    let segments =
+        [Segment::Ramp { to: 5.0e-4, seconds: 0.5 }, Segment::Sine { amplitude: 2.0e-4, frequency_hz: 2.0, cycles: 3 }];
+    let limits = Limits { torque_nm: 30.0, deflection_rad: 1.0e-3 };
+    let plan = Plan::new(Channel::Deflection, limits, 1000.0, &segments).unwrap();
+    let sample = RecordedSample { input_angle: 0.025, output_angle: 1.0e-5, torque: 4.5, temperature: Some(30.5) };
+    let batch = SampleBatch {
+        sequence: 3,
+        first_tick: 48,
+        dropped: 0,
+        high_water: 16,
+        state: ExperimentState::Running { segment: 1 },
+        samples: std::iter::repeat_n(sample, 3).collect(),
+    };
     let requests = [
         Request::GetDeviceInfo,
         Request::WriteParams(params),
@@ -164,6 +179,9 @@ fn frame_seeds() -> Vec<(String, Vec<u8>)> {
             temperature: Some(31.0),
         }),
         Request::GetStatus,
+        Request::StartExperiment(plan),
+        Request::FetchSamples,
+        Request::StopExperiment,
     ];
     let version = Version { major: 0, minor: 1, patch: 0 };
     let responses = [
@@ -189,6 +207,9 @@ fn frame_seeds() -> Vec<(String, Vec<u8>)> {
         Response::Status(TickStatus { rate_hz: 20_000, ticks: 1_000, ..TickStatus::default() }),
         Response::Error(ErrorReply::Storage(StorageError::Verify)),
         Response::Error(ErrorReply::MotorDrive(DriveErrorKind::Fault)),
+        Response::ExperimentStarted(1_501),
+        Response::Samples(batch),
+        Response::Error(ErrorReply::ExperimentRunning),
     ];
     let mut frames: Vec<Vec<u8>> =
         requests.iter().zip(1..).map(|(r, id)| encode_to_vec(RequestId(id), r).unwrap()).collect();

@@ -116,6 +116,9 @@ pub struct SampleBatch {
     pub first_tick: u32,
     /// Samples the joint dropped since the experiment started: its queue was full.
     pub dropped: u32,
+    /// The most recorded ticks the joint's queue has held at once since the experiment started:
+    /// how close the link came to losing samples.
+    pub high_water: u32,
     /// The experiment's state after the last of `samples`.
     pub state: ExperimentState,
     pub samples: heapless::Vec<RecordedSample, BATCH_SAMPLES>,

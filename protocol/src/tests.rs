@@ -268,7 +268,14 @@ fn distinct_batch() -> SampleBatch {
     let first = RecordedSample { input_angle: 6.5, output_angle: -0.0625, torque: 12.25, temperature: Some(31.5) };
     let second = RecordedSample { input_angle: 6.75, output_angle: -0.03125, torque: -3.5, temperature: None };
     samples.extend_from_slice(&[first, second]).unwrap();
-    SampleBatch { sequence: 300, first_tick: 4800, dropped: 7, state: ExperimentState::Running { segment: 2 }, samples }
+    SampleBatch {
+        sequence: 300,
+        first_tick: 4800,
+        dropped: 7,
+        high_water: 29,
+        state: ExperimentState::Running { segment: 2 },
+        samples,
+    }
 }
 
 /// A controller configuration with every field different, exact in f32.
@@ -625,16 +632,16 @@ fn golden_responses() {
             &[0x0b, 0x09, 0x0f, 0x09, 0xf0, 0xa2, 0x04, 0x92, 0x41, 0x0d, 0x47, 0x00],
         ),
         (
-            // id 16 | 0a | sequence 300 = ac 02 | first_tick 4800 = c0 25 | dropped 07 |
+            // id 16 | 0a | sequence 300 = ac 02 | first_tick 4800 = c0 25 | dropped 07 | high_water 1d |
             // Running 01 segment 02 | 2 samples 02: 6.5 = 40d00000, -0.0625 = bd800000,
             // 12.25 = 41440000, Some 01 31.5 = 41fc0000 | 6.75 = 40d80000, -0.03125 = bd000000,
             // -3.5 = c0600000, None 00
             RequestId(16),
             Response::Samples(distinct_batch()),
             &[
-                0x0c, 0x09, 0x10, 0x0a, 0xac, 0x02, 0xc0, 0x25, 0x07, 0x01, 0x02, 0x02, 0x01, 0x03, 0xd0, 0x40, 0x01,
-                0x03, 0x80, 0xbd, 0x01, 0x04, 0x44, 0x41, 0x01, 0x01, 0x03, 0xfc, 0x41, 0x01, 0x03, 0xd8, 0x40, 0x01,
-                0x01, 0x02, 0xbd, 0x01, 0x03, 0x60, 0xc0, 0x05, 0x11, 0xd1, 0xcc, 0x91, 0x00,
+                0x0d, 0x09, 0x10, 0x0a, 0xac, 0x02, 0xc0, 0x25, 0x07, 0x1d, 0x01, 0x02, 0x02, 0x01, 0x03, 0xd0, 0x40,
+                0x01, 0x03, 0x80, 0xbd, 0x01, 0x04, 0x44, 0x41, 0x01, 0x01, 0x03, 0xfc, 0x41, 0x01, 0x03, 0xd8, 0x40,
+                0x01, 0x01, 0x02, 0xbd, 0x01, 0x03, 0x60, 0xc0, 0x05, 0x50, 0x30, 0x77, 0xcd, 0x00,
             ],
         ),
     ];
@@ -971,6 +978,7 @@ fn the_longest_message_of_each_kind_fits_a_frame() {
         sequence: u32::MAX,
         first_tick: u32::MAX,
         dropped: u32::MAX,
+        high_water: u32::MAX,
         state: ExperimentState::Stopped(StopReason::PlanRate),
         samples: heapless::Vec::from_slice(&[widest_sample; BATCH_SAMPLES]).unwrap(),
     };

@@ -70,10 +70,11 @@ pub(crate) struct Mailbox {
     /// experiment has ended.
     playing: AtomicBool,
     samples: Queue<Stamped, { QUEUE_SAMPLES + 1 }>,
-    /// Written by the tick: the state ([`code`]) and the samples dropped in this experiment (set
-    /// to 0 by the link before it hands an experiment over).
+    /// Written by the tick: the state ([`code`]), the samples dropped in this experiment and the
+    /// most the queue has held (both set to 0 by the link before it hands an experiment over).
     state: AtomicU32,
     dropped: AtomicU32,
+    high_water: AtomicU32,
     /// Written by the link: fetches and stop requests since boot.
     fetches: AtomicU32,
     stops: AtomicU32,
@@ -87,6 +88,7 @@ impl Mailbox {
             samples: Queue::new(),
             state: AtomicU32::new(0),
             dropped: AtomicU32::new(0),
+            high_water: AtomicU32::new(0),
             fetches: AtomicU32::new(0),
             stops: AtomicU32::new(0),
         }
@@ -95,10 +97,11 @@ impl Mailbox {
     pub(crate) fn split(&mut self) -> (LinkSide<'_>, TickSide<'_>) {
         let (sample_in, sample_out) = self.samples.split();
         let (slot, playing) = (&self.slot, &self.playing);
-        let (state, dropped, fetches, stops) = (&self.state, &self.dropped, &self.fetches, &self.stops);
+        let (state, dropped, high_water) = (&self.state, &self.dropped, &self.high_water);
+        let (fetches, stops) = (&self.fetches, &self.stops);
         (
-            LinkSide { slot, playing, samples: sample_out, state, dropped, fetches, stops },
-            TickSide { slot, playing, samples: sample_in, state, dropped, fetches, stops },
+            LinkSide { slot, playing, samples: sample_out, state, dropped, high_water, fetches, stops },
+            TickSide { slot, playing, samples: sample_in, state, dropped, high_water, fetches, stops },
         )
     }
 }
@@ -146,6 +149,7 @@ pub struct LinkSide<'a> {
     samples: Consumer<'a, Stamped>,
     state: &'a AtomicU32,
     dropped: &'a AtomicU32,
+    high_water: &'a AtomicU32,
     fetches: &'a AtomicU32,
     stops: &'a AtomicU32,
 }
@@ -188,8 +192,9 @@ impl LinkSide<'_> {
         unsafe {
             *self.slot.0.get() = Some(experiment);
         }
-        // The tick writes it only while an experiment plays.
+        // The tick writes them only while an experiment plays.
         self.dropped.store(0, Ordering::Relaxed);
+        self.high_water.store(0, Ordering::Relaxed);
         self.playing.store(true, Ordering::Release);
         Ok(())
     }
@@ -207,7 +212,7 @@ impl LinkSide<'_> {
     pub fn fetch(&mut self, sequence: u32, next_tick: u32) -> SampleBatch {
         bump(self.fetches);
         let state = self.state();
-        let dropped = self.dropped.load(Ordering::Acquire);
+        let (dropped, high_water) = (self.dropped.load(Ordering::Acquire), self.high_water.load(Ordering::Acquire));
         let first_tick = self.samples.peek().map_or(next_tick, |head| head.tick);
         let mut samples = Vec::new();
         while let Some(head) = self.samples.peek() {
@@ -216,7 +221,7 @@ impl LinkSide<'_> {
             }
             self.samples.dequeue();
         }
-        SampleBatch { sequence, first_tick, dropped, state, samples }
+        SampleBatch { sequence, first_tick, dropped, high_water, state, samples }
     }
 }
 
@@ -227,6 +232,7 @@ pub struct TickSide<'a> {
     samples: Producer<'a, Stamped>,
     state: &'a AtomicU32,
     dropped: &'a AtomicU32,
+    high_water: &'a AtomicU32,
     fetches: &'a AtomicU32,
     stops: &'a AtomicU32,
 }
@@ -323,6 +329,10 @@ impl TickSide<'_> {
         let sample = RecordedSample { input_angle, output_angle, torque, temperature };
         if self.samples.enqueue(Stamped { tick, sample }).is_err() {
             bump(self.dropped);
+        }
+        let held = self.samples.len() as u32;
+        if held > self.high_water.load(Ordering::Relaxed) {
+            self.high_water.store(held, Ordering::Relaxed);
         }
         let deflection = match ticker.active_gear_ratio() {
             Some(ratio) => input_angle / ratio - output_angle,

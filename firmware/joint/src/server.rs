@@ -660,6 +660,8 @@ mod tests {
             assert_eq!(batch.follows(previous), Ok(()), "batch {index}");
             assert_eq!(batch.dropped, 0);
         }
+        // Fetched every 16 ticks: the queue never held more than one batch.
+        assert_eq!(batches.last().unwrap().high_water, BATCH_SAMPLES as u32);
         let samples: Vec<_> = batches.iter().flat_map(|b| b.samples.iter().copied()).collect();
         assert_eq!(samples.len() as u32, plan.ticks());
         for (k, sample) in samples.iter().enumerate() {
@@ -727,6 +729,7 @@ mod tests {
         let first = fetch(&mut device);
         let second = fetch(&mut device);
         assert_eq!((first.dropped, first.samples.len(), second.samples.len()), (18, 16, 16));
+        assert_eq!(first.high_water, crate::experiment::QUEUE_SAMPLES as u32);
         assert_eq!(second.follows(Some(&first)), Ok(()));
         tick(&mut device, 1.0);
         let third = fetch(&mut device);

@@ -130,7 +130,7 @@ pub fn run(args: RecordArgs) -> Result<()> {
     };
     let text = format!(
         "recorded {samples} samples ({:.1} s at {} Hz) from firmware {} (protocol {}); {lost}\n\
-         link: {} batches ({} empty), {:.0} samples/s over {:.1} s\n\
+         link: {} batches ({} empty), {:.0} samples/s over {:.1} s; the joint's queue held {} ticks at most\n\
          plan: {}\n\
          wrote {}\n",
         samples as f64 / args.rate,
@@ -141,6 +141,7 @@ pub fn run(args: RecordArgs) -> Result<()> {
         recorded.empty_batches,
         recorded.samples_per_second(),
         recorded.wall.as_secs_f64(),
+        recorded.high_water,
         options.plan_text,
         args.out.display(),
     );

@@ -119,6 +119,8 @@ pub struct Recorded {
     pub empty_batches: u32,
     /// Ticks the joint dropped (its queue full), and the gaps they and lost batches left.
     pub dropped: u32,
+    /// The most ticks the joint's queue held at once.
+    pub high_water: u32,
     pub gaps: Vec<BatchGap>,
     /// Wall time from the start to the last batch.
     pub wall: Duration,
@@ -205,23 +207,7 @@ fn run(
         }
     }
     let wall = start.elapsed();
-    match collector.state {
-        ExperimentState::Finished => {}
-        ExperimentState::Stopped(reason) => {
-            return Err(RecordError::Stopped { reason, samples: collector.samples.len(), ticks });
-        }
-        ExperimentState::Idle | ExperimentState::Running { .. } => {
-            return Err(RecordError::Model(format!("the experiment ended in state {}", collector.state)));
-        }
-    }
-    // Ticks dropped after the last sample show only in the count.
-    if collector.dropped > collector.gap_ticks() {
-        let end = collector.next_tick();
-        collector.gaps.push(BatchGap::Ticks { from: end, to: end + (collector.dropped - collector.gap_ticks()) });
-    }
-    if !collector.gaps.is_empty() && !options.allow_gaps {
-        return Err(RecordError::Gaps(collector.gaps));
-    }
+    collector.finish(ticks, options.allow_gaps)?;
     let recording = collector.recording(ratio, rate, &device, options);
     Ok(Recorded {
         recording,
@@ -229,6 +215,7 @@ fn run(
         batches: collector.batches,
         empty_batches: collector.empty_batches,
         dropped: collector.dropped,
+        high_water: collector.high_water,
         gaps: collector.gaps,
         wall,
     })
@@ -241,6 +228,7 @@ struct Collector {
     gaps: Vec<BatchGap>,
     state: ExperimentState,
     dropped: u32,
+    high_water: u32,
     batches: u32,
     empty_batches: u32,
 }
@@ -253,6 +241,7 @@ impl Collector {
             gaps: Vec::new(),
             state: ExperimentState::Running { segment: 0 },
             dropped: 0,
+            high_water: 0,
             batches: 0,
             empty_batches: 0,
         }
@@ -281,6 +270,29 @@ impl Collector {
             .sum()
     }
 
+    /// The experiment's end as the last batch tells it: finished, with no gap unless
+    /// `allow_gaps` (ticks dropped after the last sample count as a gap at the end).
+    fn finish(&mut self, ticks: u32, allow_gaps: bool) -> Result<(), RecordError> {
+        match self.state {
+            ExperimentState::Finished => {}
+            ExperimentState::Stopped(reason) => {
+                return Err(RecordError::Stopped { reason, samples: self.samples.len(), ticks });
+            }
+            ExperimentState::Idle | ExperimentState::Running { .. } => {
+                return Err(RecordError::Model(format!("the experiment ended in state {}", self.state)));
+            }
+        }
+        let missing = self.gap_ticks();
+        if self.dropped > missing {
+            let end = self.next_tick();
+            self.gaps.push(BatchGap::Ticks { from: end, to: end + (self.dropped - missing) });
+        }
+        match self.gaps.first() {
+            Some(_) if !allow_gaps => Err(RecordError::Gaps(self.gaps.clone())),
+            _ => Ok(()),
+        }
+    }
+
     fn take(&mut self, batch: SampleBatch) {
         if let Err(gap) = batch.follows(self.last.as_ref()) {
             self.gaps.push(gap);
@@ -289,6 +301,7 @@ impl Collector {
         self.empty_batches += u32::from(batch.samples.is_empty());
         self.state = batch.state;
         self.dropped = batch.dropped;
+        self.high_water = batch.high_water;
         let first = batch.first_tick;
         self.samples.extend(batch.samples.iter().enumerate().map(|(i, s)| (first + i as u32, *s)));
         self.last = Some(batch);
@@ -387,5 +400,91 @@ impl Lockstep {
         let target = ambient + resistance * loss * self.command * self.command;
         self.temperature += (target - self.temperature) * (period / tau).min(1.0);
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hil::plant::GearTruth;
+    use crate::link::fake::FakeDevice;
+    use crate::link::push::{joint_params, JointSettings};
+    use crate::simulate::{MicroSlip, Physics};
+    use model_core::GearModel;
+    use swg_protocol::plan::{Channel, Limits, Segment};
+
+    fn batch(sequence: u32, first_tick: u32, len: usize, dropped: u32, state: ExperimentState) -> SampleBatch {
+        let sample = RecordedSample { input_angle: 0.0, output_angle: 0.0, torque: 0.0, temperature: None };
+        let samples = std::iter::repeat_n(sample, len).collect();
+        SampleBatch { sequence, first_tick, dropped, high_water: 0, state, samples }
+    }
+
+    const RUNNING: ExperimentState = ExperimentState::Running { segment: 0 };
+
+    #[test]
+    fn a_lost_batch_or_a_dropped_tick_is_a_gap_and_fails_the_recording() {
+        // In turn, then finished: no gap.
+        let mut collector = Collector::new();
+        for b in
+            [batch(0, 0, 16, 0, RUNNING), batch(1, 16, 4, 0, RUNNING), batch(2, 20, 0, 0, ExperimentState::Finished)]
+        {
+            collector.take(b);
+        }
+        assert!(collector.finish(20, false).is_ok());
+        assert_eq!(collector.samples.len(), 20);
+        // A batch lost on the way.
+        let mut collector = Collector::new();
+        collector.take(batch(0, 0, 16, 0, RUNNING));
+        collector.take(batch(2, 32, 0, 0, ExperimentState::Finished));
+        let Err(RecordError::Gaps(gaps)) = collector.finish(32, false) else { panic!("a lost batch passed") };
+        assert_eq!(gaps[0], BatchGap::Sequence { expected: 1, got: 2 });
+        // Ticks the joint dropped, between batches and after the last one: each a gap, counted.
+        let mut collector = Collector::new();
+        collector.take(batch(0, 0, 16, 3, RUNNING));
+        collector.take(batch(1, 19, 0, 5, ExperimentState::Finished));
+        let Err(RecordError::Gaps(gaps)) = collector.finish(40, false) else { panic!("dropped ticks passed") };
+        assert_eq!(gaps, [BatchGap::Ticks { from: 16, to: 19 }, BatchGap::Ticks { from: 19, to: 21 }]);
+        // --allow-gaps keeps them, for the metadata.
+        assert!(collector.finish(40, true).is_ok());
+        // A stop is an error with its reason.
+        let mut collector = Collector::new();
+        collector.take(batch(0, 0, 5, 0, ExperimentState::Stopped(StopReason::LinkLost)));
+        let Err(RecordError::Stopped { reason, samples, .. }) = collector.finish(100, false) else { panic!() };
+        assert_eq!((reason, samples), (StopReason::LinkLost, 5));
+    }
+
+    #[test]
+    fn the_in_process_joint_records_every_tick_of_its_plan() {
+        let seed = GearModel::paper(model_core::checks::SEED_TABLE_FIT);
+        let settings = JointSettings { gear_ratio: 50.0, torque_limit: 60.0, direction_band: 2.0e-6 };
+        let segments = [
+            Segment::Hold { seconds: 0.1, dither_amplitude: 0.0, dither_hz: 0.0 },
+            Segment::Sine { amplitude: 5.0e-4, frequency_hz: 5.0, cycles: 3 },
+        ];
+        let limits = Limits { torque_nm: 40.0, deflection_rad: 1.0e-3 };
+        let plan = Plan::new(Channel::Deflection, limits, 1000.0, &segments).unwrap();
+        let truth = GearTruth::Physics { physics: Physics::MicroSlip(MicroSlip::default()), model: seed };
+        let options = RecordOptions {
+            plan,
+            plan_text: "a test plan".into(),
+            plan_source: "the test".into(),
+            params: Some(joint_params(&seed, &settings).unwrap()),
+            simulated: Some(SimulatedJoint::new(truth)),
+            allow_gaps: false,
+        };
+        let mut seen = Vec::new();
+        let recorded = record(&mut FakeDevice::new().link(), &options, &mut |p| seen.push(p.recorded)).unwrap();
+        let recording = &recorded.recording;
+        assert_eq!(recording.time.len() as u32, plan.ticks());
+        assert!(recorded.gaps.is_empty() && recorded.dropped == 0);
+        assert!(recorded.high_water <= BATCH_SAMPLES as u32);
+        assert!(recording.starts_at_rest());
+        assert!(seen.windows(2).all(|w| w[0] <= w[1]) && seen.last() == Some(&u64::from(plan.ticks())));
+        // At rest the sensor reads its offset; the sine reaches most of its amplitude.
+        let rest: f64 = recording.torque[..100].iter().sum::<f64>() / 100.0;
+        assert!((rest - 0.3).abs() < 0.02, "{rest}");
+        let reached = recording.deflection.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+        assert!(reached > 4.5e-4 && reached < 5.5e-4, "{reached}");
+        assert_eq!(recording.time[1] - recording.time[0], 1.0e-3);
     }
 }
