@@ -16,7 +16,8 @@
 #      Instruction counts depend on the compiler version: the toolchain is printed below.
 #   2. flash and RAM of the QEMU build (arm-none-eabi-size): flash = text + data, RAM = data + bss;
 #      the stack on top of that is measured in 3: the firmware paints it at boot, and after the
-#      pushes and replays its deepest overwritten word is read through QEMU's monitor.
+#      pushes, replays and an experiment (`record`) its deepest overwritten word is read through
+#      QEMU's monitor.
 #   3. time for `swg-host push` (version check, write, read back, commit) over QEMU's TCP link.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -59,12 +60,15 @@ for run in 1 2 3 4 5; do
     "$swg" push data/seed/lht-20-50-fit.json --port "tcp://127.0.0.1:$port" --ratio 50 | grep committed
 done
 
-echo "== stack high-water mark after the pushes and two replays"
+echo "== stack high-water mark after the pushes, two replays and an experiment"
 "$swg" simulate --out bench/out/replay-loops.csv --cycles 2 --frequency 1 --rate 1000 \
     --input-bits 20 --output-bits 20 >/dev/null
 for path in fast direct; do
     "$swg" replay bench/out/replay-loops.csv --port "tcp://127.0.0.1:$port" --path "$path" | grep "worst error"
 done
+# And an experiment: the link's deepest path is a fetch's batch.
+"$swg" record --port "tcp://127.0.0.1:$port" --out bench/out/firmware-record.csv --params data/seed/lht-20-50-fit.json \
+    --ratio 50 --amplitude 1e-3 --frequency 5 --simulated-joint micro-slip | grep "samples lost"
 # The painted area is the 16 KiB below the top of RAM (0x2040_0000); see firmware/qemu/src/lib.rs.
 ram=$(python3 - "$monitor" "$static_ram" <<'PY'
 import re, socket, sys, time
