@@ -14,7 +14,8 @@ use swg_protocol::GearModel;
 pub const FLASH_BYTES: u32 = 52 * 1024;
 
 /// RAM of the QEMU build (data + bss + the stack's high-water mark), bytes. 10 KiB since the
-/// experiment mode: its sample queue (33 × 24 B), its plan in the handoff and in the tick.
+/// experiment mode: its sample queue (33 × 24 B), its slot (the plan and its player), a batch
+/// on the link's stack.
 pub const RAM_BYTES: u32 = 10 * 1024;
 
 /// Instructions of one tick of the torque controller with its evaluator
