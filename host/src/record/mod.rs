@@ -15,7 +15,9 @@ use crate::link::{Link, LinkError};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use std::time::{Duration, Instant};
-use swg_protocol::experiment::{BatchGap, ExperimentState, RecordedSample, SampleBatch, StopReason, BATCH_SAMPLES};
+use swg_protocol::experiment::{
+    BatchGap, ExperimentState, RecordedSample, SampleBatch, StopReason, BATCH_SAMPLES, LINK_TIMEOUT_SECONDS,
+};
 use swg_protocol::plan::Plan;
 use swg_protocol::{endpoint, ControlMode, ControlSample, DeviceInfo, JointParams, PROTOCOL_VERSION};
 
@@ -41,6 +43,8 @@ pub enum RecordError {
     Gaps(Vec<BatchGap>),
     #[error("the experiment did not end within {0:?} of its plan's length (is the board ticking?)")]
     Stalled(Duration),
+    #[error("the joint's last batch said \"{0}\" where the experiment had ended")]
+    Unfinished(ExperimentState),
 }
 
 /// The joint the QEMU board controls in lockstep.
@@ -174,7 +178,7 @@ fn run(
     let stiffness = linear_stiffness(&model)?;
     let ratio = f64::from(params.gear_ratio);
     let mut joint = match &options.simulated {
-        Some(simulated) => Some(Lockstep::new(simulated, ratio)?),
+        Some(simulated) => Some(Lockstep::new(simulated, ratio, rate)?),
         None => None,
     };
     let deadband = joint.as_ref().map_or(0.0, |j| stiffness * j.plant_params.deflection_count());
@@ -183,10 +187,13 @@ fn run(
     let start = Instant::now();
     let mut collector = Collector::new();
     let mut ticked = 0u64;
+    // In lockstep, a fetch after every batch of ticks, and often enough for the joint's
+    // watchdog at low rates (it allows LINK_TIMEOUT_SECONDS of ticks without one).
+    let per_fetch = ((f64::from(LINK_TIMEOUT_SECONDS) * rate) as usize).clamp(1, BATCH_SAMPLES);
     loop {
         if let Some(joint) = &mut joint {
-            // One batch of ticks (and the one that ends the experiment), then a fetch.
-            for _ in 0..BATCH_SAMPLES {
+            // A batch of ticks (and the one that ends the experiment), then a fetch.
+            for _ in 0..per_fetch {
                 if ticked > u64::from(ticks) || !collector.running() {
                     break;
                 }
@@ -278,9 +285,7 @@ impl Collector {
             ExperimentState::Stopped(reason) => {
                 return Err(RecordError::Stopped { reason, samples: self.samples.len(), ticks });
             }
-            ExperimentState::Idle | ExperimentState::Running { .. } => {
-                return Err(RecordError::Model(format!("the experiment ended in state {}", self.state)));
-            }
+            ExperimentState::Idle | ExperimentState::Running { .. } => return Err(RecordError::Unfinished(self.state)),
         }
         let missing = self.gap_ticks();
         if self.dropped > missing {
@@ -367,8 +372,11 @@ struct Lockstep {
 }
 
 impl Lockstep {
-    fn new(joint: &SimulatedJoint, ratio: f64) -> Result<Lockstep, RecordError> {
-        let plant_params = PlantParams { ratio, ..joint.plant };
+    /// At the control rate `rate` Hz: the plant integrated in steps of 0.1 ms at most (the
+    /// clamp's mode is at 320 Hz).
+    fn new(joint: &SimulatedJoint, ratio: f64, rate: f64) -> Result<Lockstep, RecordError> {
+        let substeps = joint.plant.substeps.max((1.0e4 / rate).ceil() as usize);
+        let plant_params = PlantParams { ratio, substeps, ..joint.plant };
         let noise = Normal::new(0.0, joint.torque_noise_nm)
             .map_err(|_| RecordError::Model(format!("torque noise {} N·m", joint.torque_noise_nm)))?;
         Ok(Lockstep {
@@ -486,5 +494,14 @@ mod tests {
         let reached = recording.deflection.iter().fold(0.0f64, |m, d| m.max(d.abs()));
         assert!(reached > 4.5e-4 && reached < 5.5e-4, "{reached}");
         assert_eq!(recording.time[1] - recording.time[0], 1.0e-3);
+        // At 250 Hz the joint's watchdog allows 10 silent ticks: the lockstep fetches in time.
+        let slow_segments = [
+            Segment::Hold { seconds: 0.5, dither_amplitude: 0.0, dither_hz: 0.0 },
+            Segment::Sine { amplitude: 1.0e-4, frequency_hz: 2.0, cycles: 3 },
+        ];
+        let slow = Plan::new(Channel::Deflection, limits, 250.0, &slow_segments).unwrap();
+        let options = RecordOptions { plan: slow, ..options };
+        let recorded = record(&mut FakeDevice::new().link(), &options, &mut |_| {}).unwrap();
+        assert_eq!(recorded.recording.time.len() as u32, slow.ticks());
     }
 }
