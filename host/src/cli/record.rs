@@ -64,7 +64,7 @@ pub struct RecordArgs {
     #[arg(long, default_value_t = 0.3, value_name = "NM", allow_negative_numbers = true)]
     sensor_offset: f64,
     /// The simulated torque sensor's noise (standard deviation), N·m.
-    #[arg(long, default_value_t = 0.05, value_name = "NM")]
+    #[arg(long, default_value_t = 0.05, value_name = "NM", allow_negative_numbers = true)]
     sensor_noise: f64,
 }
 
@@ -105,6 +105,9 @@ pub fn run(args: RecordArgs) -> Result<()> {
         simulated,
         allow_gaps: args.allow_gaps,
     };
+    if let Some(simulated) = &options.simulated {
+        simulated.validate()?;
+    }
     let mut link = args.port.open()?;
     let bar = ProgressBar::new(u64::from(plan.ticks()));
     bar.set_style(

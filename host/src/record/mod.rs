@@ -37,6 +37,8 @@ pub enum RecordError {
     Model(String),
     #[error("the simulated joint: {0}")]
     Joint(#[from] HilError),
+    #[error("the simulated joint's {name} must be {expected}, found {value}")]
+    SimulatedJoint { name: &'static str, expected: &'static str, value: f64 },
     #[error("the experiment stopped after {samples} of {ticks} ticks: {reason}; nothing was written")]
     Stopped { reason: StopReason, samples: usize, ticks: u32 },
     #[error("{} gap(s) in the recording, the first: {}; nothing was written (--allow-gaps writes it with the gaps listed)", .0.len(), .0[0])]
@@ -80,6 +82,23 @@ impl SimulatedJoint {
             thermal_seconds: 30.0,
             seed: 1,
         }
+    }
+
+    /// Each figure finite and within its range: checked by [`record`] before any traffic, and
+    /// by a caller before it opens the link.
+    pub fn validate(&self) -> Result<(), RecordError> {
+        let checks = [
+            ("torque sensor's noise", "finite and ≥ 0 N·m", self.torque_noise_nm, self.torque_noise_nm >= 0.0),
+            ("torque sensor's offset", "a finite torque, N·m", self.torque_offset_nm, true),
+            ("ambient temperature", "finite, °C", self.ambient_c, true),
+            ("losses", "finite and ≥ 0 W/(N·m)²", self.loss_w_per_nm2, self.loss_w_per_nm2 >= 0.0),
+            ("thermal resistance", "finite and ≥ 0 K/W", self.kelvin_per_w, self.kelvin_per_w >= 0.0),
+            ("thermal time constant", "finite and > 0 s", self.thermal_seconds, self.thermal_seconds > 0.0),
+        ];
+        if let Some((name, expected, value, _)) = checks.into_iter().find(|(_, _, v, ok)| !(*ok && v.is_finite())) {
+            return Err(RecordError::SimulatedJoint { name, expected, value });
+        }
+        Ok(())
     }
 
     /// The output clamped on the bench: a stiff, damped fixture (0.05 kg·m², 2·10⁵ N·m/rad).
@@ -144,6 +163,9 @@ pub fn record(
     options: &RecordOptions,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Recorded, RecordError> {
+    if let Some(simulated) = &options.simulated {
+        simulated.validate()?;
+    }
     let device = link.call::<endpoint::GetDeviceInfo>(&())?;
     if device.protocol_version != PROTOCOL_VERSION {
         return Err(RecordError::Protocol { device: device.protocol_version });
@@ -377,8 +399,12 @@ impl Lockstep {
     fn new(joint: &SimulatedJoint, ratio: f64, rate: f64) -> Result<Lockstep, RecordError> {
         let substeps = joint.plant.substeps.max((1.0e4 / rate).ceil() as usize);
         let plant_params = PlantParams { ratio, substeps, ..joint.plant };
-        let noise = Normal::new(0.0, joint.torque_noise_nm)
-            .map_err(|_| RecordError::Model(format!("torque noise {} N·m", joint.torque_noise_nm)))?;
+        joint.validate()?;
+        let noise = Normal::new(0.0, joint.torque_noise_nm).map_err(|_| RecordError::SimulatedJoint {
+            name: "torque sensor's noise",
+            expected: "finite and ≥ 0 N·m",
+            value: joint.torque_noise_nm,
+        })?;
         Ok(Lockstep {
             plant: Plant::new(plant_params, &joint.truth, SimulatedJoint::clamp())?,
             plant_params,
