@@ -17,7 +17,7 @@ const ALLOWED: &[(&str, &[&str], &[&str])] = &[
     ("report", &["diagnose", "fit", "gear", "predict", "prepare", "input", "numeric"], &[]),
     ("link", &["gear", "input", "prepare"], &["simulate"]),
     ("hil", &["gear", "input", "simulate", "link", "report"], &["fit"]),
-    ("record", &["hil", "input", "link"], &[]),
+    ("record", &["hil", "input", "link"], &["simulate"]),
 ];
 
 /// The `crate::x` or `crate::diagnose::effects` paths a file names, outside and inside its
