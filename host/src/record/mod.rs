@@ -33,8 +33,6 @@ pub enum RecordError {
     Protocol { device: u16 },
     #[error("the joint has no parameter set, so it knows neither its gear ratio nor its deflection: push one first (swg-host push, or record --params)")]
     NoParams,
-    #[error("the joint's set: {0}")]
-    Model(String),
     #[error("the simulated joint: {0}")]
     Joint(#[from] HilError),
     #[error("the simulated joint's {name} must be {expected}, found {value}")]
@@ -225,6 +223,11 @@ fn run(
         }
         let batch = link.call::<endpoint::FetchSamples>(&())?;
         let done = !batch.state.is_running() && batch.samples.is_empty();
+        // In lockstep every tick has been sent: a joint still running has lost count.
+        let lost_count = joint.is_some() && ticked > u64::from(ticks) && batch.samples.is_empty();
+        if lost_count && batch.state.is_running() {
+            return Err(RecordError::Unfinished(batch.state));
+        }
         collector.take(batch);
         progress(Progress { recorded: collector.samples.len() as u64, ticks, segment: collector.segment() });
         if done {
