@@ -32,6 +32,9 @@ pub struct Server<F> {
     params: Option<JointParams>,
     /// The last accepted controller configuration drives the motor (a mode other than `Off`).
     driving: bool,
+    /// A configuration that drives was accepted since the last experiment started: an
+    /// experiment's end turns the controller off, so each experiment needs one of its own.
+    armed: bool,
     /// The request whose lockstep sample the tick has been handed: its answer is due.
     awaiting: Option<RequestId>,
     /// The experiment's next batch number, and the plan tick after the last batch's samples.
@@ -48,6 +51,7 @@ impl<F: NorFlash> Server<F> {
             store,
             params: None,
             driving: false,
+            armed: false,
             awaiting: None,
             batch_sequence: 0,
             next_tick: 0,
@@ -225,11 +229,13 @@ impl<F: NorFlash> Server<F> {
         }
         port.post(Command::Configure(config))?;
         self.driving = config.mode != ControlMode::Off;
+        self.armed = self.driving;
         Ok(())
     }
 
     /// Checks `plan` and what an experiment needs (no other running, a parameter set for the
-    /// deflection, the controller driving), then hands it to the tick; the ticks it plays.
+    /// deflection, the controller configured to drive since the last experiment), then hands it
+    /// to the tick; the ticks it plays.
     fn start_experiment(&mut self, plan: &Plan, port: &mut LinkPort) -> Result<u32, ErrorReply> {
         plan.check().map_err(|_| ErrorReply::InvalidPlan)?;
         if port.experiment().state().is_running() {
@@ -238,10 +244,11 @@ impl<F: NorFlash> Server<F> {
         if self.params.is_none() {
             return Err(ErrorReply::NoParams);
         }
-        if !self.driving {
+        if !self.armed {
             return Err(ErrorReply::ControllerOff);
         }
         port.experiment().start(plan)?;
+        self.armed = false;
         (self.batch_sequence, self.next_tick) = (0, 0);
         Ok(plan.ticks())
     }
@@ -769,6 +776,9 @@ mod tests {
         let Response::Control(output) = request(&mut device, &Request::Control(sample)) else { panic!() };
         assert_eq!(output.command, 0.0);
         assert_eq!(fetch(&mut device).state, ExperimentState::Stopped(StopReason::Host));
+        // Its end turned the controller off: the next experiment needs the controller again.
+        assert_eq!(request(&mut device, &start), Response::Error(ErrorReply::ControllerOff));
         assert_eq!(request(&mut device, &Request::Configure(CONFIG)), Response::ControlAccepted);
+        assert_eq!(request(&mut device, &start), Response::ExperimentStarted(plan.ticks()));
     }
 }
