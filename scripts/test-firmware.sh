@@ -11,7 +11,10 @@
 #   5. end to end under QEMU: push, read back, replay, bad traffic (host/tests/firmware_e2e.rs)
 #   6. the closed loop in lockstep under QEMU: the firmware's torque controller on the host's
 #      simulated joint, library and `swg-host hil` (host/tests/hil_e2e.rs)
-#   7. the control tick under a burst of link traffic during a lockstep run: no overrun, no late
+#   7. the joint's identification experiment under QEMU: record, then fit, predict, diagnose,
+#      push and hil on the recording; bad plans and a stopped experiment write nothing
+#      (host/tests/record_e2e.rs)
+#   8. the control tick under a burst of link traffic during a lockstep run: no overrun, no late
 #      tick, no missed period (host/tests/tick_e2e.rs; QEMU with -icount, see host/tests/qemu/)
 # Exits non-zero on the first failure.
 set -euo pipefail
