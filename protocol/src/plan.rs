@@ -421,13 +421,6 @@ pub struct Player<F> {
     started: bool,
 }
 
-impl<F> Player<F> {
-    /// The plan it plays.
-    pub fn plan(&self) -> &Plan {
-        &self.plan
-    }
-}
-
 impl<F: Real> Iterator for Player<F> {
     type Item = Setpoint<F>;
 

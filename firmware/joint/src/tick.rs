@@ -164,6 +164,18 @@ mod tests {
     use swg_protocol::{ControlMode, ControlSample, ControllerConfig, DriveErrorKind, SensorErrorKind};
 
     const TIMING: TickTiming = TickTiming { clock_hz: 1_000_000, period: 100, late_bound: 5 };
+    /// The controller open-loop (u = T_ref/N), at the 10 kHz of [`TIMING`].
+    const OPEN_LOOP: ControllerConfig = ControllerConfig {
+        mode: ControlMode::OpenLoop,
+        kp: 0.0,
+        ki: 0.0,
+        integral_deadband: 0.0,
+        damping: 0.0,
+        torsion_damping: 0.0,
+        stiffness: 1.0,
+        command_limit: 1.0,
+        period: 1.0e-4,
+    };
     const AT_REST: Readings = Readings { input_angle: 0.0, output_angle: 0.0, torque: Some(0.0), temperature: None };
 
     #[test]
@@ -195,18 +207,7 @@ mod tests {
         let mut joint = Joint::new();
         let mut drive = Recorder::default();
         let start = TickStart { latency: 0, now: 0 };
-        let config = ControllerConfig {
-            mode: ControlMode::OpenLoop,
-            kp: 0.0,
-            ki: 0.0,
-            integral_deadband: 0.0,
-            damping: 0.0,
-            torsion_damping: 0.0,
-            stiffness: 1.0,
-            command_limit: 1.0,
-            period: 5.0e-5,
-        };
-        link.post(Command::Configure(config)).unwrap();
+        link.post(Command::Configure(OPEN_LOOP)).unwrap();
         joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
         // Without parameters the controller is off: zero.
         assert_eq!(drive.applied, [0.0]);
@@ -239,17 +240,6 @@ mod tests {
             torque_limit: 50.0,
             direction_band: 2.0e-6,
         };
-        let config = ControllerConfig {
-            mode: ControlMode::OpenLoop,
-            kp: 0.0,
-            ki: 0.0,
-            integral_deadband: 0.0,
-            damping: 0.0,
-            torsion_damping: 0.0,
-            stiffness: 1.0,
-            command_limit: 1.0,
-            period: 1.0e-4,
-        };
         let limits = Limits { torque_nm: 20.0, deflection_rad: 0.01 };
         let plan =
             |rate| Plan::new(Channel::Torque, limits, rate, &[Segment::Ramp { to: 5.0, seconds: 0.05 }]).unwrap();
@@ -264,7 +254,7 @@ mod tests {
             let mut joint = Joint::new();
             let mut drive = Recorder::default();
             link.stage(&params).unwrap();
-            link.post(Command::Configure(config)).unwrap();
+            link.post(Command::Configure(OPEN_LOOP)).unwrap();
             joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
             link.experiment().start(&plan(rate)).unwrap();
             for _ in 0..10 {
@@ -278,7 +268,7 @@ mod tests {
         let (mut link, mut tick) = handoff.split();
         let (mut joint, mut drive) = (Joint::new(), Recorder::default());
         link.stage(&params).unwrap();
-        link.post(Command::Configure(config)).unwrap();
+        link.post(Command::Configure(OPEN_LOOP)).unwrap();
         joint.own_tick(&mut tick, start, Ok::<_, SensorErrorKind>(AT_REST), &mut drive);
         link.experiment().start(&plan(10_000.0)).unwrap();
         for _ in 0..30 {

@@ -4,16 +4,13 @@ use super::push::PortOptions;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use model_core::memory::Hysteretic;
-use model_core::GearModel;
 use std::path::PathBuf;
 use swg_host::hil::GearTruth;
-use swg_host::input::plan::{read_plan, PlanSpec};
+use swg_host::input::plan::read_plan;
 use swg_host::link::push::{joint_params, JointSettings};
-use swg_host::record::{record, Progress, RecordOptions, SimulatedJoint};
+use swg_host::record::{default_plan, record, PlanRequest, Progress, RecordOptions, SimulatedJoint};
 use swg_host::report::output::Outputs;
 use swg_host::report::params::{parse_model, read_model};
-use swg_protocol::plan::{Channel, Limits};
 
 #[derive(Args)]
 pub struct RecordArgs {
@@ -40,17 +37,17 @@ pub struct RecordArgs {
     rate: f64,
     /// The default plan's largest deflection amplitude A, rad. Default: 80 % of the --params
     /// set's identified range.
-    #[arg(long, value_name = "RAD")]
+    #[arg(long, value_name = "RAD", allow_negative_numbers = true)]
     amplitude: Option<f64>,
     /// The default plan's slow frequency, Hz (it plays 4× this too, and dithers at 10×).
     #[arg(long, default_value_t = 0.5, value_name = "HZ")]
     frequency: f64,
     /// The default plan's torque limit, N·m. Default: 1.5× the --params model's largest torque
     /// within ±1.5·A.
-    #[arg(long, value_name = "NM")]
+    #[arg(long, value_name = "NM", allow_negative_numbers = true)]
     torque_limit: Option<f64>,
     /// The default plan's deflection limit, rad. Default: 1.5·A.
-    #[arg(long, value_name = "RAD")]
+    #[arg(long, value_name = "RAD", allow_negative_numbers = true)]
     deflection_limit: Option<f64>,
     /// Write the recording even when samples were lost, with the gaps listed in its metadata.
     #[arg(long)]
@@ -82,7 +79,15 @@ pub fn run(args: RecordArgs) -> Result<()> {
     };
     let spec = match &args.plan {
         Some(path) => read_plan(path).context("--plan")?,
-        None => default_plan(&args, model.as_ref())?,
+        None => {
+            let asked = PlanRequest {
+                amplitude: args.amplitude,
+                frequency_hz: args.frequency,
+                torque_limit: args.torque_limit,
+                deflection_limit: args.deflection_limit,
+            };
+            default_plan(&asked, model.as_ref())?
+        }
     };
     let plan = spec.at_rate(args.rate)?;
     let simulated = match args.simulated_joint {
@@ -150,43 +155,4 @@ pub fn run(args: RecordArgs) -> Result<()> {
     );
     super::print_then_commit(&text, outputs)?;
     Ok(())
-}
-
-/// The default plan in deflection at A = --amplitude (or 80 % of the set's identified range),
-/// within --torque-limit and --deflection-limit (or 1.5·A, and 1.5× the set's torque there).
-fn default_plan(args: &RecordArgs, model: Option<&GearModel<f64>>) -> Result<PlanSpec> {
-    let amplitude = match (args.amplitude, model) {
-        (Some(amplitude), _) => amplitude,
-        (None, Some(model)) if model.spring.range[1] < model_core::spring::UNBOUNDED_RANGE => {
-            0.8 * model.spring.range[0].abs().min(model.spring.range[1])
-        }
-        (None, Some(_)) => bail!(
-            "the default plan needs --amplitude: the --params set was not fitted on a recording, so it has no identified range"
-        ),
-        (None, None) => bail!("the default plan needs --amplitude (or --params, whose identified range sets it)"),
-    };
-    if !(amplitude.is_finite() && amplitude > 0.0) {
-        bail!("--amplitude must be a deflection > 0 rad, found {amplitude}");
-    }
-    let deflection_limit = args.deflection_limit.unwrap_or(1.5 * amplitude);
-    let torque_limit = match (args.torque_limit, model) {
-        (Some(limit), _) => limit,
-        (None, Some(model)) => 1.5 * peak_torque(model, 1.5 * amplitude)?,
-        (None, None) => bail!("the default plan needs --torque-limit (or --params, whose model sets it)"),
-    };
-    let limits = Limits { torque_nm: torque_limit as f32, deflection_rad: deflection_limit as f32 };
-    Ok(PlanSpec::default_plan(Channel::Deflection, amplitude, args.frequency, limits))
-}
-
-/// The model's largest |torque| on the way from rest to ±`reach`, N·m.
-fn peak_torque(model: &GearModel<f64>, reach: f64) -> Result<f64> {
-    let mut peak = 0.0f64;
-    for side in [1.0, -1.0] {
-        let mut evaluator = model.evaluator(0.0).context("--params: the model cannot be evaluated")?;
-        for k in 0..=100 {
-            let at = evaluator.step(side * reach * f64::from(k) / 100.0).context("--params")?;
-            peak = peak.max(at.torque.abs());
-        }
-    }
-    Ok(peak)
 }

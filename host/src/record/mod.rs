@@ -10,15 +10,18 @@
 use crate::hil::plant::{GearTruth, Plant, PlantParams};
 use crate::hil::scenario::{Environment, EnvironmentKind};
 use crate::hil::{controller_config, linear_stiffness, HilError, GAINS};
+use crate::input::plan::PlanSpec;
 use crate::input::{deflection, Angles, Recording, START_AT_REST, START_KEY};
 use crate::link::{Link, LinkError};
+use model_core::memory::Hysteretic;
+use model_core::GearModel;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use std::time::{Duration, Instant};
 use swg_protocol::experiment::{
     BatchGap, ExperimentState, RecordedSample, SampleBatch, StopReason, BATCH_SAMPLES, LINK_TIMEOUT_SECONDS,
 };
-use swg_protocol::plan::Plan;
+use swg_protocol::plan::{Channel, Limits, Plan};
 use swg_protocol::{endpoint, ControlMode, ControlSample, DeviceInfo, JointParams, PROTOCOL_VERSION};
 
 #[derive(Debug, thiserror::Error)]
@@ -45,6 +48,12 @@ pub enum RecordError {
     Stalled(Duration),
     #[error("the joint's last batch said \"{0}\" where the experiment had ended")]
     Unfinished(ExperimentState),
+    #[error("the default plan needs {0}")]
+    PlanNeeds(&'static str),
+    #[error("--amplitude must be a deflection > 0 rad, found {0}")]
+    Amplitude(f64),
+    #[error("--params: the model cannot be evaluated: {0}")]
+    Params(model_core::Error),
 }
 
 /// The joint the QEMU board controls in lockstep.
@@ -103,6 +112,60 @@ impl SimulatedJoint {
     fn clamp() -> Environment {
         Environment { inertia: 0.05, damping: 0.0, kind: EnvironmentKind::Spring { stiffness: 2.0e5, damping: 50.0 } }
     }
+}
+
+/// What the user asked of the default plan; `None` is left to the set.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlanRequest {
+    /// The largest deflection amplitude A, rad.
+    pub amplitude: Option<f64>,
+    /// The slow frequency f, Hz.
+    pub frequency_hz: f64,
+    pub torque_limit: Option<f64>,
+    pub deflection_limit: Option<f64>,
+}
+
+/// The default plan in deflection at A (or 80 % of `model`'s identified range), within the
+/// limits asked (or 1.5·A, and 1.5× the model's largest torque within ±1.5·A).
+pub fn default_plan(asked: &PlanRequest, model: Option<&GearModel<f64>>) -> Result<PlanSpec, RecordError> {
+    let amplitude = match (asked.amplitude, model) {
+        (Some(amplitude), _) => amplitude,
+        (None, Some(model)) if model.spring.range[1] < model_core::spring::UNBOUNDED_RANGE => {
+            0.8 * model.spring.range[0].abs().min(model.spring.range[1])
+        }
+        (None, Some(_)) => {
+            return Err(RecordError::PlanNeeds(
+                "--amplitude: the --params set was not fitted on a recording, so it has no identified range",
+            ))
+        }
+        (None, None) => {
+            return Err(RecordError::PlanNeeds("--amplitude (or --params, whose identified range sets it)"))
+        }
+    };
+    if !(amplitude.is_finite() && amplitude > 0.0) {
+        return Err(RecordError::Amplitude(amplitude));
+    }
+    let deflection_limit = asked.deflection_limit.unwrap_or(1.5 * amplitude);
+    let torque_limit = match (asked.torque_limit, model) {
+        (Some(limit), _) => limit,
+        (None, Some(model)) => 1.5 * peak_torque(model, 1.5 * amplitude)?,
+        (None, None) => return Err(RecordError::PlanNeeds("--torque-limit (or --params, whose model sets it)")),
+    };
+    let limits = Limits { torque_nm: torque_limit as f32, deflection_rad: deflection_limit as f32 };
+    Ok(PlanSpec::default_plan(Channel::Deflection, amplitude, asked.frequency_hz, limits))
+}
+
+/// The model's largest |torque| on the way from rest to ±`reach`, N·m.
+fn peak_torque(model: &GearModel<f64>, reach: f64) -> Result<f64, RecordError> {
+    let mut peak = 0.0f64;
+    for side in [1.0, -1.0] {
+        let mut evaluator = model.evaluator(0.0).map_err(RecordError::Params)?;
+        for k in 0..=100 {
+            let at = evaluator.step(side * reach * f64::from(k) / 100.0).map_err(RecordError::Params)?;
+            peak = peak.max(at.torque.abs());
+        }
+    }
+    Ok(peak)
 }
 
 /// What to record.
@@ -390,10 +453,8 @@ struct Lockstep {
     plant_params: PlantParams,
     noise: Normal<f64>,
     rng: rand_chacha::ChaCha8Rng,
-    offset: f64,
+    joint: SimulatedJoint,
     temperature: f64,
-    thermal: (f64, f64, f64, f64),
-    command: f64,
 }
 
 impl Lockstep {
@@ -413,17 +474,15 @@ impl Lockstep {
             plant_params,
             noise,
             rng: rand_chacha::ChaCha8Rng::seed_from_u64(joint.seed),
-            offset: joint.torque_offset_nm,
+            joint: joint.clone(),
             temperature: joint.ambient_c,
-            thermal: (joint.ambient_c, joint.loss_w_per_nm2, joint.kelvin_per_w, joint.thermal_seconds),
-            command: 0.0,
         })
     }
 
     /// One control tick: the readings to the joint, its command held for `period`.
     fn tick(&mut self, link: &mut Link, period: f64) -> Result<(), RecordError> {
         let (input_angle, output_angle) = self.plant.encoders();
-        let torque = self.plant.state().torque + self.offset + self.noise.sample(&mut self.rng);
+        let torque = self.plant.state().torque + self.joint.torque_offset_nm + self.noise.sample(&mut self.rng);
         let sample = ControlSample {
             input_angle: input_angle as f32,
             output_angle: output_angle as f32,
@@ -431,11 +490,11 @@ impl Lockstep {
             torque: torque as f32,
             temperature: Some(self.temperature as f32),
         };
-        self.command = f64::from(link.call::<endpoint::Control>(&sample)?.command);
-        self.plant.advance(self.command, period)?;
-        let (ambient, loss, resistance, tau) = self.thermal;
-        let target = ambient + resistance * loss * self.command * self.command;
-        self.temperature += (target - self.temperature) * (period / tau).min(1.0);
+        let command = f64::from(link.call::<endpoint::Control>(&sample)?.command);
+        self.plant.advance(command, period)?;
+        let joint = &self.joint;
+        let target = joint.ambient_c + joint.kelvin_per_w * joint.loss_w_per_nm2 * command * command;
+        self.temperature += (target - self.temperature) * (period / joint.thermal_seconds).min(1.0);
         Ok(())
     }
 }
@@ -488,6 +547,23 @@ mod tests {
         collector.take(batch(0, 0, 5, 0, ExperimentState::Stopped(StopReason::LinkLost)));
         let Err(RecordError::Stopped { reason, samples, .. }) = collector.finish(100, false) else { panic!() };
         assert_eq!((reason, samples), (StopReason::LinkLost, 5));
+    }
+
+    #[test]
+    fn the_default_plan_takes_what_is_asked_and_says_what_it_lacks() {
+        let asked = PlanRequest { amplitude: None, frequency_hz: 0.5, torque_limit: None, deflection_limit: None };
+        assert!(matches!(default_plan(&asked, None), Err(RecordError::PlanNeeds(m)) if m.starts_with("--amplitude")));
+        let negative = PlanRequest { amplitude: Some(-1.0e-3), ..asked };
+        assert!(matches!(default_plan(&negative, None), Err(RecordError::Amplitude(a)) if a == -1.0e-3));
+        let no_torque = PlanRequest { amplitude: Some(1.0e-3), ..asked };
+        assert!(matches!(default_plan(&no_torque, None), Err(RecordError::PlanNeeds(m)) if m.starts_with("--torque")));
+        let spec = default_plan(&PlanRequest { torque_limit: Some(30.0), ..no_torque }, None).unwrap();
+        assert_eq!((spec.limits.torque_nm, spec.limits.deflection_rad), (30.0, 1.5e-3));
+        // From the seed set: 1.5× its largest torque within ±1.5 mrad.
+        let seed = GearModel::paper(model_core::checks::SEED_TABLE_FIT);
+        let spec = default_plan(&no_torque, Some(&seed)).unwrap();
+        let peak = peak_torque(&seed, 1.5e-3).unwrap();
+        assert!(peak > 10.0 && (f64::from(spec.limits.torque_nm) - 1.5 * peak).abs() < 1e-3 * peak);
     }
 
     #[test]
